@@ -1,0 +1,67 @@
+"""Cartesian stiffness at the TCP (Eq. 1-3) and its direct identification from TCP data (Eq. 15).
+
+Frames: the wrench W = [F, T] acts at the TCP (force in N, moment about the TCP in Nm) in base
+axes; the deflection dX = [dx, dy, dz (m), rotation vector (rad)] is the TCP's, in base axes. Then
+W = K dX (Eq. 1) with K = C^-1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .measurements import Dataset
+from .model import StiffnessModel
+from .robot import BODIES
+from .spatial import transform, transport_wrench
+
+TCP = BODIES.index("TCP")
+UNIT = 1.0  # N or Nm per probe: small enough that the composed chain is linear to 1e-9
+
+
+def tcp_compliance(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
+    """The 6x6 compliance C (dX = C W) at the TCP for joint angles ``q_deg`` (deg).
+
+    Evaluated by probing the model with a unit force or moment along each base axis, so it holds
+    for any model that is linear in the load (for nonlinear effects it is the secant at 1 N).
+    """
+    q_deg = np.asarray(q_deg, dtype=float).reshape(6)
+    robot = model.robot
+    F = robot.frames(np.radians(q_deg)[None])[0]
+    T_sensor = robot.sensor_pose(F[None])[0]
+    T_tcp_base_axes = transform(np.eye(3), F[7, :3, 3])
+    W_tcp = np.eye(6) * UNIT
+    W_sensor = transport_wrench(W_tcp, T_tcp_base_axes[None], T_sensor[None])
+    data = Dataset(np.arange(6.0), np.array(["probe"] * 6), np.tile(q_deg, (6, 1)), W_sensor,
+                   np.full(6, TCP), np.zeros((6, 6)))
+    dX = model.predict(data)
+    dX[:, :3] /= 1000.0
+    dX[:, 3:] = np.radians(dX[:, 3:])
+    return dX.T / UNIT
+
+
+def tcp_stiffness(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
+    """The Cartesian stiffness K = C^-1 at the TCP (N/m, N/rad, Nm/m, Nm/rad blocks)."""
+    return np.linalg.inv(tcp_compliance(model, q_deg))
+
+
+def tcp_wrench_and_deflection(data: Dataset, model_robot) -> tuple[np.ndarray, np.ndarray]:
+    """TCP rows of a campaign as (W at the TCP in base axes, dX in SI), for Eq. 15."""
+    rows = data.subset(data.body == TCP)
+    F = model_robot.frames(np.radians(rows.q_deg))
+    T_sensor = model_robot.sensor_pose(F)
+    T_tcp = transform(np.eye(3)[None].repeat(len(rows), 0), F[:, 7, :3, 3])
+    W = transport_wrench(rows.wrench, T_sensor, T_tcp)
+    dX = np.concatenate([rows.deflection[:, :3] / 1000.0, np.radians(rows.deflection[:, 3:])], axis=1)
+    return W, dX
+
+
+def identify_cartesian(W: np.ndarray, dX: np.ndarray) -> np.ndarray:
+    """Eq. 15: K^T = (sum dX dX^T)^-1 (sum dX W^T), the least-squares K with W = K dX.
+
+    Needs readings that excite all six directions of dX; raises ValueError if they do not.
+    """
+    M = dX.T @ dX
+    if np.linalg.matrix_rank(M) < 6:
+        raise ValueError("the deflections do not span six directions: K cannot be identified "
+                         "(load the TCP along more axes)")
+    return np.linalg.solve(M, dX.T @ W).T

@@ -1,0 +1,79 @@
+"""The linear joint spring (the paper's 36-parameter model) and its off-axis augmentation.
+
+Equation (Eq. 1, 4, 5): joint i's spring sits in DH frame i-1 (origin on joint i's axis); its twist
+
+    delta_i = [x, y, z, rx, ry, rz] = C_i W_i,    C_i = diag(c_x, c_y, c_z, c_rx, c_ry, c_rz)
+
+with W_i the external wrench about frame i-1's origin in frame i-1's axes (Eq. 4, unloaded
+geometry). Units: c_x, c_y, c_z in m/N; c_rx, c_ry, c_rz in rad/Nm. rz is the axial compliance of
+the joint (its gearbox and drive); the others are the bearings' tilt and translational compliance.
+
+`joint_spring` may hold any subset of the six components (``rz`` alone is the classic axial joint
+stiffness model). `joint_6dof` is the library effect that adds the five off-axis components to a
+joint that has only the axial one.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..context import Context
+from ..errors import ConfigError
+from .base import Effect, Param, read_location, read_values
+
+COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def spring_param(component: str) -> Param:
+    if component in ("x", "y", "z"):
+        return Param(f"{component}_m_per_N", "m/N", 1e-9)
+    return Param(f"{component}_rad_per_Nm", "rad/Nm", 1e-7)
+
+
+class JointSpring(Effect):
+    name = "joint_spring"
+    equation = "delta_i = C_i W_i  (Eq. 1, 5); C_i diagonal, in DH frame i-1"
+    default_components: tuple[str, ...] = ("rz",)
+
+    def __init__(self, joint: int, components: tuple[str, ...], theta: np.ndarray | None = None):
+        self.components = tuple(c for c in COMPONENTS if c in components)
+        params = [spring_param(c) for c in self.components]
+        super().__init__(params, np.zeros(len(params)) if theta is None else theta, joint)
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "JointSpring":
+        joint = read_location(section, "joint", cls.joints, where)
+        allowed = cls.allowed_components()
+        keys = {spring_param(c).key: c for c in allowed}
+        comps = tuple(keys[k] for k in section if k in keys) or cls.default_components
+        params = [spring_param(c) for c in COMPONENTS if c in comps]
+        theta = read_values(cls.name, section, [spring_param(c) for c in allowed], where, ("joint",))
+        if not params:
+            raise ConfigError(f"{where}: a {cls.name} needs at least one of {', '.join(keys)}")
+        sel = [allowed.index(c) for c in COMPONENTS if c in comps]
+        return cls(joint, comps, theta[sel])
+
+    @classmethod
+    def allowed_components(cls) -> tuple[str, ...]:
+        return COMPONENTS
+
+    def basis(self, ctx: Context, W: np.ndarray) -> np.ndarray:
+        B = self.zeros(ctx, len(self.components))
+        site = self.joint - 1
+        for p, c in enumerate(self.components):
+            k = COMPONENTS.index(c)
+            B[:, p, site, k] = W[:, site, k]
+        return B
+
+
+class Joint6Dof(JointSpring):
+    name = "joint_6dof"
+    equation = ("delta_i += diag(c_x, c_y, c_z, c_rx, c_ry, 0) W_i  (Eq. 5): the off-axis and "
+                "translational springs of joint i added to its axial spring")
+    default_components = ("x", "y", "z", "rx", "ry")
+
+    @classmethod
+    def allowed_components(cls) -> tuple[str, ...]:
+        return ("x", "y", "z", "rx", "ry")

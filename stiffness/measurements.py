@@ -1,0 +1,220 @@
+"""The measurement format: one row per measured body per reading (docs/measurement_format.md).
+
+A reading is one load state at one configuration at one time: the joint angles, the wrench the sensor
+measured (bias removed; force in N, moment about the sensor origin in Nm, sensor axes) and, for each
+measured body, its deflection: loaded minus unloaded position in base axes (mm) and the rotation
+vector log(R_loaded R_unloaded^T) in base axes (deg).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataError
+from .robot import BODIES, Robot
+
+Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
+WRENCH_COLS = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
+DEFLECTION_COLS = ("dx_mm", "dy_mm", "dz_mm", "rx_deg", "ry_deg", "rz_deg")
+COLUMNS = ("time_s", "config", *Q_COLS, *WRENCH_COLS, "body", *DEFLECTION_COLS)
+NUMERIC_COLS = ("time_s", *Q_COLS, *WRENCH_COLS, *DEFLECTION_COLS)
+COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
+
+
+@dataclass
+class Dataset:
+    """A measurement campaign held as column arrays, one entry per row of the file.
+
+    Attributes
+    ----------
+    time_s : (N,) seconds, in the order the readings were taken
+    config : (N,) configuration labels
+    q_deg : (N, 6) joint angles, deg
+    wrench : (N, 6) sensor wrench [fx, fy, fz (N), mx, my, mz (Nm)] in sensor axes
+    body : (N,) body index, 0..5 for A1..A6 and 6 for the TCP
+    deflection : (N, 6) [dx, dy, dz (mm), rx, ry, rz (deg)] in base axes
+    line : (N,) the file line (or parquet row + 2) each row came from
+    """
+
+    time_s: np.ndarray
+    config: np.ndarray
+    q_deg: np.ndarray
+    wrench: np.ndarray
+    body: np.ndarray
+    deflection: np.ndarray
+    line: np.ndarray | None = None
+    source: str = "<memory>"
+    ignored_columns: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        n = len(self.time_s)
+        self.config = np.asarray(self.config).astype(str)
+        self.body = np.asarray(self.body, dtype=int)
+        if self.line is None:
+            self.line = np.arange(n) + 2
+        for name in ("config", "q_deg", "wrench", "body", "deflection", "line"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"Dataset.{name} has {len(getattr(self, name))} rows, expected {n}")
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    def subset(self, mask: np.ndarray) -> "Dataset":
+        """The rows where ``mask`` (boolean or index array) selects."""
+        return Dataset(
+            self.time_s[mask], self.config[mask], self.q_deg[mask], self.wrench[mask], self.body[mask],
+            self.deflection[mask], self.line[mask], self.source, list(self.ignored_columns),
+        )
+
+    @property
+    def configs(self) -> list[str]:
+        """Configuration labels in order of first appearance."""
+        _, first = np.unique(self.config, return_index=True)
+        return [str(self.config[i]) for i in sorted(first)]
+
+    def readings(self) -> tuple[np.ndarray, np.ndarray]:
+        """Group rows into readings (same config, time, joint angles and wrench).
+
+        Returns ``(first_row, reading_of_row)``: the index of one row per reading, and for each row
+        the index of its reading.
+        """
+        key = np.concatenate(
+            [np.unique(self.config, return_inverse=True)[1][:, None].astype(float),
+             self.time_s[:, None], self.q_deg, self.wrench], axis=1)
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        return first, inverse.reshape(-1)
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write the dataset in the measurement format."""
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(COLUMNS)
+            for i in range(len(self)):
+                w.writerow([
+                    _fmt(self.time_s[i], 4), self.config[i],
+                    *(_fmt(v, 6) for v in self.q_deg[i]),
+                    *(_fmt(v, 4) for v in self.wrench[i]),
+                    BODIES[self.body[i]],
+                    *(_fmt(v, 6) for v in self.deflection[i, :3]),
+                    *(_fmt(v, 7) for v in self.deflection[i, 3:]),
+                ])
+
+
+def _fmt(v: float, digits: int) -> str:
+    return f"{v:.{digits}f}".rstrip("0").rstrip(".") if math.isfinite(v) else repr(v)
+
+
+def read_measurements(path: str | Path, robot: Robot | None = None) -> Dataset:
+    """Read and validate a campaign from CSV (or Parquet, with pyarrow installed).
+
+    Every row is checked: missing columns, non-numeric values, NaN or inf, unknown bodies and,
+    given a robot, joint angles outside its limits. All problems are collected and raised together
+    as one DataError naming each line; nothing is dropped silently.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: measurement file not found")
+    if path.suffix.lower() in (".parquet", ".pq"):
+        header, rows, lines = _parquet_rows(path)
+    else:
+        header, rows, lines = _csv_rows(path)
+    return _validate(path, header, rows, lines, robot)
+
+
+def _csv_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
+    try:
+        fh = open(path, newline="")
+    except OSError as e:
+        raise DataError(f"{path}: cannot read: {e.strerror or e}") from e
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise DataError(f"{path}: the file is empty; expected a header row") from None
+        except (csv.Error, UnicodeDecodeError) as e:
+            raise DataError(f"{path}: line 1: cannot parse the header: {e}") from e
+        rows, lines = [], []
+        try:
+            for row in reader:
+                if not row or all(not c.strip() for c in row):
+                    continue  # blank line: holds no data
+                rows.append(row)
+                lines.append(reader.line_num)
+        except (csv.Error, UnicodeDecodeError) as e:
+            raise DataError(f"{path}: line {reader.line_num}: cannot parse: {e}") from e
+    return [h.strip() for h in header], rows, lines
+
+
+def _parquet_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
+    try:
+        import pyarrow.parquet as pq
+    except ImportError as e:
+        raise DataError(f"{path}: reading Parquet needs pyarrow (pip install 'stiffcomp[parquet]')") from e
+    try:
+        table = pq.read_table(path)
+    except Exception as e:  # pyarrow raises several unrelated types for corrupt files
+        raise DataError(f"{path}: cannot read Parquet: {e}") from e
+    header = list(table.column_names)
+    cols = [table.column(c).to_pylist() for c in header]
+    rows = [["" if v is None else str(v) for v in r] for r in zip(*cols)]
+    return header, rows, [i + 2 for i in range(len(rows))]
+
+
+def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[int],
+              robot: Robot | None) -> Dataset:
+    missing = [c for c in COLUMNS if c not in header]
+    if missing:
+        raise DataError(f"{path}: line 1: missing column(s) {', '.join(missing)}; "
+                        f"the format needs {', '.join(COLUMNS)}")
+    dup = sorted({c for c in header if header.count(c) > 1})
+    if dup:
+        raise DataError(f"{path}: line 1: column(s) {', '.join(dup)} appear more than once")
+    idx = {c: header.index(c) for c in COLUMNS}
+    problems: list[str] = []
+    n = len(rows)
+    num = np.full((n, len(NUMERIC_COLS)), np.nan)
+    config = np.empty(n, dtype=object)
+    body = np.full(n, -1)
+    body_index = {b: i for i, b in enumerate(BODIES)}
+    for r, (row, line) in enumerate(zip(rows, lines)):
+        if len(row) != len(header):
+            problems.append(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
+            continue
+        for k, c in enumerate(NUMERIC_COLS):
+            text = row[idx[c]].strip()
+            try:
+                v = float(text)
+            except ValueError:
+                problems.append(f"{path}: line {line}: {c} = {text!r} is not a number")
+                continue
+            if not math.isfinite(v):
+                problems.append(f"{path}: line {line}: {c} = {text!r} is not finite")
+            num[r, k] = v
+        config[r] = row[idx["config"]].strip()
+        if not config[r]:
+            problems.append(f"{path}: line {line}: config is empty")
+        b = row[idx["body"]].strip()
+        if b not in body_index:
+            problems.append(f"{path}: line {line}: body = {b!r} is not one of {', '.join(BODIES)}")
+        else:
+            body[r] = body_index[b]
+    q = num[:, 1:7]
+    if robot is not None:
+        ok = robot.within_limits(np.nan_to_num(q))
+        for r, j in zip(*np.nonzero(~ok)):
+            lo, hi = robot.limits_deg[j]
+            problems.append(f"{path}: line {lines[r]}: q{j + 1}_deg = {q[r, j]:g} is outside the joint "
+                            f"limits [{lo:g}, {hi:g}] of {robot.source}")
+    if problems:
+        raise DataError(f"{path}: {len(problems)} problem(s) in {n} rows; nothing was loaded", problems)
+    if n == 0:
+        raise DataError(f"{path}: no data rows after the header")
+    extra = [c for c in header if c not in COLUMNS]
+    return Dataset(num[:, 0], config.astype(str), q, num[:, 7:13], body, num[:, 13:19],
+                   np.asarray(lines), str(path), extra)

@@ -1,0 +1,222 @@
+"""A stiffness model: a robot plus a list of effects, read from and written to plain YAML.
+
+Prediction (Eq. 5-7): the external wrench is transported to every DH frame with the unloaded
+geometry (Eq. 4); each effect contributes twists at the sites of `stiffness.context`; the loaded chain
+
+    0T'_k = prod_{s<k} [ E(delta_spring_s) T(s, s+1)(q) E(delta_tip_{s+1}) ]
+
+is compared with the unloaded one. A body's deflection is its loaded position minus its unloaded
+position in base axes (mm) and log(R'_k R_k^T) in base axes (deg).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .context import DEG, MM, Context
+from .effects import EFFECTS, Effect
+from .effects.joint_spring import JointSpring
+from .errors import ConfigError
+from .measurements import Dataset
+from .robot import Robot, load_robot
+from .spatial import log_so3, twist_transform
+from .yamlio import read_yaml
+
+TOP_KEYS = {"name", "description", "robot", "noise", "effects"}
+DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
+
+
+class StiffnessModel:
+    """A robot and its effects.
+
+    Parameters
+    ----------
+    robot : Robot
+    effects : list of Effect
+    name, description : str
+    robot_ref : str
+        The robot file as written in the YAML (kept when the model is saved).
+    noise : dict
+        Expected measurement noise, ``position_mm`` and ``rotation_deg`` (weights of the fit).
+    """
+
+    def __init__(self, robot: Robot, effects: list[Effect], name: str = "model", description: str = "",
+                 robot_ref: str | None = None, noise: dict[str, float] | None = None,
+                 source: str = "<model>"):
+        self.robot = robot
+        self.effects = list(effects)
+        self.name = name
+        self.description = description
+        self.robot_ref = robot_ref
+        self.noise = dict(DEFAULT_NOISE | (noise or {}))
+        self.source = source
+        self.check()
+
+    # -- YAML -----------------------------------------------------------------------------------
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "StiffnessModel":
+        path = Path(path)
+        if not path.exists():
+            raise ConfigError(f"{path}: model file not found")
+        data = read_yaml(path)
+        return cls.from_dict(data, source=str(path), base_dir=path.parent)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "<model>", base_dir: Path | None = None,
+                  robot: Robot | None = None) -> "StiffnessModel":
+        unknown = sorted(set(data) - TOP_KEYS)
+        if unknown:
+            raise ConfigError(f"{source}: {unknown[0]} is not a known key (known: {', '.join(sorted(TOP_KEYS))})")
+        robot_ref = data.get("robot")
+        if robot is None:
+            if not isinstance(robot_ref, str):
+                raise ConfigError(f"{source}: robot = {robot_ref!r}: must name a robot YAML file "
+                                  "(a path relative to the model file)")
+            robot_path = (base_dir or Path(".")) / robot_ref
+            if not robot_path.exists():
+                raise ConfigError(f"{source}: robot = {robot_ref!r}: file {robot_path} not found")
+            robot = load_robot(robot_path)
+        noise = data.get("noise") or {}
+        if not isinstance(noise, dict) or set(noise) - set(DEFAULT_NOISE):
+            raise ConfigError(f"{source}: noise must be a mapping with keys {', '.join(DEFAULT_NOISE)}")
+        for k, v in noise.items():
+            if not isinstance(v, (int, float)) or not v > 0:
+                raise ConfigError(f"{source}: noise.{k} = {v!r} must be a number > 0")
+        entries = data.get("effects")
+        if not isinstance(entries, list) or not entries:
+            raise ConfigError(f"{source}: effects must be a non-empty list of effect entries")
+        effects = []
+        for k, entry in enumerate(entries):
+            where = f"{source}: effects[{k}]"
+            if not isinstance(entry, dict) or "effect" not in entry:
+                raise ConfigError(f"{where}: each entry needs 'effect: NAME' "
+                                  f"(one of {', '.join(sorted(EFFECTS))})")
+            name = entry["effect"]
+            if name not in EFFECTS:
+                raise ConfigError(f"{where}: effect = {name!r} is not in the library "
+                                  f"(one of {', '.join(sorted(EFFECTS))})")
+            effects.append(EFFECTS[name].from_config(entry, robot, where))
+        return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),
+                   robot_ref, noise, source)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"name": self.name}
+        if self.description:
+            out["description"] = self.description
+        out["robot"] = self.robot_ref
+        out["noise"] = {k: float(v) for k, v in self.noise.items()}
+        effects = []
+        for e in self.effects:
+            entry = e.to_config()
+            if np.isfinite(e.std_error).any():
+                entry["fit"] = {f"{p.key}_std_error": float(f"{s * p.yaml_factor:.3g}")
+                                for p, s in zip(e.params, e.std_error) if np.isfinite(s)}
+            effects.append(entry)
+        out["effects"] = effects
+        return out
+
+    def to_yaml(self, path: str | Path, header: str = "") -> None:
+        text = yaml.safe_dump(self.to_dict(), sort_keys=False, width=110)
+        Path(path).write_text((header + "\n" if header else "") + text)
+
+    def copy(self) -> "StiffnessModel":
+        return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)
+
+    def check(self) -> None:
+        """Reject the same effect twice at one place, or a spring component given twice."""
+        seen: set[tuple[str, Any]] = set()
+        comps: set[tuple[int, str]] = set()
+        for e in self.effects:
+            if isinstance(e, JointSpring):
+                for c in e.components:
+                    if (e.joint, c) in comps:
+                        raise ConfigError(f"{self.source}: joint {e.joint}'s spring component {c} is given twice")
+                    comps.add((e.joint, c))
+                continue
+            key = (e.name, e.joint)
+            if key in seen:
+                raise ConfigError(f"{self.source}: effect {e.label} appears twice")
+            seen.add(key)
+
+    # -- parameters -----------------------------------------------------------------------------
+    @property
+    def theta(self) -> np.ndarray:
+        return np.concatenate([e.theta for e in self.effects]) if self.effects else np.zeros(0)
+
+    @theta.setter
+    def theta(self, value: np.ndarray) -> None:
+        k = 0
+        for e in self.effects:
+            n = len(e.params)
+            e.theta = np.array(value[k:k + n], dtype=float)
+            k += n
+
+    def param_slices(self) -> list[slice]:
+        out, k = [], 0
+        for e in self.effects:
+            out.append(slice(k, k + len(e.params)))
+            k += len(e.params)
+        return out
+
+    def param_labels(self) -> list[str]:
+        return [f"{e.label}.{p.key}" for e in self.effects for p in e.params]
+
+    def has(self, name: str, joint: int | None = None) -> bool:
+        return any(e.name == name and (joint is None or e.joint == joint) for e in self.effects)
+
+    # -- evaluation -----------------------------------------------------------------------------
+    def context(self, data: Dataset) -> Context:
+        return Context(self.robot, data)
+
+    def frame_wrenches(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
+        """Wrenches at DH frames 0..6 after the input effects (R, 7, 6)."""
+        theta = self.theta if theta is None else theta
+        w = ctx.wrench_sensor
+        changed = False
+        for e, sl in zip(self.effects, self.param_slices()):
+            if e.kind == "input":
+                w = e.wrench(ctx, theta[sl], w)
+                changed = True
+        return ctx.wrenches_at_frames(w) if changed else ctx.frame_wrench
+
+    def twists(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
+        """Total site twists (R, 12, 6) in m, rad."""
+        theta = self.theta if theta is None else theta
+        W = self.frame_wrenches(ctx, theta)
+        tw = np.zeros((ctx.n_readings, 12, 6))
+        for e, sl in zip(self.effects, self.param_slices()):
+            if e.kind == "site":
+                tw += e.twists(ctx, theta[sl], W)
+        return tw
+
+    def predict(self, data: Dataset | Context, theta: np.ndarray | None = None,
+                linear: bool = False) -> np.ndarray:
+        """Predicted deflection of every row, (N, 6) in [mm, mm, mm, deg, deg, deg]."""
+        ctx = data if isinstance(data, Context) else self.context(data)
+        tw = self.twists(ctx, theta)
+        if linear:
+            return np.einsum("nsab,nsb->na", ctx.G, tw[ctx.row_reading])
+        return loaded_deflection(ctx, tw)
+
+
+def loaded_deflection(ctx: Context, tw: np.ndarray) -> np.ndarray:
+    """Compose the loaded chain from site twists (R, 12, 6) and return row deflections (N, 6)."""
+    R = ctx.n_readings
+    E_spring = twist_transform(tw[:, :6])
+    tip = tw[:, 6:]
+    E_tip = twist_transform(tip) if np.any(tip) else None
+    Fp = np.empty((R, 8, 4, 4))
+    Fp[:, 0] = np.eye(4)
+    for s in range(1, 7):
+        T = Fp[:, s - 1] @ E_spring[:, s - 1] @ ctx.A[:, s - 1]
+        Fp[:, s] = T if E_tip is None else T @ E_tip[:, s - 1]
+    Fp[:, 7] = Fp[:, 6] @ ctx.robot.T_flange_tcp
+    F = ctx.F
+    dp = (Fp[:, 1:, :3, 3] - F[:, 1:, :3, 3]) * MM                         # (R, 7, 3)
+    dr = log_so3(Fp[:, 1:, :3, :3] @ np.swapaxes(F[:, 1:, :3, :3], -1, -2)) * DEG
+    per_reading = np.concatenate([dp, dr], axis=-1)                         # (R, 7, 6)
+    return per_reading[ctx.row_reading, ctx.body]

@@ -1,0 +1,197 @@
+"""The robot: a standard DH table, joint limits, the F/T sensor frame and the TCP, read from YAML.
+
+Kinematics are built with pinocchio from the DH table (`Robot.pin_model`). For whole measurement
+campaigns the same chain is evaluated batched in NumPy (`Robot.frames`), and the tests check the two
+agree.
+
+Frames: 0 is the base, i = 1..6 the DH frames after joint i, 6 the flange. DH convention:
+    T(i-1, i) = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i),   theta_i = q_i + offset_i
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from .errors import ConfigError
+from .spatial import rpy_matrix, transform
+from .yamlio import read_yaml, validate
+
+N_JOINTS = 6
+BODIES = ("A1", "A2", "A3", "A4", "A5", "A6", "TCP")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+def _six(v: list[float]) -> list[float]:
+    if len(v) != N_JOINTS:
+        raise ValueError(f"needs {N_JOINTS} values, one per joint (got {len(v)})")
+    return v
+
+
+class DHConfig(_Strict):
+    a_mm: list[float]
+    alpha_deg: list[float]
+    d_mm: list[float]
+    offset_deg: list[float] = Field(default_factory=lambda: [0.0] * N_JOINTS)
+
+    _check = field_validator("a_mm", "alpha_deg", "d_mm", "offset_deg")(_six)
+
+
+class PoseConfig(_Strict):
+    xyz_mm: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
+    rpy_deg: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
+
+    def matrix(self) -> np.ndarray:
+        return transform(rpy_matrix(np.radians(self.rpy_deg)), np.array(self.xyz_mm) / 1000.0)
+
+
+class SensorConfig(PoseConfig):
+    frame: int = Field(6, ge=0, le=6, description="DH frame the sensor is mounted on")
+
+
+class RobotConfig(_Strict):
+    name: str = "robot"
+    dh: DHConfig
+    joint_limits_deg: list[tuple[float, float]]
+    sensor: SensorConfig = Field(default_factory=SensorConfig)
+    tcp: PoseConfig = Field(default_factory=lambda: PoseConfig(xyz_mm=[0.0, 0.0, 250.0]))
+
+    @field_validator("joint_limits_deg")
+    @classmethod
+    def _limits(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        _six(v)
+        for i, (lo, hi) in enumerate(v):
+            if not lo < hi:
+                raise ValueError(f"joint {i + 1}: min {lo} must be below max {hi}")
+        return v
+
+
+class Robot:
+    """A 6R serial robot from a DH table, with its sensor frame and TCP.
+
+    Parameters
+    ----------
+    config : RobotConfig
+        The validated robot description.
+    source : str
+        Where the config came from, for error messages.
+    """
+
+    def __init__(self, config: RobotConfig, source: str = "<robot>"):
+        self.config = config
+        self.source = source
+        self.name = config.name
+        self.a = np.array(config.dh.a_mm) / 1000.0
+        self.alpha = np.radians(config.dh.alpha_deg)
+        self.d = np.array(config.dh.d_mm) / 1000.0
+        self.offset = np.radians(config.dh.offset_deg)
+        self.limits_deg = np.array(config.joint_limits_deg, dtype=float)
+        self.sensor_frame = config.sensor.frame
+        self.T_frame_sensor = config.sensor.matrix()
+        self.T_flange_tcp = config.tcp.matrix()
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "Robot":
+        data = read_yaml(path)
+        return cls(validate(RobotConfig, data, str(path)), str(path))
+
+    # -- batched kinematics -------------------------------------------------------------------
+    def dh_transforms(self, q: np.ndarray) -> np.ndarray:
+        """T(i-1, i) for each joint: (N, 6) joint angles in rad -> (N, 6, 4, 4)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        th = q + self.offset
+        ct, st = np.cos(th), np.sin(th)
+        ca, sa = np.cos(self.alpha), np.sin(self.alpha)
+        A = np.zeros(q.shape + (4, 4))
+        A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca, st * sa, self.a * ct
+        A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca, -ct * sa, self.a * st
+        A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, self.d
+        A[..., 3, 3] = 1.0
+        return A
+
+    def frames(self, q: np.ndarray) -> np.ndarray:
+        """Base poses of DH frames 0..6 and the TCP: (N, 6) rad -> (N, 8, 4, 4); index 7 is the TCP."""
+        A = self.dh_transforms(q)
+        n = A.shape[0]
+        F = np.empty((n, 8, 4, 4))
+        F[:, 0] = np.eye(4)
+        for i in range(N_JOINTS):
+            F[:, i + 1] = F[:, i] @ A[:, i]
+        F[:, 7] = F[:, 6] @ self.T_flange_tcp
+        return F
+
+    def sensor_pose(self, F: np.ndarray) -> np.ndarray:
+        """Base pose of the F/T sensor from the frames returned by `frames`."""
+        return F[:, self.sensor_frame] @ self.T_frame_sensor
+
+    def within_limits(self, q_deg: np.ndarray) -> np.ndarray:
+        """Boolean mask (N, 6): True where the joint angle lies inside its limits."""
+        q_deg = np.atleast_2d(q_deg)
+        return (q_deg >= self.limits_deg[:, 0]) & (q_deg <= self.limits_deg[:, 1])
+
+    # -- pinocchio ----------------------------------------------------------------------------
+    @cached_property
+    def pin_model(self):
+        """A pinocchio model of the chain with operational frames A1..A6, 'sensor' and 'TCP'.
+
+        Joint i's frame is DH frame i-1 turned by Rz(offset_i + q_i); frame A_i is joint i's frame
+        moved by Tz(d_i) Tx(a_i) Rx(alpha_i).
+        """
+        import pinocchio as pin
+
+        model = pin.Model()
+        model.name = self.name
+        parent = 0
+        tail = np.eye(4)  # from the previous joint's frame to DH frame i-1
+        for i in range(N_JOINTS):
+            rz_off = _rz(self.offset[i])
+            placement = pin.SE3(tail @ rz_off)
+            parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
+            model.lowerPositionLimit[i] = np.radians(self.limits_deg[i, 0])
+            model.upperPositionLimit[i] = np.radians(self.limits_deg[i, 1])
+            tail = _tz(self.d[i]) @ _tx(self.a[i]) @ _rx(self.alpha[i])
+            model.addFrame(pin.Frame(BODIES[i], parent, pin.SE3(tail), pin.FrameType.OP_FRAME))
+        flange = pin.SE3(tail)
+        model.addFrame(pin.Frame("TCP", parent, flange * pin.SE3(self.T_flange_tcp), pin.FrameType.OP_FRAME))
+        if self.sensor_frame == 0:
+            model.addFrame(pin.Frame("sensor", 0, pin.SE3(self.T_frame_sensor), pin.FrameType.OP_FRAME))
+        else:
+            j = self.sensor_frame
+            sensor = model.frames[model.getFrameId(BODIES[j - 1])].placement * pin.SE3(self.T_frame_sensor)
+            model.addFrame(pin.Frame("sensor", j, sensor, pin.FrameType.OP_FRAME))
+        return model
+
+
+def _rz(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _rx(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+
+def _tz(d: float) -> np.ndarray:
+    T = np.eye(4)
+    T[2, 3] = d
+    return T
+
+
+def _tx(a: float) -> np.ndarray:
+    T = np.eye(4)
+    T[0, 3] = a
+    return T
+
+
+def load_robot(path: str | Path) -> Robot:
+    """Read a robot YAML; ConfigError names the file and key on failure."""
+    if not Path(path).exists():
+        raise ConfigError(f"{path}: robot file not found")
+    return Robot.from_yaml(path)

@@ -1,0 +1,53 @@
+"""Loading YAML with pydantic validation and errors that name the file, key, value and allowed range."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from .errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def read_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping from ``path``; raise ConfigError naming the file on any failure."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read: {e.strerror or e}") from e
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{path}:{where} is not valid YAML: {getattr(e, 'problem', e)}") from e
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping at the top level, got {type(data).__name__}")
+    return data
+
+
+def format_validation_error(source: str, err: ValidationError, prefix: str = "") -> str:
+    """One line per problem: ``source: key.path = value: reason``."""
+    lines = []
+    for e in err.errors():
+        key = ".".join(str(p) for p in (prefix.split(".") if prefix else []) + list(e["loc"]))
+        if e["type"] == "extra_forbidden":
+            lines.append(f"{source}: {key} is not a known key")
+        elif e["type"] == "missing":
+            lines.append(f"{source}: {key} is missing")
+        else:
+            lines.append(f"{source}: {key} = {e.get('input')!r}: {e['msg']}")
+    return "\n".join(lines)
+
+
+def validate(model: type[M], data: dict[str, Any], source: str, prefix: str = "") -> M:
+    """Validate ``data`` against a pydantic model, raising ConfigError with readable lines."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(source, e, prefix)) from e

@@ -1,0 +1,39 @@
+"""Small helpers shared by the subcommands: loading with clear errors, JSON output."""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+import numpy as np
+
+from stiffness.measurements import Dataset, read_measurements
+from stiffness.model import StiffnessModel
+
+
+def load(model_path: str, data_path: str | None = None) -> tuple[StiffnessModel, Dataset | None]:
+    model = StiffnessModel.from_yaml(model_path)
+    data = read_measurements(data_path, model.robot) if data_path else None
+    if data is not None and data.ignored_columns:
+        print(f"note: {data_path}: column(s) {', '.join(data.ignored_columns)} are not part of the "
+              "format and were not used", file=sys.stderr)
+    return model, data
+
+
+def to_jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: to_jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [to_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return to_jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def print_json(obj: Any) -> None:
+    print(json.dumps(to_jsonable(obj), indent=2))

@@ -1,0 +1,96 @@
+"""`stiffcomp fit MODEL DATA -o FITTED.yaml [--json]`: identify a model's parameters."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from stiffness.effects.joint_spring import COMPONENTS, JointSpring
+from stiffness.identify import FitResult, fit
+
+from .common import load, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("fit", help="identify a model's parameters from a measurement campaign")
+    p.add_argument("model", help="model YAML (e.g. config/models/kr125_6dof.yaml)")
+    p.add_argument("data", help="measurement campaign (CSV, or Parquet with pyarrow)")
+    p.add_argument("-o", "--output", help="write the fitted model YAML here")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=run)
+
+
+def joint_stiffness(result: FitResult) -> list[dict]:
+    """Per joint, the stiffness of each spring component (N/m or Nm/rad); None where absent.
+
+    A compliance that is not positive has no finite stiffness and is reported as None too.
+    """
+    table = [{"joint": j, **{c: None for c in COMPONENTS}} for j in range(1, 7)]
+    for e in result.model.effects:
+        if isinstance(e, JointSpring):
+            for c, v in zip(e.components, e.theta):
+                table[e.joint - 1][c] = 1.0 / v if v > 0 else None
+    return table
+
+
+def summary(result: FitResult) -> dict:
+    params = []
+    for e in result.model.effects:
+        for p, v, s in zip(e.params, e.theta, e.std_error):
+            params.append({"effect": e.name, "location": e.joint, "key": p.key, "unit": p.unit,
+                           "value": v * p.yaml_factor, "std_error": s * p.yaml_factor})
+    return {
+        "rms_position_mm": result.rms_position_mm,
+        "rms_rotation_deg": result.rms_rotation_deg,
+        "joint_stiffness": joint_stiffness(result),
+        "parameters": params,
+        "undetermined": result.undetermined,
+        "noise_estimate": {"position_mm": result.sigma[0], "rotation_deg": result.sigma[3]},
+        "converged": result.converged,
+        "warnings": result.warnings,
+    }
+
+
+def run(args) -> int:
+    model, data = load(args.model, args.data)
+    result = fit(model, data)
+    if args.output:
+        header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
+                  f"{result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg")
+        result.model.robot_ref = _relative_robot(args.model, args.output, model.robot_ref)
+        result.model.to_yaml(args.output, header)
+    if args.json:
+        print_json(summary(result))
+    else:
+        print_text(result, args)
+    for w in result.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    if not result.converged:
+        print(f"warning: the fit did not converge: {result.message}", file=sys.stderr)
+    return 0
+
+
+def _relative_robot(model_path: str, out_path: str, ref: str | None) -> str | None:
+    """Keep the robot reference valid from the output file's folder."""
+    if ref is None:
+        return None
+    robot = (Path(model_path).parent / ref).resolve()
+    out_dir = Path(out_path).resolve().parent
+    try:
+        import os
+        return os.path.relpath(robot, out_dir)
+    except ValueError:
+        return str(robot)
+
+
+def print_text(result: FitResult, args) -> None:
+    print(f"fitted {args.model} to {args.data}")
+    print(f"  residual RMS: {result.rms_position_mm:.4f} mm (position), "
+          f"{result.rms_rotation_deg:.5f} deg (rotation), per component")
+    print("  joint stiffness (N/m for x, y, z; Nm/rad for rx, ry, rz; - not in the model):")
+    print("  joint " + "".join(f"{c:>12}" for c in COMPONENTS))
+    for row in joint_stiffness(result):
+        cells = "".join(f"{row[c]:12.3g}" if row[c] is not None else f"{'-':>12}" for c in COMPONENTS)
+        print(f"  {row['joint']:5d} {cells}")
+    if args.output:
+        print(f"  written: {args.output}")

@@ -1,0 +1,47 @@
+"""`stiffcomp kcart`: the Cartesian stiffness at the TCP, from a model or directly from TCP data."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
+
+from .common import load, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("kcart", help="Cartesian stiffness K (Eq. 1) at the TCP")
+    p.add_argument("model", help="model YAML")
+    p.add_argument("--q", nargs=6, type=float, metavar="Q", help="joint angles in deg")
+    p.add_argument("--data", help="identify K directly from the campaign's TCP rows, per configuration (Eq. 15)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    model, data = load(args.model, args.data)
+    out = {}
+    if args.q is not None:
+        out["model"] = {"q_deg": args.q, "K": tcp_stiffness(model, np.array(args.q))}
+    if data is not None:
+        out["identified"] = []
+        for cfg in data.configs:
+            sub = data.subset(data.config == cfg)
+            W, dX = tcp_wrench_and_deflection(sub, model.robot)
+            entry = {"config": cfg, "q_deg": sub.q_deg[0]}
+            try:
+                entry["K"] = identify_cartesian(W, dX)
+            except ValueError as e:
+                entry["error"] = str(e)
+            out["identified"].append(entry)
+    if not out:
+        raise SystemExit("stiffcomp kcart: give --q Q1..Q6, --data DATA, or both")
+    if args.json:
+        print_json(out)
+    else:
+        np.set_printoptions(precision=4, suppress=False, linewidth=140)
+        for key, val in out.items():
+            for entry in val if isinstance(val, list) else [val]:
+                print(f"{key} K at q = {np.asarray(entry['q_deg'])} deg (N/m, N/rad; Nm/m, Nm/rad):")
+                print(entry.get("K", entry.get("error")))
+    return 0
