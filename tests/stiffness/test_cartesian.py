@@ -1,0 +1,46 @@
+"""Cartesian stiffness at the TCP: W = K dX round trips, and Eq. 15 identifies K from TCP data."""
+
+import numpy as np
+
+from conftest import with_deflection
+from stiffness.cartesian import identify_cartesian, tcp_compliance, tcp_stiffness, tcp_wrench_and_deflection
+from stiffness.measurements import Dataset
+from stiffness.spatial import transform, transport_wrench
+
+Q = np.array([10.0, -75.0, 90.0, 0.0, 75.0, 0.0])
+
+
+def tcp_dataset(robot, W_tcp, q=Q):
+    """Readings that load the TCP with the wrenches W_tcp (base axes, about the TCP)."""
+    n = len(W_tcp)
+    F = robot.frames(np.radians(q)[None])
+    T_tcp = transform(np.eye(3), F[0, 7, :3, 3])
+    W_sensor = transport_wrench(W_tcp, T_tcp[None], robot.sensor_pose(F))
+    return Dataset(np.arange(n, dtype=float), np.array(["C"] * n), np.tile(q, (n, 1)), W_sensor,
+                   np.full(n, 6), np.zeros((n, 6)))
+
+
+def test_w_equals_k_dx_round_trip(robot, model6):
+    K = tcp_stiffness(model6, Q)
+    C = tcp_compliance(model6, Q)
+    np.testing.assert_allclose(K @ C, np.eye(6), atol=1e-9)
+    W = np.random.default_rng(0).normal(size=(8, 6)) * [500, 500, 500, 50, 50, 50]
+    dX = model6.predict(tcp_dataset(robot, W))
+    dX_si = np.c_[dX[:, :3] / 1000, np.radians(dX[:, 3:])]
+    np.testing.assert_allclose(dX_si @ K.T, W, rtol=1e-4, atol=1e-3 * np.abs(W).max())
+
+
+def test_compliance_is_symmetric_for_springs(model6):
+    """Conservative springs give a symmetric compliance (Maxwell-Betti)."""
+    C = tcp_compliance(model6, Q)
+    np.testing.assert_allclose(C, C.T, atol=1e-6 * np.abs(C).max())
+
+
+def test_eq15_identifies_k_from_tcp_data(robot, model6):
+    W = np.random.default_rng(1).normal(size=(60, 6)) * [50, 50, 50, 5, 5, 5]  # linear regime
+    data = tcp_dataset(robot, W)
+    data = with_deflection(data, model6.predict(data))
+    W_back, dX = tcp_wrench_and_deflection(data, robot)
+    np.testing.assert_allclose(W_back, W, atol=1e-9)
+    K = identify_cartesian(W_back, dX)
+    np.testing.assert_allclose(K, tcp_stiffness(model6, Q), rtol=1e-3, atol=1e-3 * np.abs(K).max())
