@@ -17,6 +17,7 @@ COMMANDS = [
     "tools.fit_cmd",
     "tools.stiffness_cmd",
     "tools.run_cmd",
+    "tools.simulate_cmd",
 ]
 
 EXIT_USER_ERROR = 2
