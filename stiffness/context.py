@@ -11,6 +11,8 @@ Twist sites. A structural effect contributes small twists [x, y, z, rx, ry, rz] 
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from .measurements import Dataset
@@ -60,7 +62,6 @@ class Context:
         self.body = data.body                                # (N,) 0..6
         self.chain_frame = np.minimum(data.body + 1, 6)      # A_k on frame k, TCP on frame 6
         self.frame_wrench = self.wrenches_at_frames(self.wrench_sensor)
-        self.G = self._site_maps()                           # (N, 12, 6, 6)
 
     def _time_in_config(self) -> np.ndarray:
         t0 = np.full(len(self.config_labels), np.inf)
@@ -79,8 +80,9 @@ class Context:
             out[:, f] = transport_wrench(wrench_sensor, self.T_sensor, self.F[:, f])
         return out
 
-    def _site_maps(self) -> np.ndarray:
-        """G[n, s]: row n's deflection [mm, deg] per unit twist [m, rad] at site s (linearised chain)."""
+    @cached_property
+    def G(self) -> np.ndarray:
+        """(N, 12, 6, 6): G[n, s]: row n's deflection [mm, deg] per unit twist [m, rad] at site s (linearised chain)."""
         N = len(self.body)
         rr = self.row_reading
         P_body = self.F[rr, np.minimum(self.body + 1, 7), :3, 3]          # TCP is frame index 7
