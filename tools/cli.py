@@ -18,6 +18,7 @@ COMMANDS = [
     "tools.stiffness_cmd",
     "tools.run_cmd",
     "tools.simulate_cmd",
+    "tools.compare_cmd",
 ]
 
 EXIT_USER_ERROR = 2
