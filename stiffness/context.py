@@ -62,6 +62,7 @@ class Context:
         self.body = data.body                                # (N,) 0..6
         self.chain_frame = np.minimum(data.body + 1, 6)      # A_k on frame k, TCP on frame 6
         self.frame_wrench = self.wrenches_at_frames(self.wrench_sensor)
+        self.cache: dict = {}                                # per-campaign values effects reuse
 
     def _time_in_config(self) -> np.ndarray:
         t0 = np.full(len(self.config_labels), np.inf)

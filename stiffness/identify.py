@@ -1,13 +1,16 @@
 """Identification: least squares of the model's parameters from measured deflections and wrenches.
 
-Linear models (springs and every effect linear in its parameters) are solved in closed form, the
-joint-level form of Eq. 15: the residual of every body's six components, weighted by the noise of
-its kind (position in mm, rotation in deg), is minimised over the compliances. One Gauss-Newton
-step on the exact loaded chain follows, so the small nonlinearity of composing rotations does not
-bias the estimate. Models with nonlinear terms go through scipy.optimize.least_squares.
+Most parameters enter the deflection linearly (compliances, lost motion, offsets, rates). They are
+solved in closed form: the joint-level form of Eq. 15, the residual of every measured body's six
+components weighted by the noise of its kind (position in mm, rotation in deg). A Gauss-Newton step
+on the exact (composed) chain follows, so composing finite rotations does not bias the estimate.
 
-The noise per kind is re-estimated from the residuals (two rounds), so position and rotation count
-by what the data show, not by a guess.
+The few nonlinear parameters (a backlash's width, a knee torque, a sensor misalignment) are found by
+scipy.optimize.least_squares over those parameters alone, with the linear ones solved inside each
+evaluation (variable projection).
+
+The noise of each kind is re-estimated from the residuals between rounds, so position and rotation
+count by what the data show.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares
 
 from .context import Context
@@ -52,13 +56,39 @@ def rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if np.size(x) else float("nan")
 
 
-def design(model: StiffnessModel, ctx: Context, W: np.ndarray, effects=None) -> np.ndarray:
-    """Design matrix (N, 6, P) of the linear site effects: d(deflection)/d(theta), mm or deg per SI."""
-    effects = model.effects if effects is None else effects
+def solve_ls(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """min |A x - b| via normal equations on unit-norm columns (fast for tall A); lstsq if singular."""
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1.0
+    An = A / norms
+    M = An.T @ An
+    try:
+        if np.linalg.cond(M) > 1e12:
+            raise LinAlgError
+        x = cho_solve(cho_factor(M), An.T @ b)
+    except LinAlgError:
+        x = np.linalg.lstsq(An, b, rcond=None)[0]
+    return x / norms
+
+
+def linear_index(model: StiffnessModel) -> np.ndarray:
+    """Indices (into model.theta) of the parameters that enter linearly, in design-column order."""
+    idx = []
+    for e, sl in zip(model.effects, model.param_slices()):
+        if e.kind == "site":
+            idx.extend(np.arange(sl.start, sl.stop)[e.linear_mask])
+    return np.array(idx, dtype=int)
+
+
+def design(model: StiffnessModel, ctx: Context, W: np.ndarray, theta: np.ndarray,
+           effects=None) -> np.ndarray:
+    """Design matrix (N, 6, P_linear): d(deflection)/d(linear parameter), mm or deg per SI unit."""
     cols = []
     rr = ctx.row_reading
-    for e in effects:
-        B = e.basis(ctx, W)                                           # (R, P, 12, 6)
+    for e, sl in zip(model.effects, model.param_slices()):
+        if e.kind != "site" or (effects is not None and e not in effects):
+            continue
+        B = e.basis(ctx, W, theta[sl])                                   # (R, P, 12, 6)
         sites = np.nonzero(np.any(B != 0, axis=(0, 1, 3)))[0]
         if len(sites) == 0:
             cols.append(np.zeros((len(rr), 6, B.shape[1])))
@@ -67,7 +97,31 @@ def design(model: StiffnessModel, ctx: Context, W: np.ndarray, effects=None) -> 
     return np.concatenate(cols, axis=2) if cols else np.zeros((len(rr), 6, 0))
 
 
-def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 200,
+def jacobian(model: StiffnessModel, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
+    """d(deflection)/d(theta) (N, 6, P), mm or deg per SI unit, on the linearised chain.
+
+    Linear parameters give their columns in closed form; nonlinear ones are differentiated by central
+    differences with a step of 1e-3 of the parameter's scale.
+    """
+    theta = model.theta if theta is None else np.asarray(theta, dtype=float)
+    J = np.zeros((len(ctx.body), 6, len(theta)))
+    lin = linear_index(model)
+    J[:, :, lin] = design(model, ctx, model.frame_wrenches(ctx, theta), theta)
+    for k in np.setdiff1d(np.arange(len(theta)), lin):
+        p = _param(model, k)
+        h = 1e-3 * p.scale
+        up, dn = theta.copy(), theta.copy()
+        up[k] = min(theta[k] + h, p.bounds[1])
+        dn[k] = max(theta[k] - h, p.bounds[0])
+        J[:, :, k] = (model.predict(ctx, up, linear=True) - model.predict(ctx, dn, linear=True)) / (up[k] - dn[k])
+    return J
+
+
+def _param(model, k):
+    return [p for e in model.effects for p in e.params][k]
+
+
+def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 100,
         sigma: np.ndarray | None = None) -> FitResult:
     """Identify every parameter of ``model`` from ``data``; returns a fitted copy in the result.
 
@@ -76,7 +130,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     rounds : int
         Fits with the noise re-estimated from the residuals in between (1 keeps ``sigma``).
     max_nfev : int
-        Function evaluations allowed to the nonlinear solver.
+        Evaluations allowed to the nonlinear solver (only used when the model has nonlinear terms).
     sigma : (6,) array, optional
         Starting noise per component; defaults to the model's ``noise`` section.
     """
@@ -86,79 +140,71 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     if sigma is None:
         sigma = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
     scale = np.array([p.scale for e in model.effects for p in e.params])
-    linear = all(e.linear for e in model.effects)
-    converged, message = True, "linear least squares"
+    lin = linear_index(model)
+    nl = np.setdiff1d(np.arange(len(scale)), lin)
+    converged, message = True, "closed-form least squares"
+    theta = model.theta.copy()
     for _ in range(max(1, rounds)):
-        if linear:
-            theta, X = _solve_linear(model, ctx, y, sigma, scale)
+        if len(nl):
+            theta, converged, message = _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev)
         else:
-            theta, X, converged, message = _solve_nonlinear(model, ctx, y, sigma, scale, max_nfev)
-        model.theta = theta
-        resid = y - model.predict(ctx)
+            theta = _solve_linear(model, ctx, y, sigma, theta, lin)
+        theta = _exact_step(model, ctx, y, sigma, scale, theta)
+        resid = y - model.predict(ctx, theta)
         sigma = _noise_from_residual(resid, sigma)
-    se, t = _standard_errors(X, resid, sigma, scale, theta)
-    labels = model.param_labels()
-    undetermined = [lab for lab, tv in zip(labels, t) if not tv >= T_DETERMINED]
-    k = 0
-    for e in model.effects:
-        e.std_error = se[k:k + len(e.params)]
-        k += len(e.params)
+    model.theta = theta
+    se, t = _standard_errors(jacobian(model, ctx, theta), resid, sigma, scale, theta)
+    undetermined = [lab for lab, tv in zip(model.param_labels(), t) if not tv >= T_DETERMINED]
+    for e, sl in zip(model.effects, model.param_slices()):
+        e.std_error = se[sl]
     warnings = []
     if undetermined:
         warnings.append(f"{len(undetermined)} parameter(s) cannot be told from zero by these data "
                         f"(|estimate| < {T_DETERMINED:g} standard errors): " + ", ".join(undetermined))
-    return FitResult(model, resid, sigma, se, t, undetermined, converged, message, warnings)
+    return FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings)
 
 
 def _weighted(X: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     return (X / sigma[None, :, None]).reshape(-1, X.shape[2])
 
 
-def _solve_linear(model, ctx, y, sigma, scale):
-    X = design(model, ctx, ctx.frame_wrench)
-    Xw = _weighted(X, sigma) * scale
-    yw = (y / sigma).reshape(-1)
-    z = np.linalg.lstsq(Xw, yw, rcond=None)[0]
-    theta = z * scale
-    # Gauss-Newton correction on the exact (composed) chain.
+def _solve_linear(model, ctx, y, sigma, theta, lin):
+    """The linear parameters in closed form, the others held at ``theta``."""
+    theta = theta.copy()
+    theta[lin] = 0.0
+    rest = y - model.predict(ctx, theta, linear=True) if len(lin) < len(theta) else y
+    X = design(model, ctx, model.frame_wrenches(ctx, theta), theta)
+    theta[lin] = solve_ls(_weighted(X, sigma), (rest / sigma).reshape(-1))
+    return theta
+
+
+def _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev):
+    """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation."""
+    lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
+    hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
+    cache = {}
+
+    def inner(x):
+        th = theta.copy()
+        th[nl] = x * scale[nl]
+        th = _solve_linear(model, ctx, y, sigma, th, lin)
+        cache["theta"] = th
+        return ((y - model.predict(ctx, th, linear=True)) / sigma).reshape(-1)
+
+    x0 = np.clip(theta[nl] / scale[nl], lo, hi)
+    sol = least_squares(inner, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev,
+                        method="trf")
+    inner(sol.x)
+    return cache["theta"], bool(sol.status > 0), sol.message
+
+
+def _exact_step(model, ctx, y, sigma, scale, theta):
+    """One Gauss-Newton step on the exact chain from the linearised optimum."""
+    lo = np.array([p.bounds[0] for e in model.effects for p in e.params])
+    hi = np.array([p.bounds[1] for e in model.effects for p in e.params])
+    J = _weighted(jacobian(model, ctx, theta), sigma) * scale
     r = ((y - model.predict(ctx, theta)) / sigma).reshape(-1)
-    theta = theta + np.linalg.lstsq(Xw, r, rcond=None)[0] * scale
-    return theta, X
-
-
-def _solve_nonlinear(model, ctx, y, sigma, scale, max_nfev):
-    """least_squares over all parameters, started from the linear parameters' closed-form fit."""
-    theta0 = model.theta.copy()
-    lin_idx = np.concatenate([np.arange(sl.start, sl.stop) for e, sl in zip(model.effects, model.param_slices())
-                              if e.linear] or [np.zeros(0, int)]).astype(int)
-    if len(lin_idx):
-        W = model.frame_wrenches(ctx, theta0)
-        Xl = design(model, ctx, W, [e for e in model.effects if e.linear])
-        rest = y - _predict_without(model, ctx, theta0, lin_idx)
-        z = np.linalg.lstsq(_weighted(Xl, sigma) * scale[lin_idx], (rest / sigma).reshape(-1), rcond=None)[0]
-        theta0[lin_idx] = z * scale[lin_idx]
-    lo = np.array([p.bounds[0] for e in model.effects for p in e.params]) / scale
-    hi = np.array([p.bounds[1] for e in model.effects for p in e.params]) / scale
-    x0 = np.clip(theta0 / scale, lo + 1e-12, hi - 1e-12) if np.isfinite(lo).any() or np.isfinite(hi).any() \
-        else theta0 / scale
-
-    def fun(x):
-        return ((y - model.predict(ctx, x * scale, linear=True)) / sigma).reshape(-1)
-
-    sol = least_squares(fun, x0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf")
-    theta = sol.x * scale
-    X = -sol.jac.reshape(len(y), 6, -1) * sigma[None, :, None] / scale
-    # polish on the exact chain
-    r = ((y - model.predict(ctx, theta)) / sigma).reshape(-1)
-    step = np.linalg.lstsq(_weighted(X, sigma) * scale, r, rcond=None)[0] * scale
-    theta = np.clip(theta + step, lo * scale, hi * scale)
-    return theta, X, bool(sol.success), sol.message
-
-
-def _predict_without(model, ctx, theta, idx):
-    th = theta.copy()
-    th[idx] = 0.0
-    return model.predict(ctx, th, linear=True)
+    return np.clip(theta + solve_ls(J, r) * scale, lo, hi)
 
 
 def _noise_from_residual(resid: np.ndarray, sigma: np.ndarray) -> np.ndarray:

@@ -75,16 +75,22 @@ class Effect(ABC):
 
     @property
     def linear(self) -> bool:
+        """True when every parameter enters linearly (no nonlinear shape parameter, not an input)."""
         return not any(p.nonlinear for p in self.params) and self.kind == "site"
+
+    @property
+    def linear_mask(self) -> np.ndarray:
+        return np.array([not p.nonlinear for p in self.params], dtype=bool)
 
     # -- evaluation ---------------------------------------------------------------------------
     def twists(self, ctx: Context, theta: np.ndarray, W: np.ndarray) -> np.ndarray:
         """Twists (R, 12, 6) in m, rad at the sites, given the frame wrenches W (R, 7, 6)."""
-        return np.einsum("p,rpsc->rsc", theta, self.basis(ctx, W))
+        return np.einsum("p,rpsc->rsc", theta[self.linear_mask], self.basis(ctx, W, theta))
 
-    def basis(self, ctx: Context, W: np.ndarray) -> np.ndarray:
-        """(R, P, 12, 6): the twists per unit of each parameter (for linear site effects)."""
-        raise NotImplementedError(f"{self.name} is not linear in its parameters")
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """(R, P_linear, 12, 6): the twists per unit of each linear parameter, for the nonlinear
+        parameters' values in ``theta``."""
+        raise NotImplementedError(f"{self.name} does not define its basis")
 
     def wrench(self, ctx: Context, theta: np.ndarray, wrench_sensor: np.ndarray) -> np.ndarray:
         """For input effects: the corrected sensor wrench (R, 6)."""

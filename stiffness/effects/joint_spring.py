@@ -59,7 +59,7 @@ class JointSpring(Effect):
     def allowed_components(cls) -> tuple[str, ...]:
         return COMPONENTS
 
-    def basis(self, ctx: Context, W: np.ndarray) -> np.ndarray:
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         B = self.zeros(ctx, len(self.components))
         site = self.joint - 1
         for p, c in enumerate(self.components):

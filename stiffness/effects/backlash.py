@@ -1,0 +1,54 @@
+"""Backlash: lost motion in a joint's gearbox, a step in axial deflection where the torque changes sign.
+
+Equation (joint i, twist at DH frame i-1, added to rz):
+
+    delta_rz = (b / 2) * tanh(tau_i / tau_w)
+
+b      lost motion, the total play crossed at zero torque (YAML: lost_motion_deg, deg)
+tau_w  smoothing torque, the width of the transition (YAML: width_Nm, Nm; fitted by
+       scipy.optimize.least_squares, bounded to [0.1, 1e4] Nm)
+tau_i  joint i's axial torque, the external moment about its axis (Nm), unloaded geometry.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..context import Context
+from .axial import axial_basis, joint_torque
+from .base import Effect, Param, read_location, read_values
+
+DEG = np.pi / 180.0
+
+
+class Backlash(Effect):
+    name = "backlash"
+    equation = "delta_rz,i = (b/2) tanh(tau_i / tau_w)"
+    default_width_Nm = 20.0
+
+    def __init__(self, joint: int, lost_motion_rad: float = 0.0, width_Nm: float = default_width_Nm,
+                 fit_width: bool = True):
+        params = [Param("lost_motion_deg", "deg", 1e-4, yaml_factor=1 / DEG)]
+        theta = [lost_motion_rad]
+        if fit_width:
+            params.append(Param("width_Nm", "Nm", 10.0, nonlinear=True, bounds=(0.1, 1e4)))
+            theta.append(width_Nm)
+        super().__init__(params, np.array(theta), joint)
+        self.fixed_width = None if fit_width else width_Nm
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "Backlash":
+        joint = read_location(section, "joint", cls.joints, where)
+        probe = cls(joint)
+        section = {"width_Nm": cls.default_width_Nm, **section}
+        theta = read_values(cls.name, section, probe.params, where, ("joint",))
+        return cls(joint, theta[0], theta[1])
+
+    def width(self, theta: np.ndarray) -> float:
+        return self.fixed_width if self.fixed_width is not None else float(theta[1])
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        tau = joint_torque(W, self.joint)
+        return axial_basis(ctx, self.joint, [0.5 * np.tanh(tau / self.width(theta))])

@@ -1,0 +1,78 @@
+"""Nonlinear stiffness: a joint's axial compliance that changes with its torque.
+
+Two forms (YAML: form), each added to joint i's axial twist rz at DH frame i-1:
+
+cubic      delta_rz = c3 * tau_i * (tau_i / tau_ref)^2
+           c3: extra compliance at the reference torque (YAML: cubic_rad_per_Nm, rad/Nm);
+           tau_ref (YAML: reference_torque_Nm, default 1000 Nm) is fixed, not fitted.
+           c3 < 0 is a spring that stiffens with load (soft near zero).
+two_slope  delta_rz = c_s * tau_k * tanh(tau_i / tau_k)
+           an extra compliance c_s (YAML: soft_rad_per_Nm, rad/Nm) below the knee torque tau_k
+           (YAML: knee_Nm, Nm, fitted by least squares): gearboxes are softer near zero torque.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..context import Context
+from ..errors import ConfigError
+from .axial import axial_basis, joint_torque
+from .base import Effect, Param, read_location, read_values
+
+FORMS = ("cubic", "two_slope")
+
+
+class NonlinearStiffness(Effect):
+    name = "nonlinear_stiffness"
+    equation = "delta_rz,i = c3 tau (tau/tau_ref)^2  |  c_s tau_k tanh(tau/tau_k)"
+
+    def __init__(self, joint: int, form: str = "cubic", theta: np.ndarray | None = None,
+                 reference_torque_Nm: float = 1000.0, fit_knee: bool = True):
+        self.form = form
+        self.reference_torque_Nm = reference_torque_Nm
+        if form == "cubic":
+            params = [Param("cubic_rad_per_Nm", "rad/Nm", 1e-7)]
+        else:
+            params = [Param("soft_rad_per_Nm", "rad/Nm", 1e-7)]
+            if fit_knee:
+                params.append(Param("knee_Nm", "Nm", 100.0, nonlinear=True, bounds=(1.0, 1e5)))
+        default = np.zeros(len(params)) if form == "cubic" else np.array([0.0, 300.0][:len(params)])
+        super().__init__(params, default if theta is None else np.asarray(theta, float), joint)
+        self.fixed_knee = None if fit_knee else float(theta[1] if theta is not None and len(theta) > 1
+                                                      else 300.0)
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "NonlinearStiffness":
+        joint = read_location(section, "joint", cls.joints, where)
+        form = section.get("form", "cubic")
+        if form not in FORMS:
+            raise ConfigError(f"{where}: form = {form!r} must be one of {', '.join(FORMS)}")
+        ref = section.get("reference_torque_Nm", 1000.0)
+        if not isinstance(ref, (int, float)) or not ref > 0:
+            raise ConfigError(f"{where}: reference_torque_Nm = {ref!r} must be a number > 0")
+        probe = cls(joint, form)
+        if form == "two_slope":
+            section = {"knee_Nm": 300.0, **section}
+        theta = read_values(cls.name, section, probe.params, where, ("joint", "form", "reference_torque_Nm"))
+        return cls(joint, form, theta, float(ref))
+
+    def to_config(self) -> dict[str, Any]:
+        out = {**super().to_config(), "form": self.form}
+        if self.form == "cubic":
+            out["reference_torque_Nm"] = self.reference_torque_Nm
+        return out
+
+    def knee(self, theta: np.ndarray) -> float:
+        return self.fixed_knee if self.fixed_knee is not None else float(theta[1])
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        tau = joint_torque(W, self.joint)
+        if self.form == "cubic":
+            col = tau * (tau / self.reference_torque_Nm) ** 2
+        else:
+            k = self.knee(theta)
+            col = k * np.tanh(tau / k)
+        return axial_basis(ctx, self.joint, [col])

@@ -1,0 +1,45 @@
+"""Sensor misalignment: the F/T sensor is turned by a small rotation against its assumed frame.
+
+Equation (an input effect: it corrects the measured wrench before it is transported, Eq. 4):
+
+    F_true = R(phi) F_measured,   T_true = R(phi) T_measured
+
+phi    rotation vector from the measured to the assumed sensor axes (YAML: rx_deg, ry_deg, rz_deg).
+The deflection is bilinear in phi and the springs, so phi is fitted by scipy.optimize.least_squares.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..context import Context
+from ..spatial import exp_so3
+from .base import Effect, Param, read_values
+
+DEG = np.pi / 180.0
+
+
+class SensorMisalignment(Effect):
+    name = "sensor_misalignment"
+    kind = "input"
+    per_joint = False
+    joints = ()
+    equation = "W_true = blockdiag(R(phi), R(phi)) W_measured"
+
+    def __init__(self, phi_rad: np.ndarray | None = None):
+        params = [Param(f"{a}_deg", "deg", 1e-2, yaml_factor=1 / DEG, nonlinear=True, bounds=(-0.5, 0.5))
+                  for a in ("rx", "ry", "rz")]
+        super().__init__(params, np.zeros(3) if phi_rad is None else phi_rad, None)
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "SensorMisalignment":
+        return cls(read_values(cls.name, section, cls().params, where))
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return np.zeros((ctx.n_readings, 0, 12, 6))   # no twist of its own: it acts on the wrench
+
+    def wrench(self, ctx: Context, theta: np.ndarray, wrench_sensor: np.ndarray) -> np.ndarray:
+        R = exp_so3(theta)
+        return np.concatenate([wrench_sensor[:, :3] @ R.T, wrench_sensor[:, 3:] @ R.T], axis=1)
