@@ -223,7 +223,7 @@ def build_report(comp: Comparison, command: str = "", plots: bool = True) -> Rep
     for key, label in OVERALL:
         row = [label, *(m.metrics[key] for m in comp.models)]
         if ch:
-            row.append(f"{ch[key]['relative']:+.1%}" if np.isfinite(ch[key]["relative"]) else None)
+            row.append(change_text(key, ch[key]))
         rows.append(row)
     rep.table(header, rows, "RMS per component; max |error| over rows and components; R² per kind")
     for group, what in (("by_body", "body"), ("by_config", "configuration"), ("by_load_direction", "load direction")):
@@ -260,6 +260,13 @@ def build_report(comp: Comparison, command: str = "", plots: bool = True) -> Rep
 OVERALL = (("rms_position_mm", "RMS position [mm]"), ("rms_rotation_deg", "RMS rotation [deg]"),
            ("max_position_mm", "max |error| position [mm]"), ("max_rotation_deg", "max |error| rotation [deg]"),
            ("r2_position", "R² position"), ("r2_rotation", "R² rotation"))
+
+
+def change_text(key: str, ch: dict[str, float]) -> str | None:
+    """Relative change for errors, absolute change for R² (a fraction already)."""
+    if key.startswith("r2_"):
+        return f"{ch['change']:+.3f}" if np.isfinite(ch["change"]) else None
+    return f"{ch['relative']:+.1%}" if np.isfinite(ch["relative"]) else None
 
 
 def _group_table(comp: Comparison, group: str, what: str) -> tuple[list[str], list[list], str]:

@@ -6,7 +6,7 @@ import math
 import shlex
 import sys
 
-from stiffness.compare import OVERALL, Comparison, build_report, compare
+from stiffness.compare import OVERALL, Comparison, build_report, change_text, compare
 from stiffness.errors import ConfigError
 from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
@@ -65,7 +65,7 @@ def print_text(comp: Comparison) -> None:
     for key, label in OVERALL:
         line = f"  {label:28}" + "".join(f"{_fmt(m.metrics[key]):>{w}}" for m in comp.models)
         if ch:
-            line += f"{ch[key]['relative']:>+10.1%}"
+            line += f"{change_text(key, ch[key]) or '-':>10}"
         print(line)
     for group, what in (("by_body", "body"), ("by_config", "configuration"),
                         ("by_load_direction", "load direction")):
