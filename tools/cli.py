@@ -17,6 +17,9 @@ COMMANDS = [
     "tools.fit_cmd",
     "tools.stiffness_cmd",
     "tools.run_cmd",
+    "tools.registers_cmd",
+    "tools.record_cmd",
+    "tools.payload_cmd",
     "tools.simulate_cmd",
     "tools.compare_cmd",
 ]

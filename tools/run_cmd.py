@@ -1,16 +1,55 @@
-"""`stiffcomp run`: the cyclic compensation service (not built yet)."""
+"""`stiffcomp run`: the cyclic compensation service (docs/service.md).
+
+Validates the whole config before anything starts (a bad config exits with code 2), then runs
+until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly with exit code 0.
+"""
 
 from __future__ import annotations
 
-import sys
+import logging
+import signal
+import threading
+import time
+
+from service.config import DEFAULT_CONFIG, load_config
 
 
 def register(sub) -> None:
     p = sub.add_parser("run", help="run the cyclic compensation service")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (default: config/default.yaml)")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument("--stats-json", default=None, metavar="FILE", help="write the task statistics on exit")
+    p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    print("stiffcomp run: the cyclic service is not built yet (issue 4); "
-          "the model tools work: stiffcomp fit, stiffcomp kcart", file=sys.stderr)
-    return 1
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from service.app import Service
+
+    cfg = load_config(args.config)
+    service = Service(cfg)              # everything validated and opened, nothing started yet
+    stop = threading.Event()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    service.start()
+    try:
+        t_end = None if args.duration is None else time.monotonic() + args.duration
+        interval = cfg.cycle.stats_log_interval_s or None
+        next_log = time.monotonic() + (interval or 0)
+        while not stop.is_set() and not service.failed.is_set():
+            now = time.monotonic()
+            if t_end is not None and now >= t_end:
+                break
+            wait = min(x for x in (t_end, next_log if interval else None, now + 0.5) if x is not None) - now
+            stop.wait(max(wait, 0.0))
+            if interval and time.monotonic() >= next_log:
+                service.log_stats()
+                next_log += interval
+    finally:
+        service.stop()
+        for s, h in previous.items():
+            signal.signal(s, h)
+        service.log_stats()
+        if args.stats_json:
+            service.write_stats(args.stats_json)
+    return 1 if service.failed.is_set() else 0

@@ -1,0 +1,178 @@
+"""The register map (config/registers.yaml): names, addresses, types, and the block codecs.
+
+Two blocks: ``to_plc`` (service -> PLC, input registers by default) and ``from_plc`` (PLC -> service,
+holding registers, the only registers a client may write). 32-bit values take two registers, low
+word first (TwinCAT's layout of a DINT/REAL over an ARRAY OF WORD); see docs/register_map.md.
+
+`BlockCodec` packs a whole block with one `struct` call, which keeps the per-cycle cost small.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from stiffness.errors import StiffnessError
+from stiffness.yamlio import format_validation_error, read_yaml
+
+from .errors import RegisterMapError
+
+TYPES = {"uint16": ("H", 1), "int16": ("h", 1), "uint32": ("I", 2), "int32": ("i", 2), "float32": ("f", 2)}
+INT_RANGE = {"H": (0, 0xFFFF), "h": (-0x8000, 0x7FFF), "I": (0, 0xFFFFFFFF), "i": (-0x80000000, 0x7FFFFFFF)}
+TABLES = ("input_registers", "holding_registers")
+REQUIRED = {
+    "to_plc": ["heartbeat", "status_word", "fault_word", "cycle_count", "exceed_count", "last_exec_us",
+               *(f"correction_q{i}" for i in range(1, 7)),
+               *(f"wrench_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")),
+               *(f"deflection_{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz"))],
+    "from_plc": ["command_word", "plc_heartbeat", *(f"q{i}" for i in range(1, 7))],
+}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class RegisterEntry(_Strict):
+    name: str = Field(min_length=1)
+    address: int = Field(ge=0, le=0xFFFF)
+    type: Literal["uint16", "int16", "uint32", "int32", "float32"]
+    unit: str = ""
+    scale: float = Field(1.0, gt=0)
+    description: str = ""
+
+
+class BlockConfig(_Strict):
+    table: Literal["input_registers", "holding_registers"]
+    start: int = Field(ge=0, le=0xFFFF)
+    size: int = Field(ge=1, le=256)
+    registers: list[RegisterEntry]
+
+
+class MapConfig(_Strict):
+    word_order: Literal["low_word_first"] = "low_word_first"
+    to_plc: BlockConfig
+    from_plc: BlockConfig
+
+
+@dataclass(frozen=True)
+class Register:
+    """One named value in the map."""
+
+    name: str
+    table: str
+    address: int
+    type: str
+    count: int
+    unit: str
+    scale: float
+    direction: str
+    description: str = ""
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "table": self.table, "address": self.address, "type": self.type,
+                "count": self.count, "unit": self.unit, "scale": self.scale, "direction": self.direction}
+
+
+class BlockCodec:
+    """Pack the values of one block into its words and back, in the block's register order.
+
+    Parameters
+    ----------
+    registers : list of Register, sorted by address
+    start, size : the block's first address and its number of words
+    """
+
+    def __init__(self, registers: list[Register], start: int, size: int):
+        self.names = [r.name for r in registers]
+        self.start, self.size = start, size
+        self.index = {n: k for k, n in enumerate(self.names)}
+        fmt, pos = "<", start
+        self._ints = []       # (index, scale, lo, hi) of the integer registers
+        for k, r in enumerate(registers):
+            code, count = TYPES[r.type]
+            fmt += "xx" * (r.address - pos) + code
+            pos = r.address + count
+            if code != "f":
+                self._ints.append((k, r.scale, *INT_RANGE[code]))
+        self.words = pos - start
+        self._struct = struct.Struct(fmt)
+        self._words = struct.Struct("<" + "H" * self.words)
+        self._scales = [r.scale for r in registers]
+
+    def encode(self, values: list[float]) -> list[int]:
+        """Words for ``values`` given in ``names`` order (integers are scaled, rounded and clamped)."""
+        out = list(values)
+        for k, scale, lo, hi in self._ints:
+            x = out[k] * scale
+            out[k] = min(max(round(x), lo), hi) if math.isfinite(x) else 0
+        return list(self._words.unpack(self._struct.pack(*out)))
+
+    def decode(self, words: list[int]) -> list[float]:
+        """Values in ``names`` order from the block's words (integers divided by their scale)."""
+        raw = self._struct.unpack(self._words.pack(*words[: self.words]))
+        return [v if s == 1.0 else v / s for v, s in zip(raw, self._scales)]
+
+
+class RegisterMap:
+    """The validated map: registers by name, and one codec per direction."""
+
+    def __init__(self, cfg: MapConfig, source: str = "<registers>"):
+        self.source = source
+        self.blocks = {"to_plc": cfg.to_plc, "from_plc": cfg.from_plc}
+        self.registers: list[Register] = []
+        for direction, block in self.blocks.items():
+            regs = sorted(block.registers, key=lambda r: r.address)
+            used: dict[int, str] = {}
+            for k, r in enumerate(block.registers):
+                where = f"{source}: {direction}.registers[{k}] ({r.name})"
+                count = TYPES[r.type][1]
+                if not (block.start <= r.address and r.address + count <= block.start + block.size):
+                    raise RegisterMapError(f"{where}: address = {r.address:#06x} must lie in "
+                                           f"[{block.start:#06x}, {block.start + block.size - count:#06x}]")
+                for a in range(r.address, r.address + count):
+                    if a in used:
+                        raise RegisterMapError(f"{where}: address = {r.address:#06x} overlaps {used[a]}")
+                    used[a] = r.name
+                if r.type == "float32" and r.scale != 1.0:
+                    raise RegisterMapError(f"{where}: scale = {r.scale:g}: float32 registers take scale 1")
+            for r in regs:
+                self.registers.append(Register(r.name, block.table, r.address, r.type, TYPES[r.type][1],
+                                               r.unit, r.scale, direction, r.description))
+            names = [r.name for r in block.registers]
+            dup = sorted({n for n in names if names.count(n) > 1})
+            if dup:
+                raise RegisterMapError(f"{source}: {direction}: register name {dup[0]!r} appears twice")
+            missing = [n for n in REQUIRED[direction] if n not in names]
+            if missing:
+                raise RegisterMapError(f"{source}: {direction}: register {missing[0]!r} is missing "
+                                       f"(needed: {', '.join(REQUIRED[direction])})")
+        if cfg.from_plc.table != "holding_registers":
+            raise RegisterMapError(f"{source}: from_plc.table = {cfg.from_plc.table!r}: the PLC can write only "
+                                   "holding_registers")
+        self.by_name = {r.name: r for r in self.registers}
+        self.codecs = {d: BlockCodec([r for r in self.registers if r.direction == d], b.start, b.size)
+                       for d, b in self.blocks.items()}
+        self.writable = {a for r in self.registers if r.direction == "from_plc"
+                         for a in range(r.address, r.address + r.count)}
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> RegisterMap:
+        try:
+            data = read_yaml(path)
+        except StiffnessError as e:
+            raise RegisterMapError(str(e)) from e
+        try:
+            cfg = MapConfig.model_validate(data)
+        except ValidationError as e:
+            raise RegisterMapError(format_validation_error(str(path), e)) from e
+        return cls(cfg, str(path))
+
+    def as_list(self) -> list[dict]:
+        """The map as `stiffcomp registers --json` prints it."""
+        return [r.as_dict() for r in self.registers]

@@ -1,0 +1,1 @@
+"""The cyclic compensation service: sources, filter, gravity, compensation, limits, faults, loop."""

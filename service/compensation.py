@@ -1,0 +1,185 @@
+"""The real-time predictor: TCP deflection from the sensor wrench, and the joint correction δq_r.
+
+Deflection (Eq. 4-5, linearised). Joint i's spring sits in DH frame i-1, with base pose T_i and
+motion adjoint Ad_i = [[R_i, [p_i]x R_i], [0, R_i]]. The external wrench w0 = [F; M0] (base axes,
+moment about the base origin; M0 = M + p_s x F for a moment M about the sensor origin p_s) reaches
+frame i-1 as W_i = Ad_i^T w0 (Eq. 4, unloaded geometry). The spring twists by delta_i = C_i W_i
+(C_i diagonal, m/N and rad/Nm); in base coordinates that twist is Ad_i delta_i, so
+
+    [v0; dr] = sum_i Ad_i C_i Ad_i^T w0,      dX = [v0 + dr x p_tcp ; dr]      (m, rad, base axes)
+
+the first-order term of `stiffness.model.StiffnessModel.predict` (the tests check the agreement).
+Pinocchio gives the frames and the Jacobian in one forward pass; the rest is four small NumPy calls.
+
+Correction (the paper's δq_r). The commanded joints must move the unloaded TCP by -dX:
+
+    δq = -J^T (J J^T + λ² I)^-1 dX
+
+with J the TCP Jacobian [v; ω] in base axes and λ a small damping for wrist singularities. With
+``refinement_iterations`` > 0, Newton steps on the full kinematics remove the linearisation error:
+δq += J(q+δq)^+ (X_target - X(q + δq)).
+
+Effects. `FAST_EFFECTS` says how each effect of the model enters this fast path. Joint springs add to
+the diagonal compliances. An effect not in the table is refused at start-up (ModelUnsupportedError)
+rather than left out, so the service never sends a correction from a partial model. Effects acting
+on the joint axis (backlash, hysteresis, ...) can hook in as an `AxialTerm`: a function of the
+joint's axial moment W_i[5] returning an extra axial twist (rad).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import lapack
+
+from stiffness.effects.joint_spring import COMPONENTS, JointSpring
+from stiffness.model import StiffnessModel
+
+from .errors import ModelUnsupportedError
+
+MM, DEG = 1000.0, 180.0 / np.pi
+
+
+@dataclass
+class AxialTerm:
+    """An extra axial twist of joint ``joint`` (1..6): ``delta_rz = f(tau)`` with tau the axial moment (Nm)."""
+
+    joint: int
+    f: Callable[[float], float]
+
+
+def _spring_terms(effect: JointSpring, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
+    for c, theta in zip(effect.components, effect.theta):
+        compliance[effect.joint - 1, COMPONENTS.index(c)] += theta
+
+
+# effect name -> how it enters the fast path: fn(effect, compliance (6, 6), axial terms list)
+FAST_EFFECTS: dict[str, Callable[[object, np.ndarray, list[AxialTerm]], None]] = {
+    "joint_spring": _spring_terms,
+    "joint_6dof": _spring_terms,
+}
+
+
+class FastPredictor:
+    """Per-cycle deflection and δq for a model made of supported effects.
+
+    Call `kinematics(q)` once per cycle, then `wrench_base`, `deflection` and `correction`.
+
+    Parameters
+    ----------
+    model : StiffnessModel
+    damping : float
+        λ of the damped pseudo-inverse (m or rad scale; 1e-3 is invisible away from singularities).
+    refinement_iterations : int
+        Newton steps on the full kinematics after the first linear step.
+    """
+
+    def __init__(self, model: StiffnessModel, damping: float = 1e-3, refinement_iterations: int = 0):
+        compliance = np.zeros((6, 6))
+        self.axial: list[AxialTerm] = []
+        for e in model.effects:
+            hook = FAST_EFFECTS.get(e.name)
+            if hook is None:
+                raise ModelUnsupportedError(
+                    f"{model.source}: effect {e.label} is not supported by the real-time predictor "
+                    f"(supported: {', '.join(sorted(FAST_EFFECTS))}); the service refuses to start rather "
+                    "than send a correction that leaves it out")
+            hook(e, compliance, self.axial)
+        self.compliance = compliance            # (joint, [x y z rx ry rz])
+        self.robot = model.robot
+        self.pm = model.robot.pin_model
+        self.pd = self.pm.createData()
+        self.spring_ids = [self.pm.getFrameId(n) for n in ("A1", "A2", "A3", "A4", "A5")]
+        self.tcp_id = self.pm.getFrameId("TCP")
+        self.sensor_id = self.pm.getFrameId("sensor")
+        self.lam2 = float(damping) ** 2
+        self.iterations = int(refinement_iterations)
+        self.Ad = np.empty((6, 6, 6))
+        self.Ad[0] = np.eye(6)                  # joint 1's spring sits in the base frame
+        self._w = np.empty(6)
+        self.J = np.zeros((6, 6))
+        self.R_s = np.eye(3).tolist()
+        self.p_s = [0.0, 0.0, 0.0]
+        self.T_tcp = np.eye(4)
+        self.p_tcp = [0.0, 0.0, 0.0]
+
+    @classmethod
+    def from_config(cls, section, model: StiffnessModel) -> FastPredictor:
+        return cls(model, section.damping, section.refinement_iterations)
+
+    # -- per cycle ------------------------------------------------------------------------------
+    def kinematics(self, q_rad: np.ndarray) -> None:
+        """Frames, adjoints and the TCP Jacobian at ``q_rad`` (one pinocchio pass)."""
+        pm, pd = self.pm, self.pd
+        pin.computeJointJacobians(pm, pd, q_rad)
+        pin.updateFramePlacements(pm, pd)
+        self.J = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
+        oMf, Ad = pd.oMf, self.Ad
+        for k, fid in enumerate(self.spring_ids):
+            Ad[k + 1] = oMf[fid].action
+        Ts = oMf[self.sensor_id]
+        self.R_s = Ts.rotation.tolist()          # rows, as lists: used on Python floats
+        self.p_s = Ts.translation.tolist()
+        self.T_tcp = oMf[self.tcp_id].homogeneous
+        self.p_tcp = self.T_tcp[:3, 3].tolist()
+
+    def wrench_base(self, w_sensor) -> list[float]:
+        """[F; M] in base axes, M about the sensor origin, from a wrench in sensor axes (six floats)."""
+        (a, b, c), (d, e, f), (g, h, i) = self.R_s
+        fx, fy, fz, mx, my, mz = w_sensor
+        return [a * fx + b * fy + c * fz, d * fx + e * fy + f * fz, g * fx + h * fy + i * fz,
+                a * mx + b * my + c * mz, d * mx + e * my + f * mz, g * mx + h * my + i * mz]
+
+    def deflection(self, w_base) -> np.ndarray:
+        """TCP deflection [dp (m), dr (rad)] in base axes for [F; M about the sensor origin] in base axes."""
+        fx, fy, fz, mx, my, mz = w_base
+        x, y, z = self.p_s
+        w = self._w
+        w[:] = (fx, fy, fz, mx + y * fz - z * fy, my + z * fx - x * fz, mz + x * fy - y * fx)
+        local = w @ self.Ad                              # row i: W_i = Ad_i^T w0
+        delta = local * self.compliance
+        for term in self.axial:
+            delta[term.joint - 1, 5] += term.f(float(local[term.joint - 1, 5]))
+        vx, vy, vz, ox, oy, oz = (self.Ad @ delta[:, :, None]).sum(0)[:, 0].tolist()
+        tx, ty, tz = self.p_tcp
+        return np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
+
+    def _pinv_apply(self, J: np.ndarray, e: np.ndarray) -> np.ndarray:
+        A = J @ J.T
+        A.flat[::7] += self.lam2
+        return J.T @ lapack.dgesv(A, e)[2]
+
+    def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:
+        """δq (rad) that moves the unloaded TCP by -dX (m, rad); `kinematics(q_rad)` must have run."""
+        dq = -self._pinv_apply(self.J, dX)
+        if self.iterations:
+            T0 = self.T_tcp
+            p_target = T0[:3, 3] - dX[:3]
+            R_target = pin.exp3(-dX[3:]) @ T0[:3, :3]
+            pm, pd = self.pm, self.pd
+            for _ in range(self.iterations):
+                qk = q_rad + dq
+                pin.computeJointJacobians(pm, pd, qk)
+                pin.updateFramePlacements(pm, pd)
+                Tk = pd.oMf[self.tcp_id]
+                e = np.concatenate([p_target - Tk.translation, pin.log3(R_target @ Tk.rotation.T)])
+                Jk = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
+                dq = dq + self._pinv_apply(Jk, e)
+            self.kinematics(q_rad)               # leave the frames of q for the caller
+        return dq
+
+    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
+        """The TCP's base pose (4x4) at ``q_rad``."""
+        pin.framesForwardKinematics(self.pm, self.pd, q_rad)
+        return self.pd.oMf[self.tcp_id].homogeneous
+
+    def pose_error(self, q_rad: np.ndarray, dq: np.ndarray, dX: np.ndarray) -> float:
+        """Distance (m + rad) of the TCP at q + δq from the unloaded TCP at q moved by -dX."""
+        T0 = self.tcp_pose(q_rad)
+        Tk = self.tcp_pose(q_rad + dq)
+        dp = Tk[:3, 3] - (T0[:3, 3] - dX[:3])
+        dr = pin.log3(Tk[:3, :3] @ (pin.exp3(-dX[3:]) @ T0[:3, :3]).T)
+        return float(np.linalg.norm(dp) + np.linalg.norm(dr))

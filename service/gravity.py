@@ -1,0 +1,141 @@
+"""Gravity compensation of the sensor wrench, and the payload identification behind `stiffcomp payload`.
+
+A static payload of mass m with centre of gravity c (sensor frame) loads the sensor with
+
+    F_g = m R_s^T g,     T_g = c x F_g                                   (sensor axes, about its origin)
+
+with R_s the sensor's orientation in the base and g the gravity vector in base axes (m/s^2). The
+sensor reads W = W_ext + [F_g; T_g] + b, with b its bias, so the external wrench is
+
+    W_ext = W - b - [F_g; T_g].
+
+The bodies (sensor, tool, fixture, workpiece) combine into one mass and one centre of gravity. Tare
+adds the current external wrench to the bias, so the load at that moment reads zero.
+
+Identification: for poses k with orientation R_k and readings W_k, with g_k = R_k^T g,
+
+    F_k = m g_k + b_F,    T_k = -[g_k]x (m c) + b_T
+
+is linear in (m, m c, b_F, b_T); `identify_payload` solves it by least squares.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+BODIES = ("sensor", "tool", "fixture", "workpiece")
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+class GravityCompensator:
+    """Remove payload weight and bias from sensor wrenches.
+
+    Parameters
+    ----------
+    mass_kg : float
+        Total mass of everything the sensor carries.
+    cog_m : (3,) centre of gravity in the sensor frame, m
+    bias : (6,) sensor bias [N, N, N, Nm, Nm, Nm]
+    g : (3,) gravity in base axes, m/s^2
+    """
+
+    def __init__(self, mass_kg: float, cog_m: np.ndarray, bias: np.ndarray, g: np.ndarray):
+        self.mass = float(mass_kg)
+        self.cog = np.asarray(cog_m, dtype=float)
+        self.bias = np.asarray(bias, dtype=float).copy()
+        self.g = np.asarray(g, dtype=float)
+        self._mg = (self.mass * self.g).tolist()
+
+    @classmethod
+    def from_config(cls, section) -> GravityCompensator:
+        masses = np.array([getattr(section, b).mass_kg for b in BODIES])
+        cogs = np.array([getattr(section, b).cog_mm for b in BODIES]) / 1000.0
+        m = masses.sum()
+        cog = (masses[:, None] * cogs).sum(0) / m if m > 0 else np.zeros(3)
+        return cls(m, cog, np.array(section.bias), np.array(section.g_mps2))
+
+    def payload_wrench(self, R_sensor) -> list[float]:
+        """[F_g; T_g] in sensor axes for the sensor orientation ``R_sensor`` (3x3, base; array or lists)."""
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = (
+            R_sensor.tolist() if isinstance(R_sensor, np.ndarray) else R_sensor)
+        gx, gy, gz = self._mg
+        fx = r00 * gx + r10 * gy + r20 * gz               # R^T (m g)
+        fy = r01 * gx + r11 * gy + r21 * gz
+        fz = r02 * gx + r12 * gy + r22 * gz
+        cx, cy, cz = self._cog
+        return [fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx]
+
+    def compensate(self, wrench, R_sensor) -> list[float]:
+        """The external wrench (sensor axes, six floats) from a reading."""
+        return [w - b - g for w, b, g in zip(wrench, self._bias, self.payload_wrench(R_sensor))]
+
+    def tare(self, wrench, R_sensor) -> None:
+        """Take the current external wrench as the new zero (adds it to the bias)."""
+        self.bias = self.bias + np.array(self.compensate(wrench, R_sensor))
+
+    @property
+    def bias(self) -> np.ndarray:
+        return np.array(self._bias)
+
+    @bias.setter
+    def bias(self, value) -> None:
+        self._bias = [float(v) for v in value]
+
+    @property
+    def cog(self) -> np.ndarray:
+        return np.array(self._cog)
+
+    @cog.setter
+    def cog(self, value) -> None:
+        self._cog = [float(v) for v in value]
+
+
+@dataclass
+class PayloadFit:
+    """Result of `identify_payload`; ``ok`` is False when the poses do not determine the payload."""
+
+    mass_kg: float
+    cog_m: np.ndarray
+    bias: np.ndarray
+    residual_rms: np.ndarray      # (6,) per channel
+    rank: int
+    ok: bool
+    message: str
+
+
+def identify_payload(R_sensor: np.ndarray, wrench: np.ndarray, g: np.ndarray | None = None) -> PayloadFit:
+    """Least-squares mass, centre of gravity and bias from static readings.
+
+    Parameters
+    ----------
+    R_sensor : (K, 3, 3) sensor orientations in the base
+    wrench : (K, 6) static readings (no external load), N and Nm
+    g : (3,) gravity in base axes, m/s^2 (default [0, 0, -9.81])
+
+    The poses must turn the sensor so that gravity points along at least three independent
+    directions in the sensor frame; otherwise ``ok`` is False and the message says so.
+    """
+    g = np.array([0.0, 0.0, -9.81]) if g is None else np.asarray(g, dtype=float)
+    K = len(wrench)
+    A = np.zeros((6 * K, 10))
+    for k in range(K):
+        gk = R_sensor[k].T @ g
+        A[6 * k:6 * k + 3, 0] = gk
+        A[6 * k:6 * k + 3, 4:7] = np.eye(3)
+        A[6 * k + 3:6 * k + 6, 1:4] = -_skew(gk)
+        A[6 * k + 3:6 * k + 6, 7:10] = np.eye(3)
+    y = np.asarray(wrench, dtype=float).reshape(-1)
+    x, _, rank, _ = np.linalg.lstsq(A, y, rcond=None)
+    res = (y - A @ x).reshape(K, 6)
+    rms = np.sqrt((res ** 2).mean(0))
+    m = float(x[0])
+    cog = x[1:4] / m if abs(m) > 1e-9 else np.zeros(3)
+    ok = rank == 10
+    msg = "ok" if ok else (f"the {K} poses determine only {rank} of 10 parameters: turn the sensor so that "
+                           "gravity points along three independent directions")
+    return PayloadFit(m, cog, x[4:10], rms, int(rank), ok, msg)

@@ -1,0 +1,55 @@
+"""Limits on the joint correction: magnitude, rate, and the ramp to zero on a fault.
+
+Each cycle the output moves toward its target by at most ``rate * dt`` per joint:
+
+* running: target = clip(δq, ±max_correction), rate = max_rate;
+* safe (faulted or not enabled): target = 0, rate = |output when the safe state began| / fault_ramp_s,
+  so the correction reaches zero in fault_ramp_s and never jumps.
+"""
+
+from __future__ import annotations
+
+
+class CorrectionLimiter:
+    """Rate- and magnitude-limited joint correction (deg), on six Python floats.
+
+    Parameters
+    ----------
+    max_deg : (6,) largest |δq| per joint, deg
+    max_rate_deg_s : (6,) largest rate of change per joint, deg/s
+    ramp_s : float
+        Time to ramp to zero on entering the safe state, s.
+    """
+
+    def __init__(self, max_deg, max_rate_deg_s, ramp_s: float):
+        self.max = [float(v) for v in max_deg]
+        self.rate = [float(v) for v in max_rate_deg_s]
+        self.ramp_s = float(ramp_s)
+        self.out = [0.0] * 6
+        self.safe = True
+        self._ramp_rate = [0.0] * 6
+
+    @classmethod
+    def from_config(cls, section) -> CorrectionLimiter:
+        return cls(section.max_correction_deg, section.max_rate_deg_s, section.fault_ramp_s)
+
+    def update(self, dt: float, target_deg, safe: bool) -> list[float]:
+        """The output after one step of ``dt`` seconds toward ``target_deg`` (ignored when ``safe``)."""
+        if safe:
+            if not self.safe:
+                self._ramp_rate = [abs(v) / self.ramp_s for v in self.out]
+            target, rate = [0.0] * 6, self._ramp_rate
+        else:
+            target = [min(max(v, -m), m) for v, m in zip(target_deg, self.max)]
+            rate = self.rate
+        self.safe = safe
+        out = []
+        for o, tg, r in zip(self.out, target, rate):
+            step = r * dt
+            out.append(o + min(max(tg - o, -step), step))
+        self.out = out
+        return out
+
+    @property
+    def ramping(self) -> bool:
+        return self.safe and any(v != 0.0 for v in self.out)

@@ -1,0 +1,79 @@
+"""A live ATI sensor on a CAN bus, through python-can (any interface it supports: socketcan, pcan,
+kvaser, vector, virtual, udp_multicast, ...).
+
+Each cycle drains the frames received since the last one and, with ``request_each_cycle``, sends
+the next short-data request, so the answer to cycle k's request is read in cycle k+1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import can
+
+from ..errors import SourceError
+from .base import Frame, FtSource
+
+MAX_FRAMES_PER_CYCLE = 64   # bounds the work of one cycle if the bus floods
+
+
+def open_bus(interface: str, channel: str, bitrate: int | None = None, **options) -> can.BusABC:
+    """Open a python-can bus; SourceError names the interface and channel on failure."""
+    kw = dict(options)
+    if bitrate is not None and interface not in ("virtual", "udp_multicast"):
+        kw["bitrate"] = bitrate
+    try:
+        return can.Bus(interface=interface, channel=channel, **kw)
+    except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
+        raise SourceError(f"cannot open CAN interface {interface!r} channel {channel!r}: {e}") from e
+
+
+class CanSource(FtSource):
+    """F/T samples from a live bus.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        An open bus; the source owns it and shuts it down on close().
+    request_each_cycle : bool
+        Send a short-data request (0x02) every cycle; off for sensors that stream by themselves.
+    """
+
+    def __init__(self, bus: can.BusABC, request_each_cycle: bool = True, **kw):
+        super().__init__(**kw)
+        self.bus = bus
+        self.request_each_cycle = request_each_cycle
+        arb, data = self.protocol.request_short_data()
+        self._request = can.Message(arbitration_id=arb, data=data, is_extended_id=False)
+        self.send_errors = 0
+
+    @classmethod
+    def from_config(cls, cfg) -> CanSource:
+        c = cfg.source.can
+        bus = open_bus(c.interface, c.channel, c.bitrate, **c.options)
+        return cls(bus, c.request_each_cycle, **cls.common_args(cfg))
+
+    def _frames(self, t: float) -> Iterable[Frame]:
+        out: list[Frame] = []
+        recv = self.bus.recv
+        for _ in range(MAX_FRAMES_PER_CYCLE):
+            msg = recv(0.0)
+            if msg is None:
+                break
+            out.append((msg.arbitration_id, bytes(msg.data), msg.is_error_frame))
+        if self.request_each_cycle:
+            self._send(self._request)
+        return out
+
+    def _send(self, msg: can.Message) -> None:
+        try:
+            self.bus.send(msg, timeout=0.0)
+        except can.CanError:
+            self.send_errors += 1   # a full TX queue shows up as a sensor timeout, which is the fault
+
+    def request_bias(self) -> None:
+        arb, data = self.protocol.request_bias()
+        self._send(can.Message(arbitration_id=arb, data=data, is_extended_id=False))
+
+    def close(self) -> None:
+        self.bus.shutdown()

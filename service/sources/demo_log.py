@@ -1,0 +1,93 @@
+"""Write a synthetic ATI CAN log: a milling load as the sensor would report it, for the replay source.
+
+The shipped config/replay/demo_milling.blf is made by::
+
+    python -m service.sources.demo_log config/replay/demo_milling.blf
+
+The wrench (sensor axes) is a cut that ramps in and out: a static feed force, the tooth-pass
+oscillation of a 4-flute cutter at 6000 rpm (400 Hz, which the low-pass removes), the weight of the
+default payload at the default pose, a sensor bias, white noise and a few single-sample spikes.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import can
+import numpy as np
+
+from ..ati import AtiProtocol
+
+
+def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: int = 1) -> np.ndarray:
+    """(N, 6) wrench in N, Nm at times ``t`` (s)."""
+    rng = np.random.default_rng(seed)
+    period = 8.0
+    phase = np.mod(t, period)
+    envelope = np.clip(np.minimum(phase - 1.0, period - 1.0 - phase) / 0.5, 0.0, 1.0)
+    tooth = np.sin(2 * np.pi * 400.0 * t)
+    w = np.zeros((len(t), 6))
+    w[:, 0] = envelope * (250.0 + 120.0 * tooth)
+    w[:, 1] = envelope * (-180.0 + 90.0 * tooth)
+    w[:, 2] = envelope * 120.0
+    w[:, 3] = envelope * (6.0 + 3.0 * tooth)
+    w[:, 4] = envelope * (9.0 - 2.0 * tooth)
+    w[:, 5] = envelope * 4.0
+    w += rng.normal(0.0, [1.5, 1.5, 1.5, 0.05, 0.05, 0.05], size=w.shape)
+    spikes = rng.choice(len(t), size=max(1, len(t) // 4000), replace=False)
+    w[spikes, 2] += 900.0
+    if gravity_bias is not None:
+        w += gravity_bias
+    return w
+
+
+def write_log(path: str | Path, wrench: np.ndarray, rate_hz: float = 1000.0, protocol: AtiProtocol | None = None,
+              status: np.ndarray | None = None, extra: list[tuple[int, int, bytes]] | None = None) -> None:
+    """Write request + answer frames for each row of ``wrench`` to a python-can log (format by suffix).
+
+    ``extra`` adds frames (sample index, id, data) after that sample, e.g. to inject bad frames.
+    """
+    p = protocol or AtiProtocol()
+    req_id, req = p.request_short_data()
+    extra_at: dict[int, list[tuple[int, bytes]]] = {}
+    for k, arb, data in extra or []:
+        extra_at.setdefault(k, []).append((arb, data))
+    with can.Logger(str(path)) as log:
+        for k, w in enumerate(wrench):
+            t = 1.0 + k / rate_hz
+            log(can.Message(timestamp=t, arbitration_id=req_id, data=req, is_extended_id=False))
+            st = int(status[k]) if status is not None else 0
+            for j, (arb, data) in enumerate(p.encode(w, st, k)):
+                log(can.Message(timestamp=t + (j + 1) * 2e-4, arbitration_id=arb, data=data, is_extended_id=False))
+            for arb, data in extra_at.get(k, []):
+                log(can.Message(timestamp=t + 6e-4, arbitration_id=arb, data=data, is_extended_id=False))
+
+
+def default_gravity_bias() -> np.ndarray:
+    """Payload weight and bias of config/default.yaml at its initial pose, as the sensor reads them."""
+    from stiffness.model import StiffnessModel
+
+    from ..config import load_config
+    from ..gravity import GravityCompensator
+
+    cfg = load_config()
+    robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
+    F = robot.frames(np.radians(cfg.plc.initial_q_deg)[None])
+    R_s = robot.sensor_pose(F)[0, :3, :3]
+    g = GravityCompensator.from_config(cfg.gravity)
+    return g.payload_wrench(R_s) + g.bias
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out")
+    ap.add_argument("--seconds", type=float, default=16.0)
+    args = ap.parse_args(argv)
+    t = np.arange(int(args.seconds * 1000)) / 1000.0
+    write_log(args.out, milling_wrench(t, default_gravity_bias()))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

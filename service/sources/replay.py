@@ -1,0 +1,91 @@
+"""Replay of a python-can log file (.asc, .blf, .log, .trc, .csv through can.LogReader).
+
+Reading and pacing are separate: `read_log` reads the whole file once at start-up; `ReplaySource`
+hands the frames out either by the service's clock (``pacing: realtime``, frames whose log time has
+come) or one sample per cycle (``pacing: fast``, as fast as the caller polls). With ``loop: true``
+the log starts again after its last frame, shifted by its duration.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable
+from pathlib import Path
+
+import can
+
+from ..errors import SourceError
+from .base import Frame, FtSource
+
+LOG_SUFFIXES = (".asc", ".blf", ".log", ".trc", ".csv")
+
+
+def read_log(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
+    """All frames of a log as (time since the first frame in s, id, data, is_error_frame)."""
+    path = Path(path)
+    if not path.exists():
+        raise SourceError(f"{path}: replay file not found")
+    if path.suffix.lower() not in LOG_SUFFIXES:
+        raise SourceError(f"{path}: replay file type {path.suffix!r} is not one of {', '.join(LOG_SUFFIXES)}")
+    frames = []
+    try:
+        with can.LogReader(str(path)) as reader:
+            for msg in reader:
+                frames.append((float(msg.timestamp), int(msg.arbitration_id), bytes(msg.data),
+                               bool(msg.is_error_frame)))
+    except Exception as e:  # the log readers raise many unrelated types on corrupt files
+        raise SourceError(f"{path}: cannot read the CAN log: {e}") from e
+    if not frames:
+        raise SourceError(f"{path}: the CAN log holds no frames")
+    t0 = frames[0][0]
+    return [(t - t0, i, d, err) for t, i, d, err in frames]
+
+
+class ReplaySource(FtSource):
+    """F/T samples from a recorded CAN log.
+
+    Parameters
+    ----------
+    frames : list of (t, id, data, is_error_frame)
+        As returned by `read_log`.
+    pacing : "realtime" or "fast"
+    loop : bool
+    """
+
+    def __init__(self, frames: list[tuple[float, int, bytes, bool]], pacing: str = "realtime", loop: bool = True,
+                 **kw):
+        super().__init__(**kw)
+        self.frames = frames
+        self.fast = pacing == "fast"
+        self.loop = loop
+        gaps = [b[0] - a[0] for a, b in itertools.pairwise(frames) if b[0] > a[0]]
+        self.duration = frames[-1][0] + (min(gaps) if gaps else 1e-3)
+        self.k = 0
+        self.offset = 0.0
+        self.exhausted = False
+        self.sample_id = self.protocol.id_2
+
+    @classmethod
+    def from_config(cls, cfg) -> ReplaySource:
+        r = cfg.source.replay
+        return cls(read_log(cfg.resolve(r.file)), r.pacing, r.loop, **cls.common_args(cfg))
+
+    def _frames(self, t: float) -> Iterable[Frame]:
+        out: list[Frame] = []
+        frames, n = self.frames, len(self.frames)
+        rel = t - (self.t_open or 0.0)
+        while not self.exhausted:
+            ts, arb, data, err = frames[self.k]
+            if not self.fast and ts + self.offset > rel:
+                break
+            out.append((arb, data, err))
+            self.k += 1
+            if self.k == n:
+                if self.loop:
+                    self.k = 0
+                    self.offset += self.duration
+                else:
+                    self.exhausted = True
+            if self.fast and arb == self.sample_id:
+                break
+        return out

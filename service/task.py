@@ -1,0 +1,148 @@
+"""The cyclic task: absolute deadlines, TwinCAT-style task info, and the statistics of a run.
+
+The loop sleeps until ``due`` and then advances ``due += period``; it never sleeps a fixed period, so
+the work time does not accumulate into drift. A cycle *exceeds* (TwinCAT's exceed counter) when it
+ends after the next cycle's deadline; the deadlines it skipped are counted in ``exceed_count`` too.
+The work function receives the time (s since start) and whether the previous cycle exceeded.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+log = logging.getLogger("stiffcomp.task")
+
+
+class TaskInfo:
+    """What TwinCAT shows for a task: cycle time, count, last exec time, exceed counter, jitter.
+
+    Per-cycle exec times and period jitters are kept in ring buffers of ``history`` cycles.
+    """
+
+    def __init__(self, period_s: float, history: int = 600_000):
+        self.period_s = period_s
+        self.cycle_count = 0
+        self.exceed_count = 0
+        self.last_exec_s = 0.0
+        self.last_jitter_s = 0.0
+        self.max_exec_s = 0.0
+        self.max_jitter_s = 0.0
+        self._exec = np.zeros(history)
+        self._jitter = np.zeros(history)
+        self._n_jitter = 0
+
+    def record(self, exec_s: float, jitter_s: float | None) -> None:
+        k = self.cycle_count % len(self._exec)
+        self._exec[k] = exec_s
+        self.last_exec_s = exec_s
+        self.max_exec_s = max(self.max_exec_s, exec_s)
+        if jitter_s is not None:
+            self._jitter[self._n_jitter % len(self._jitter)] = jitter_s
+            self._n_jitter += 1
+            self.last_jitter_s = jitter_s
+            self.max_jitter_s = max(self.max_jitter_s, jitter_s)
+        self.cycle_count += 1
+
+    def stats(self) -> dict:
+        """The ``--stats-json`` document (µs)."""
+        ex = self._exec[: min(self.cycle_count, len(self._exec))] * 1e6
+        ji = self._jitter[: min(self._n_jitter, len(self._jitter))] * 1e6
+
+        def pct(a: np.ndarray, p: float) -> float:
+            return round(float(np.percentile(a, p)), 2) if len(a) else 0.0
+
+        return {"cycles": self.cycle_count, "exceed_count": self.exceed_count,
+                "exec_us": {"p50": pct(ex, 50), "p99": pct(ex, 99), "max": round(self.max_exec_s * 1e6, 2)},
+                "period_jitter_us": {"p99": pct(ji, 99), "p999": pct(ji, 99.9),
+                                     "max": round(self.max_jitter_s * 1e6, 2)}}
+
+
+class CyclicTask:
+    """Run ``work(t, exceeded)`` every ``period_s`` in its own thread, on absolute deadlines.
+
+    Parameters
+    ----------
+    period_s : float
+    work : callable (t: float, exceeded: bool) -> None
+        t is the cycle's start time in s since the task started.
+    info : TaskInfo
+    on_error : callable (BaseException) -> None
+        The policy for an exception escaping ``work``: the task stops after calling it.
+    realtime_priority : int
+        SCHED_FIFO priority to request (0 = leave the scheduler alone).
+    """
+
+    def __init__(self, period_s: float, work: Callable[[float, bool], None], info: TaskInfo,
+                 on_error: Callable[[BaseException], None], realtime_priority: int = 0,
+                 clock: Callable[[], float] = time.perf_counter):
+        self.period = float(period_s)
+        self.work = work
+        self.info = info
+        self.on_error = on_error
+        self.priority = realtime_priority
+        self.clock = clock
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="stiffcomp-cycle", daemon=True)
+        self.error: BaseException | None = None
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def _set_priority(self) -> None:
+        if self.priority <= 0:
+            return
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
+            log.info("cycle thread runs with SCHED_FIFO priority %d", self.priority)
+        except (OSError, AttributeError) as e:
+            log.warning("cannot set SCHED_FIFO priority %d (%s); running with normal priority", self.priority, e)
+
+    def _run(self) -> None:
+        self._set_priority()
+        gc.collect()
+        gc.freeze()              # objects made at start-up never get scanned again
+        period, clock, info, work = self.period, self.clock, self.info, self.work
+        sleep, stop = time.sleep, self._stop.is_set
+        t0 = clock()
+        due = t0
+        prev_start: float | None = None
+        exceeded = False
+        try:
+            while not stop():
+                now = clock()
+                if due > now:
+                    sleep(due - now)
+                start = clock()
+                work(start - t0, exceeded)
+                end = clock()
+                info.record(end - start, None if prev_start is None else abs(start - prev_start - period))
+                prev_start = start
+                due += period
+                exceeded = end > due
+                if exceeded:
+                    info.exceed_count += 1
+                    missed = int((end - due) // period)
+                    if missed:                  # skip the deadlines already past; count them
+                        info.exceed_count += missed
+                        due += missed * period
+        except BaseException as e:  # noqa: BLE001 - handed to the explicit policy below
+            self.error = e
+            self.on_error(e)
+        finally:
+            gc.unfreeze()

@@ -1,0 +1,81 @@
+"""Helpers for tests and the benchmark: service configs in a temporary folder, logs, free ports, leaks.
+
+Shipped with the package (like python-can's virtual bus) so that tests, HIL tests and the benchmark
+build their set-ups the same way.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .ati import AtiProtocol
+from .sources.demo_log import write_log
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG = ROOT / "config"
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def deep_update(base: dict, over: dict) -> dict:
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(base.get(k), dict):
+            deep_update(base[k], v)
+        else:
+            base[k] = v
+    return base
+
+
+def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml") -> Path:
+    """config/default.yaml with absolute paths and ``overrides`` merged in, written to ``folder``."""
+    data = yaml.safe_load((CONFIG / "default.yaml").read_text())
+    data["model"]["file"] = str(CONFIG / "models" / "kr125_6dof.yaml")
+    data["plc"]["register_map"] = str(CONFIG / "registers.yaml")
+    data["source"]["replay"]["file"] = str(CONFIG / "replay" / "demo_milling.blf")
+    deep_update(data, overrides or {})
+    path = Path(folder) / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def constant_log(path: Path, wrench, seconds: float = 1.0, rate_hz: float = 1000.0,
+                 protocol: AtiProtocol | None = None, **kw) -> Path:
+    """A log of a constant wrench (N, Nm), ``seconds`` long."""
+    w = np.tile(np.asarray(wrench, dtype=float), (int(seconds * rate_hz), 1))
+    write_log(path, w, rate_hz, protocol, **kw)
+    return path
+
+
+def sockets_open() -> set[str]:
+    """The sockets this process holds (Linux /proc)."""
+    out = set()
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            target = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith("socket:"):
+            out.add(target)
+    return out
+
+
+def leaked_threads(before: set[threading.Thread], wait_s: float = 3.0) -> list[str]:
+    """Threads started since ``before`` that are still alive after waiting up to ``wait_s``."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        extra = [t for t in threading.enumerate() if t not in before and t.is_alive()]
+        if not extra or time.monotonic() > deadline:
+            return [t.name for t in extra]
+        time.sleep(0.02)
