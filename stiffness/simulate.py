@@ -131,15 +131,19 @@ class Campaign:
     """
 
     def __init__(self, spec: CampaignSpec, truth: StiffnessModel, source: str = "<campaign>"):
+        check_spec(spec, source)
         self.source = source
         self.name = spec.name
         self.truth = truth
         self.seed = spec.seed
-        self.loads = spec.loads
-        self.readings = spec.readings
-        self.noise = spec.noise
+        self.axes = [AXES.index(a) for a in spec.loads.axes]
+        self.levels_N = spec.loads.levels()
+        self.point_mm = np.array(spec.loads.point_mm, dtype=float)
+        rs = spec.readings
+        self.repeats, self.interval_s, self.settle_s = rs.repeats, rs.interval_s, rs.settle_s
+        self.move_s, self.start_s = rs.move_s, rs.start_s
+        self.noise = spec.noise.model_dump()
         self.bodies = np.array([BODIES.index(b) for b in spec.bodies])
-        check_spec(spec, source)
         names = [c.name for c in spec.configurations]
         q = [c.q_deg for c in spec.configurations]
         _check_limits(truth.robot, np.array(q).reshape(-1, N_JOINTS), "configurations", source)
@@ -155,8 +159,7 @@ class Campaign:
             raise ConfigError(f"{source}: configurations: name = {dup[0]!r} is used twice; names must be unique")
         self.config_names = names
         self.q_deg = np.array(q, dtype=float)
-        n_rows = len(names) * len(self.loads.axes) * len(self.loads.levels()) * self.readings.repeats \
-            * len(self.bodies)
+        n_rows = len(names) * len(self.axes) * len(self.levels_N) * self.repeats * len(self.bodies)
         if n_rows > MAX_ROWS:
             raise ConfigError(f"{source}: the campaign would have {n_rows} rows; at most {MAX_ROWS} allowed")
 
@@ -178,26 +181,23 @@ class Campaign:
 
         Deflections are zero: the skeleton that `run` fills in.
         """
-        robot = self.truth.robot
-        levels = self.loads.levels()
-        rs = self.readings
         times, cfg, q_rows, forces = [], [], [], []
-        t = rs.start_s
+        t = self.start_s
         for c, (name, q) in enumerate(zip(self.config_names, self.q_deg)):
             if c:
-                t += rs.move_s
-            for axis in self.loads.axes:
-                e = np.eye(3)[AXES.index(axis)]
-                for f in levels:
-                    for _ in range(rs.repeats):
-                        t += rs.interval_s
+                t += self.move_s
+            for axis in self.axes:
+                e = np.eye(3)[axis]
+                for f in self.levels_N:
+                    for _ in range(self.repeats):
+                        t += self.interval_s
                         times.append(t)
                         cfg.append(name)
                         q_rows.append(q)
                         forces.append(f * e)
-                    t += rs.settle_s
+                    t += self.settle_s
         q_deg = np.array(q_rows)
-        W = sensor_wrench(robot, q_deg, np.array(forces), np.array(self.loads.point_mm))
+        W = sensor_wrench(self.truth.robot, q_deg, np.array(forces), self.point_mm)
         nb = len(self.bodies)
         rep = np.repeat(np.arange(len(times)), nb)
         return Dataset(np.array(times)[rep], np.array(cfg)[rep], q_deg[rep], W[rep],
@@ -228,12 +228,15 @@ def sensor_wrench(robot: Robot, q_deg: np.ndarray, force_flange: np.ndarray,
     return transport_wrench(W_p, T_0p, robot.sensor_pose(F))
 
 
-def add_noise(data: Dataset, noise: NoiseSpec, rng: np.random.Generator) -> None:
-    """Add Gaussian noise in place: per reading to the wrench, per row to the deflection."""
+def add_noise(data: Dataset, noise: dict[str, float], rng: np.random.Generator) -> None:
+    """Add Gaussian noise in place: per reading to the wrench, per row to the deflection.
+
+    ``noise`` holds 1-sigma values per component: position_mm, rotation_deg, force_N, moment_Nm.
+    """
     first, reading = data.readings()
     n_read = len(first)
-    sw = np.array([noise.force_N] * 3 + [noise.moment_Nm] * 3)
-    sd = np.array([noise.position_mm] * 3 + [noise.rotation_deg] * 3)
+    sw = np.array([noise["force_N"]] * 3 + [noise["moment_Nm"]] * 3)
+    sd = np.array([noise["position_mm"]] * 3 + [noise["rotation_deg"]] * 3)
     w_noise = rng.standard_normal((n_read, 6)) * sw
     data.wrench = data.wrench + w_noise[reading]
     data.deflection = data.deflection + rng.standard_normal(data.deflection.shape) * sd

@@ -43,13 +43,13 @@ def run(args) -> int:
         "time_s": [float(data.time_s.min()), float(data.time_s.max())],
         "truth": campaign.truth.source,
         "seed": campaign.seed,
-        "noise": None if args.no_noise else campaign.noise.model_dump(),
+        "noise": None if args.no_noise else campaign.noise,
     }
     if args.json:
         print_json(summary)
     else:
         noise = "no noise" if args.no_noise else (
-            "noise " + ", ".join(f"{k} {v:g}" for k, v in campaign.noise.model_dump().items()))
+            "noise " + ", ".join(f"{k} {v:g}" for k, v in campaign.noise.items()))
         print(f"wrote {out}: {summary['rows']} rows, {summary['readings']} readings, "
               f"{len(data.configs)} configurations, t = {summary['time_s'][0]:g}..{summary['time_s'][1]:g} s")
         print(f"  truth {campaign.truth.source}, seed {campaign.seed}, {noise}")
