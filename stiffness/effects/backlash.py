@@ -46,6 +46,12 @@ class Backlash(Effect):
         theta = read_values(cls.name, section, probe.params, where, ("joint",))
         return cls(joint, theta[0], theta[1])
 
+    def to_config(self) -> dict[str, Any]:
+        out = super().to_config()
+        if self.fixed_width is not None:
+            out["width_Nm"] = float(f"{self.fixed_width:.6g}")
+        return out
+
     def width(self, theta: np.ndarray) -> float:
         return self.fixed_width if self.fixed_width is not None else float(theta[1])
 

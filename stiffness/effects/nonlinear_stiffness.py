@@ -63,6 +63,8 @@ class NonlinearStiffness(Effect):
         out = {**super().to_config(), "form": self.form}
         if self.form == "cubic":
             out["reference_torque_Nm"] = self.reference_torque_Nm
+        elif self.fixed_knee is not None:
+            out["knee_Nm"] = float(f"{self.fixed_knee:.6g}")
         return out
 
     def knee(self, theta: np.ndarray) -> float:

@@ -1,0 +1,123 @@
+"""Where a model fails: residual statistics, the noise from repeated readings, and residual patterns.
+
+All functions take the residual (N, 6) = measured - predicted in [mm, mm, mm, deg, deg, deg].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .context import Context
+from .measurements import COMPONENTS
+from .robot import BODIES
+
+LOAD_BINS = 4
+
+
+def normalised_rms(resid: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> float:
+    r = resid if mask is None else resid[mask]
+    return float(np.sqrt(np.mean((r / sigma) ** 2))) if len(r) else float("nan")
+
+
+def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
+    """The body, component, configuration and load range with the largest noise-normalised RMS."""
+    data = ctx.data
+    body_scores = {BODIES[b]: normalised_rms(resid, sigma, data.body == b) for b in np.unique(data.body)}
+    comp_scores = {c: float(np.sqrt(np.mean((resid[:, k] / sigma[k]) ** 2))) for k, c in enumerate(COMPONENTS)}
+    cfg_scores = {c: normalised_rms(resid, sigma, data.config == c) for c in data.configs}
+    fmag = np.linalg.norm(data.wrench[:, :3], axis=1)
+    edges = np.linspace(0, max(fmag.max(), 1e-9), LOAD_BINS + 1)
+    load_scores = {}
+    for k in range(LOAD_BINS):
+        m = (fmag >= edges[k]) & ((fmag < edges[k + 1]) | (k == LOAD_BINS - 1))
+        if m.any():
+            load_scores[f"{edges[k]:.0f}-{edges[k + 1]:.0f} N"] = normalised_rms(resid, sigma, m)
+    pick = lambda d: max(d, key=d.get)  # noqa: E731
+    return {"body": pick(body_scores), "component": pick(comp_scores), "config": pick(cfg_scores),
+            "load_range": pick(load_scores), "scores": {"body": body_scores, "component": comp_scores,
+                                                       "config": cfg_scores, "load_range": load_scores}}
+
+
+def repeat_groups(ctx: Context, tolerance: float = 0.05) -> np.ndarray:
+    """Group readings that repeat one load state: consecutive in time within a configuration, with
+    forces closer than ``tolerance`` of the campaign's largest force. Returns a group id per reading."""
+    f = ctx.wrench_sensor[:, :3]
+    tol = tolerance * max(np.linalg.norm(f, axis=1).max(), 1e-9)
+    order = np.lexsort((ctx.time, ctx.config))
+    gid = np.empty(ctx.n_readings, dtype=int)
+    g = -1
+    for k, n in enumerate(order):
+        prev = order[k - 1] if k else None
+        if prev is None or ctx.config[prev] != ctx.config[n] or np.linalg.norm(f[n] - f[prev]) > tol:
+            g += 1
+        gid[n] = g
+    return gid
+
+
+def pure_error(ctx: Context, y: np.ndarray) -> dict | None:
+    """The measurement noise seen between repeated readings of one load state (model-free).
+
+    Returns ``{"position_mm", "rotation_deg", "dof"}`` per component, or None without repeats.
+    """
+    gid = repeat_groups(ctx)[ctx.row_reading]
+    key = gid * len(BODIES) + ctx.body
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    dof = int(np.sum(counts - 1))
+    if dof < 10:
+        return None
+    sums = np.zeros((inv.max() + 1, 6))
+    np.add.at(sums, inv, y)
+    dev = y - (sums / counts[:, None])[inv]
+    ss = np.sum(dev**2, axis=0) / dof
+    return {"position_mm": float(np.sqrt(ss[:3].mean())), "rotation_deg": float(np.sqrt(ss[3:].mean())),
+            "dof": dof}
+
+
+def axial_residual(ctx: Context, resid: np.ndarray, sigma: np.ndarray, joint: int) -> np.ndarray:
+    """Per reading, the axial rotation of ``joint`` (rad) that best explains its residual.
+
+    The least-squares projection of the reading's residual (all its measured bodies, weighted by
+    the noise) onto the deflection one unit of the joint's axial twist would cause; NaN where the
+    reading holds no body that the joint moves.
+    """
+    g = ctx.G[:, joint - 1, :, 5] / sigma                  # (N, 6) per rad
+    r = resid / sigma
+    num = np.bincount(ctx.row_reading, np.sum(g * r, axis=1), ctx.n_readings)
+    den = np.bincount(ctx.row_reading, np.sum(g * g, axis=1), ctx.n_readings)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 1e-12 * den.max(initial=0), num / den, np.nan)
+
+
+def patterns(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> list[dict]:
+    """How much of the residual simple regressors explain (R^2 each), strongest first.
+
+    The probes are physical, not effects: time within a configuration, each joint torque's sign,
+    square and magnitude, and the sensor force along each axis. They point a person at a pattern
+    when no library effect explains it.
+    """
+    rw = (resid / sigma)
+    total = float(np.sum(rw**2))
+    if total <= 0:
+        return []
+    W = ctx.frame_wrench
+    probes = {"time within configuration": ctx.t_rel}
+    for j in range(1, 7):
+        tau = W[:, j - 1, 5]
+        probes[f"sign of joint {j} torque"] = np.sign(tau)
+        probes[f"joint {j} torque squared"] = tau**2
+    for k, a in enumerate("xyz"):
+        probes[f"sensor force f{a}"] = ctx.wrench_sensor[:, k]
+    out = []
+    rr = ctx.row_reading
+    for name, x in probes.items():
+        x = x[rr]
+        # a separate slope per body and component: the probe may act on any of them
+        explained = 0.0
+        for b in np.unique(ctx.body):
+            m = ctx.body == b
+            xm = x[m] - x[m].mean()
+            den = float(xm @ xm)
+            if den > 0:
+                explained += float(np.sum((xm @ (rw[m] - rw[m].mean(axis=0))) ** 2) / den)
+        out.append({"pattern": name, "r2": explained / total})
+    return sorted(out, key=lambda d: -d["r2"])
