@@ -120,6 +120,22 @@ def test_noise_free_campaign_fits_back_to_the_truth(tmp_path):
     np.testing.assert_allclose(result.model.theta[~rot], truth[~rot], rtol=0.05)
 
 
+def test_time_dependent_truth_sees_the_readings_in_the_order_taken(tmp_path):
+    """A drifting truth: unloaded readings move by v (t - t0) with t0 each configuration's first reading."""
+    truth = yaml.safe_load(TRUTH.read_text())
+    truth["robot"] = str(ROOT / "config" / "robots" / "kr125.yaml")
+    truth["effects"].append({"effect": "drift", "x_mm_per_min": 0.05})
+    (tmp_path / "drift.yaml").write_text(yaml.safe_dump(truth))
+    data = Campaign.from_yaml(write_campaign(tmp_path, truth="drift.yaml", bodies=["TCP"],
+                                             readings={"move_s": 300})).run(noise=False)
+    unloaded = np.abs(data.wrench).max(axis=1) == 0
+    for cfg in data.configs:
+        rows = unloaded & (data.config == cfg)
+        t0 = data.time_s[data.config == cfg].min()
+        np.testing.assert_allclose(data.deflection[rows, 0], 0.05 * (data.time_s[rows] - t0) / 60, atol=1e-9)
+        assert data.deflection[rows, 0].max() > 0.5
+
+
 def test_random_configurations_inside_limits_and_reproducible(tmp_path, robot):
     path = write_campaign(tmp_path, configurations=[CONFIGS[0]],
                           random_configurations={"count": 12, "margin_deg": 10, "prefix": "Q"},
