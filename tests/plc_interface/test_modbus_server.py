@@ -1,0 +1,95 @@
+"""The Modbus server with a real pymodbus client: reads, PLC writes, refused writes (0x02, no change)."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+
+from plc_interface.errors import PlcError
+from plc_interface.image import RegisterImage
+from plc_interface.modbus_server import ModbusServerThread
+from plc_interface.register_map import RegisterMap
+from service.testing import CONFIG, free_port
+
+BASE = 0x8000
+
+
+@pytest.fixture()
+def served():
+    image = RegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    server = ModbusServerThread(image, "127.0.0.1", free_port())
+    server.start()
+    client = ModbusTcpClient("127.0.0.1", port=server.port, timeout=2)
+    assert client.connect()
+    try:
+        yield image, client
+    finally:
+        client.close()
+        server.stop()
+
+
+def test_client_reads_what_the_cycle_publishes(served):
+    image, client = served
+    codec = image.out_codec
+    vals = [0.0] * len(codec.names)
+    vals[codec.index["cycle_count"]] = 123456
+    vals[codec.index["correction_q3"]] = -0.0125
+    image.publish(codec.encode(vals))
+    r = client.read_input_registers(BASE, count=32)
+    assert not r.isError()
+    assert r.registers[4] | (r.registers[5] << 16) == 123456
+    q3 = struct.unpack("<f", struct.pack("<HH", *r.registers[0x14:0x16]))[0]
+    assert q3 == pytest.approx(-0.0125)
+
+
+def test_plc_writes_reach_the_cycle(served):
+    image, client = served
+    words = [0x1, 42] + list(struct.unpack("<HH", struct.pack("<f", 12.5))) * 6
+    assert not client.write_registers(BASE, words).isError()
+    vals = dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))
+    assert vals["command_word"] == 1 and vals["plc_heartbeat"] == 42 and vals["q6"] == 12.5
+    assert not client.write_register(BASE + 1, 43).isError()
+    assert dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))["plc_heartbeat"] == 43
+
+
+@pytest.mark.parametrize("address, values", [
+    (BASE + 0x20, [1]),             # a holding register the map does not give to the PLC
+    (0x0000, [1]),                  # outside every block
+    (BASE + 0x0C, [1, 2, 3, 4]),    # starts on q6, runs past the PLC's registers
+    (BASE + 0xFF, [1, 2]),          # runs past the end of the block
+])
+def test_writes_outside_plc_registers_get_0x02_and_change_nothing(served, address, values):
+    image, client = served
+    before_h = client.read_holding_registers(BASE, count=16).registers
+    before_i = client.read_input_registers(BASE, count=64).registers
+    r = client.write_registers(address, values)
+    assert r.isError() and r.exception_code == 0x02
+    refused = 1
+    if address not in image.writable:
+        r = client.write_register(address, values[0])
+        assert r.isError() and r.exception_code == 0x02
+        refused += 1
+    assert client.read_holding_registers(BASE, count=16).registers == before_h
+    assert client.read_input_registers(BASE, count=64).registers == before_i
+    assert image.refused_writes == refused
+
+
+def test_reads_outside_the_map_get_0x02(served):
+    _, client = served
+    r = client.read_input_registers(0x0000, count=4)
+    assert r.isError() and r.exception_code == 0x02
+    r = client.read_holding_registers(BASE + 0xFE, count=4)
+    assert r.isError() and r.exception_code == 0x02
+
+
+def test_busy_port_is_a_clear_error():
+    image = RegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    first = ModbusServerThread(image, "127.0.0.1", free_port())
+    first.start()
+    try:
+        with pytest.raises(PlcError, match=f"cannot serve Modbus TCP on 127.0.0.1:{first.port}"):
+            ModbusServerThread(image, "127.0.0.1", first.port).start()
+    finally:
+        first.stop()

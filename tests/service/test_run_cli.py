@@ -1,0 +1,52 @@
+"""`stiffcomp run` end to end: a real process, a duration, SIGTERM, the stats JSON, clean exit 0."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+from service.testing import ROOT, free_port, write_config
+
+STATS_KEYS = {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
+
+
+def stiffcomp(*args):
+    return [sys.executable, "-m", "tools.cli", *args]
+
+
+def test_run_for_a_duration_writes_stats_and_exits_0(tmp_path):
+    cfg = write_config(tmp_path, {"plc": {"port": free_port()}})
+    stats = tmp_path / "stats.json"
+    p = subprocess.run(stiffcomp("run", "--config", str(cfg), "--duration", "1.5", "--stats-json", str(stats)),
+                       cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    s = json.loads(stats.read_text())
+    assert STATS_KEYS <= set(s)
+    assert s["cycles"] > 0 and s["status"] == "stopped"
+    assert "status: stopped" in p.stderr
+
+
+def test_sigterm_and_ctrl_c_stop_cleanly_with_exit_0(tmp_path):
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        cfg = write_config(tmp_path, {"plc": {"port": free_port()}})
+        stats = tmp_path / f"stats_{int(sig)}.json"
+        p = subprocess.Popen(stiffcomp("run", "--config", str(cfg), "--stats-json", str(stats)), cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                line = p.stderr.readline()
+                if "service running" in line or not line:
+                    break
+            time.sleep(0.3)
+            p.send_signal(sig)
+            _, err = p.communicate(timeout=30)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+        assert p.returncode == 0, err
+        assert json.loads(stats.read_text())["status"] == "stopped"

@@ -1,0 +1,123 @@
+"""F/T sources: replay (fast and real-time pacing, loop), live CAN with the virtual sensor, tare."""
+
+from __future__ import annotations
+
+import time
+
+import can
+import numpy as np
+import pytest
+
+from service.ati import AtiProtocol
+from service.errors import SensorTimeout, SourceError
+from service.pipeline import CMD_ENABLE, CMD_TARE, Compensator
+from service.sources.can_source import CanSource, open_bus
+from service.sources.demo_log import write_log
+from service.sources.replay import ReplaySource, read_log
+from service.sources.virtual_sensor import VirtualAtiSensor
+from service.testing import write_config
+
+KW = {"timeout_s": 0.01, "max_force_N": 2500.0, "max_torque_Nm": 250.0}
+
+
+def ramp_log(path, n=50):
+    w = np.zeros((n, 6))
+    w[:, 0] = np.arange(n)            # Fx = sample index, N
+    write_log(path, w)
+    return w
+
+
+@pytest.mark.parametrize("suffix", [".blf", ".asc", ".log", ".csv"])
+def test_replay_fast_gives_one_sample_per_poll_in_order(tmp_path, suffix):
+    w = ramp_log(tmp_path / f"r{suffix}")
+    src = ReplaySource(read_log(tmp_path / f"r{suffix}"), pacing="fast", loop=False, protocol=AtiProtocol(), **KW)
+    got = [src.poll(k * 1e-3)[0].wrench[0] for k in range(50)]
+    np.testing.assert_allclose(got, w[:, 0])
+
+
+def test_replay_realtime_follows_the_given_clock(tmp_path):
+    ramp_log(tmp_path / "r.blf", 100)
+    src = ReplaySource(read_log(tmp_path / "r.blf"), pacing="realtime", loop=False, protocol=AtiProtocol(), **KW)
+    src.poll(0.0)
+    reading, errors = src.poll(0.0205)        # samples logged at 0, 1, ..., 20 ms (+0.4 ms for the frames)
+    assert reading.wrench[0] == 20.0 and errors == []
+
+
+def test_replay_loops(tmp_path):
+    ramp_log(tmp_path / "r.blf", 10)
+    src = ReplaySource(read_log(tmp_path / "r.blf"), pacing="fast", loop=True, protocol=AtiProtocol(), **KW)
+    got = [src.poll(k * 1e-3)[0].wrench[0] for k in range(25)]
+    assert got == [float(k % 10) for k in range(25)]
+
+
+def test_replay_end_without_loop_times_out(tmp_path):
+    ramp_log(tmp_path / "r.blf", 5)
+    src = ReplaySource(read_log(tmp_path / "r.blf"), pacing="fast", loop=False, protocol=AtiProtocol(), **KW)
+    for k in range(5):
+        src.poll(k * 1e-3)
+    _, errors = src.poll(0.02)
+    assert any(isinstance(e, SensorTimeout) for e in errors)
+
+
+def test_replay_file_errors_are_clear(tmp_path):
+    with pytest.raises(SourceError, match="not found"):
+        read_log(tmp_path / "missing.blf")
+    (tmp_path / "x.txt").write_text("hello")
+    with pytest.raises(SourceError, match="is not one of"):
+        read_log(tmp_path / "x.txt")
+    (tmp_path / "bad.asc").write_text("this is not a CAN log\n")
+    with pytest.raises(SourceError):
+        read_log(tmp_path / "bad.asc")
+
+
+def test_can_source_reads_the_virtual_sensor_and_biases_it():
+    load = np.array([120.0, -40.0, 300.0, 4.0, -2.0, 1.5])
+    p = AtiProtocol()
+    with VirtualAtiSensor(can.Bus(interface="virtual", channel="t_can"), p, lambda t: load) as sensor:
+        src = CanSource(can.Bus(interface="virtual", channel="t_can"), protocol=p, **KW)
+        try:
+            readings = []
+            for k in range(200):
+                r, errors = src.poll(k * 1e-3)
+                assert not [e for e in errors if not isinstance(e, SensorTimeout)]
+                if r is not None:
+                    readings.append(r.wrench)
+                if len(readings) >= 5:
+                    break
+                time.sleep(0.002)
+            np.testing.assert_allclose(readings[-1], load, atol=0.1)
+            src.request_bias()
+            for _ in range(100):
+                r, _ = src.poll(1.0)
+                if r is not None and np.abs(r.wrench).max() < 0.1:
+                    break
+                time.sleep(0.002)
+            np.testing.assert_allclose(r.wrench, 0.0, atol=0.1)
+            assert sensor.requests >= 5
+        finally:
+            src.close()
+
+
+def test_unknown_interface_is_a_clear_error():
+    with pytest.raises(SourceError, match="cannot open CAN interface 'nonexistent'"):
+        open_bus("nonexistent", "x")
+
+
+def test_tare_command_zeroes_the_wrench(tmp_path):
+    from service.config import load_config
+    from service.sources import make_source
+    from stiffness.model import StiffnessModel
+
+    log = tmp_path / "c.blf"
+    write_log(log, np.tile([50.0, 20.0, -30.0, 1.0, 2.0, 3.0], (300, 1)))
+    cfg = load_config(write_config(tmp_path, {"source": {"replay": {"file": str(log), "pacing": "fast"}}}))
+    comp = Compensator.from_config(cfg, StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)))
+    src = make_source(cfg)
+    q = cfg.plc.initial_q_deg
+    for k in range(100):
+        comp.cycle(k * 1e-3, *src.poll(k * 1e-3), CMD_ENABLE, k, q)
+    assert np.abs(comp.wrench_sensor).max() > 1.0
+    comp.cycle(0.1, *src.poll(0.1), CMD_ENABLE | CMD_TARE, 100, q)
+    assert comp.tares == 1
+    np.testing.assert_allclose(comp.wrench_sensor, 0.0, atol=1e-9)
+    np.testing.assert_allclose(comp.deflection, 0.0, atol=1e-12)

@@ -1,0 +1,86 @@
+"""The cyclic task: absolute deadlines, the exceed counter, stats, and the error policy."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from service.task import CyclicTask, TaskInfo
+
+
+def run_task(work, n_cycles, period=1e-3):
+    info = TaskInfo(period, history=1000)
+    done, errors = threading.Event(), []
+
+    def wrapped(t, exceeded):
+        work(t, exceeded, info)
+        if info.cycle_count + 1 >= n_cycles:
+            done.set()
+
+    task = CyclicTask(period, wrapped, info, errors.append)
+    task.start()
+    done.wait(10.0)
+    task.stop()
+    assert not task.running
+    return info, errors
+
+
+def test_deadlines_are_absolute_so_start_times_do_not_drift():
+    times = []
+    info, errors = run_task(lambda t, ex, info: times.append(t), 200)
+    assert errors == []
+    # the k-th cycle starts at or after its deadline k * period (never before)
+    assert all(t >= k * 1e-3 - 1e-9 for k, t in enumerate(times))
+    assert times == sorted(times)
+
+
+def test_overrunning_work_is_counted_and_flagged_to_the_next_cycle():
+    flags = []
+
+    def work(t, exceeded, info):
+        flags.append(exceeded)
+        if info.cycle_count == 5:
+            time.sleep(0.0035)          # this cycle's work runs past the next deadlines
+
+    info, _ = run_task(work, 20)
+    assert info.exceed_count >= 1
+    assert flags[6] is True
+    assert info.max_exec_s >= 0.0035
+
+
+def test_stats_document_has_the_documented_keys():
+    info, _ = run_task(lambda t, ex, info: None, 50)
+    s = info.stats()
+    assert set(s) == {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
+    assert set(s["exec_us"]) == {"p50", "p99", "max"}
+    assert set(s["period_jitter_us"]) == {"p99", "p999", "max"}
+    assert s["cycles"] >= 50
+    assert 0 <= s["exec_us"]["p50"] <= s["exec_us"]["p99"] <= s["exec_us"]["max"]
+
+
+def test_an_error_in_the_work_goes_to_the_policy_and_stops_the_task():
+    def work(t, exceeded, info):
+        if info.cycle_count == 3:
+            raise ZeroDivisionError("boom")
+
+    info = TaskInfo(1e-3, history=1000)
+    seen = []
+    task = CyclicTask(1e-3, lambda t, ex: work(t, ex, info), info, seen.append)
+    task.start()
+    for _ in range(500):
+        if seen:
+            break
+        time.sleep(0.005)
+    task.stop()
+    assert len(seen) == 1 and isinstance(seen[0], ZeroDivisionError)
+    assert not task.running
+
+
+def test_history_is_a_ring_buffer():
+    info = TaskInfo(1e-3, history=1000)
+    for k in range(2500):
+        info.record(1e-5 * (k % 7), 1e-6)
+    assert info.stats()["cycles"] == 2500
+    assert info.stats()["exec_us"]["max"] == pytest.approx(60.0)
