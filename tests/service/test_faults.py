@@ -17,8 +17,8 @@ from service.config import load_config
 from service.faults import FAULT_BITS
 from service.pipeline import CMD_ENABLE, CMD_RESET, ST_ACTIVE, ST_FAULTED, Compensator
 from service.sources import make_source
-from service.testing import write_config
 from service.sources.demo_log import write_log
+from service.testing import write_config
 from stiffness.model import StiffnessModel
 
 DT = 1e-3
@@ -137,7 +137,7 @@ def test_fault_trips_ramps_to_zero_and_latches_until_reset(tmp_path, caplog, nam
 
 
 def test_disabling_ramps_to_zero_without_a_fault(tmp_path):
-    cfg, comp, src = build(tmp_path)
+    _, comp, src = build(tmp_path)
     drv = Driver(comp, src)
     drv.run(300)
     out = drv.run(300, command=0)
