@@ -57,12 +57,16 @@ class ModbusServerThread:
 
     Parameters
     ----------
-    image : RegisterImage
+    image : RegisterImage or None
     host, port : where to listen
+    context : ModbusServerContext, optional
+        Serve this context instead of the image (a plain PLC memory for tests and the virtual PLC).
     """
 
-    def __init__(self, image: RegisterImage, host: str = "127.0.0.1", port: int = 5020):
+    def __init__(self, image: RegisterImage | None, host: str = "127.0.0.1", port: int = 5020,
+                 context: ModbusServerContext | None = None):
         self.image = image
+        self.context = context
         self.host, self.port = host, port
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: ModbusTcpServer | None = None
@@ -90,7 +94,7 @@ class ModbusServerThread:
             loop.close()
 
     async def _serve(self) -> None:
-        context = ModbusServerContext(devices=ImageDeviceContext(self.image), single=True)
+        context = self.context or ModbusServerContext(devices=ImageDeviceContext(self.image), single=True)
         self._server = ModbusTcpServer(context, address=(self.host, self.port))
         await self._server.serve_forever(background=True)
         if not self._server.is_active():

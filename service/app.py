@@ -116,9 +116,10 @@ class Service:
             self.plc = ModbusServerThread(self.image, self.cfg.plc.host, self.cfg.plc.port)
         elif self.cfg.plc.role == "client":
             from plc_interface.modbus_client import ModbusClientThread
-            self.plc = ModbusClientThread(self.image, self.cfg.plc.host, self.cfg.plc.port,
-                                          self.cfg.plc.device_id, self.cfg.plc.client.period_ms / 1000.0,
-                                          self.cfg.plc.client.timeout_s)
+            c = self.cfg.plc.client
+            self.plc = ModbusClientThread(self.image, self.cfg.plc.host, self.cfg.plc.port, self.cfg.plc.device_id,
+                                          c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
+                                          c.read_start)
         try:
             if self.plc is not None:
                 self.plc.start()

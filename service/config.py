@@ -131,6 +131,9 @@ class FaultsConfig(_Strict):
 class PlcClientConfig(_Strict):
     period_ms: float = Field(10.0, ge=1.0)
     timeout_s: float = Field(1.0, gt=0)
+    write_start: int = Field(0x3000, ge=0, le=0xFFFF)
+    read_table: Literal["input_registers", "holding_registers"] = "input_registers"
+    read_start: int = Field(0x8000, ge=0, le=0xFFFF)
 
 
 class PlcConfig(_Strict):
