@@ -1,4 +1,76 @@
-"""placeholder"""
+"""`stiffcomp payload POSES.csv`: mass, centre of gravity and bias from static poses (least squares).
 
-def register(sub):
-    pass
+POSES.csv has one row per static pose, the robot at rest and nothing touching the tool:
+``q1_deg .. q6_deg, fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm`` (the sensor's reading, sensor axes).
+The poses must turn the sensor so that gravity points along three independent directions in its
+frame. Prints the result as a ``gravity`` section for config/default.yaml (or JSON).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from service.config import DEFAULT_CONFIG, load_config
+from service.errors import ServiceConfigError
+from service.gravity import identify_payload
+from stiffness.model import StiffnessModel
+
+COLUMNS = [f"q{i}_deg" for i in range(1, 7)] + ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
+
+
+def register(sub) -> None:
+    p = sub.add_parser("payload", help="identify payload mass, centre of gravity and sensor bias")
+    p.add_argument("poses", help="CSV with q1_deg..q6_deg and fx_N..mz_Nm, one static pose per row")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (robot and gravity vector)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a YAML snippet")
+    p.set_defaults(func=run)
+
+
+def read_poses(path: str) -> np.ndarray:
+    p = Path(path)
+    if not p.exists():
+        raise ServiceConfigError(f"{path}: poses file not found")
+    with open(p, newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ServiceConfigError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                vals = [float(row[c]) for c in COLUMNS]
+            except (TypeError, ValueError):
+                raise ServiceConfigError(f"{path}: line {line}: every value must be a number") from None
+            if not np.all(np.isfinite(vals)):
+                raise ServiceConfigError(f"{path}: line {line}: values must be finite")
+            rows.append(vals)
+    if len(rows) < 3:
+        raise ServiceConfigError(f"{path}: {len(rows)} pose(s); at least 3 are needed (better 6 or more)")
+    return np.array(rows)
+
+
+def run(args) -> int:
+    cfg = load_config(args.config)
+    robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
+    data = read_poses(args.poses)
+    F = robot.frames(np.radians(data[:, :6]))
+    R = robot.sensor_pose(F)[:, :3, :3]
+    fit = identify_payload(R, data[:, 6:], np.array(cfg.gravity.g_mps2))
+    result = {"ok": bool(fit.ok), "message": fit.message, "mass_kg": float(fit.mass_kg), "cog_mm": (fit.cog_m * 1000).tolist(),
+              "bias": fit.bias.tolist(), "residual_rms": fit.residual_rms.tolist(), "poses": len(data)}
+    if args.json:
+        print(json.dumps(result, indent=2))
+    elif fit.ok:
+        cog = ", ".join(f"{v:.1f}" for v in fit.cog_m * 1000)
+        print(f"# stiffcomp payload {args.poses}: {len(data)} poses, residual RMS "
+              f"{np.array2string(fit.residual_rms, precision=3)} (N, Nm)")
+        print("gravity:")
+        print(f"  tool: {{mass_kg: {fit.mass_kg:.3f}, cog_mm: [{cog}]}}   # everything the sensor carries")
+        print(f"  bias: [{', '.join(f'{v:.3f}' for v in fit.bias)}]")
+    else:
+        print(f"stiffcomp payload: {fit.message}")
+    return 0 if fit.ok else 1

@@ -1,4 +1,89 @@
-"""placeholder"""
+"""`stiffcomp record OUT`: record an ATI sensor's CAN traffic to a python-can log for replay.
 
-def register(sub):
-    pass
+The bus comes from the config's ``source.can`` section (or --interface/--channel). The sensor
+answers only requests, so the recorder sends short-data requests at --request-hz on absolute
+deadlines (0: the sensor streams by itself). --virtual-sensor answers on the same virtual bus with
+a synthetic milling load, to make a log without hardware. The format follows OUT's suffix
+(.asc, .blf, .log, .trc, .csv).
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+
+import can
+import numpy as np
+
+from service.ati import AtiProtocol
+from service.config import DEFAULT_CONFIG, load_config
+from service.errors import ServiceConfigError
+from service.sources.can_source import open_bus
+from service.sources.demo_log import milling_wrench
+from service.sources.replay import LOG_SUFFIXES
+from service.sources.virtual_sensor import VirtualAtiSensor
+
+
+def register(sub) -> None:
+    p = sub.add_parser("record", help="record the F/T sensor's CAN frames to a log file for replay")
+    p.add_argument("out", help=f"log file to write ({', '.join(LOG_SUFFIXES)})")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (source.can, source.ati)")
+    p.add_argument("--interface", default=None, help="python-can interface (default: source.can.interface)")
+    p.add_argument("--channel", default=None, help="channel (default: source.can.channel)")
+    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="seconds to record (default 10)")
+    p.add_argument("--request-hz", type=float, default=1000.0, help="short-data requests per second (0 = none)")
+    p.add_argument("--virtual-sensor", action="store_true",
+                   help="answer the requests with a virtual sensor on the same (virtual) bus")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    if Path(args.out).suffix.lower() not in LOG_SUFFIXES:
+        raise ServiceConfigError(f"record: {args.out}: the log type must be one of {', '.join(LOG_SUFFIXES)}")
+    cfg = load_config(args.config)
+    c = cfg.source.can
+    interface, channel = args.interface or c.interface, args.channel or c.channel
+    protocol = AtiProtocol.from_config(cfg.source.ati)
+    sensor = None
+    if args.virtual_sensor:
+        sensor = VirtualAtiSensor(open_bus(interface, channel, c.bitrate, **c.options), protocol,
+                                  lambda t: milling_wrench(np.array([t]), seed=int(t * 1000))[0]).start()
+    bus = open_bus(interface, channel, c.bitrate, **c.options)
+    logger = can.Logger(args.out)
+    notifier = can.Notifier(bus, [logger])
+    stop = threading.Event()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    arb, data = protocol.request_short_data()
+    sent = 0
+    try:
+        t_end = time.monotonic() + args.duration
+        period = 1.0 / args.request_hz if args.request_hz > 0 else None
+        due = time.monotonic()
+        while not stop.is_set() and time.monotonic() < t_end:
+            if period is None:
+                stop.wait(min(0.1, max(0.0, t_end - time.monotonic())))
+                continue
+            msg = can.Message(arbitration_id=arb, data=data, is_extended_id=False, timestamp=time.time())
+            try:
+                bus.send(msg, timeout=0.0)
+                logger(msg)
+                sent += 1
+            except can.CanError:
+                pass
+            due += period
+            delay = due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        time.sleep(0.02)                    # let the last answers arrive
+        notifier.stop()                     # also stops (flushes and closes) the logger
+        bus.shutdown()
+        if sensor is not None:
+            sensor.stop()
+    print(f"recorded {args.out}: {sent} requests sent on {interface}:{channel}")
+    return 0

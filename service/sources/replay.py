@@ -37,6 +37,7 @@ def read_log(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
         raise SourceError(f"{path}: cannot read the CAN log: {e}") from e
     if not frames:
         raise SourceError(f"{path}: the CAN log holds no frames")
+    frames.sort(key=lambda f: f[0])      # stable: a recorder may log its own requests slightly out of order
     t0 = frames[0][0]
     return [(t - t0, i, d, err) for t, i, d, err in frames]
 

@@ -8,6 +8,7 @@ record --virtual` records it.
 
 from __future__ import annotations
 
+import argparse
 import threading
 import time
 from collections.abc import Callable
@@ -74,3 +75,29 @@ class VirtualAtiSensor:
                     self.bus.send(can.Message(arbitration_id=arb, data=data, is_extended_id=False))
             elif msg.data[0] == REQ_BIAS:
                 self.bias = np.asarray(self.load(t), dtype=float).copy()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run a virtual sensor with a constant load in its own process (e.g. on udp_multicast)."""
+    ap = argparse.ArgumentParser(description="a virtual ATI Net F/T sensor on a python-can bus")
+    ap.add_argument("--interface", default="udp_multicast")
+    ap.add_argument("--channel", default="239.74.163.2")
+    ap.add_argument("--base-id", type=lambda s: int(s, 0), default=0x020)
+    ap.add_argument("--load", default="0,0,0,0,0,0", help="Fx,Fy,Fz,Tx,Ty,Tz in N and Nm")
+    ap.add_argument("--seconds", type=float, default=10.0)
+    args = ap.parse_args(argv)
+    load = np.array([float(v) for v in args.load.split(",")])
+    sensor = VirtualAtiSensor(can.Bus(interface=args.interface, channel=args.channel),
+                              AtiProtocol(base_id=args.base_id), lambda t: load).start()
+    print("ready", flush=True)
+    try:
+        time.sleep(args.seconds)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        sensor.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -121,3 +121,36 @@ def test_tare_command_zeroes_the_wrench(tmp_path):
     assert comp.tares == 1
     np.testing.assert_allclose(comp.wrench_sensor, 0.0, atol=1e-9)
     np.testing.assert_allclose(comp.deflection, 0.0, atol=1e-12)
+
+
+def test_can_source_between_processes_over_udp_multicast():
+    """The virtual sensor in its own process, the source here: real CAN frames over udp_multicast."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("msgpack")
+    channel = "239.74.163.7"
+    load = [250.0, -60.0, 410.0, 7.5, -3.0, 2.25]
+    proc = subprocess.Popen([sys.executable, "-m", "service.sources.virtual_sensor", "--interface", "udp_multicast",
+                             "--channel", channel, "--load", ",".join(map(str, load)), "--seconds", "20"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        src = CanSource(can.Bus(interface="udp_multicast", channel=channel), protocol=AtiProtocol(), **KW)
+        try:
+            reading = None
+            for k in range(2000):
+                r, errors = src.poll(k * 1e-3)
+                assert not [e for e in errors if not isinstance(e, SensorTimeout)]
+                if r is not None:
+                    reading = r
+                    break
+                time.sleep(0.002)
+            assert reading is not None
+            np.testing.assert_allclose(reading.wrench, load, atol=0.1)
+        finally:
+            src.close()
+    finally:
+        proc.terminate()
+        proc.wait(10)
+        proc.stdout.close()
