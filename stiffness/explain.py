@@ -56,7 +56,7 @@ def describe(c, model, ctx, result) -> str:
     where = f" at {e_loc(c.effect)}" if c.effect.joint is not None else ""
     pct = 100 * c.cv_improvement
     passed = [k.replace("_", " ") for k, ok in c.criteria.items() if ok]
-    verdict = "Missing" if c.significant else "Not supported"
+    verdict = "Missing" if c.named else ("Partial" if c.significant else "Not supported")
     return (f"{verdict}: {c.name}{where}, {size_text(c, model, ctx)}. It explains {pct:.0f} % of the "
             f"remaining error under cross-validation by configuration (RMS {result.rms_position_mm:.4f} -> "
             f"{c.rms_position_mm_after:.4f} mm, {result.rms_rotation_deg:.5f} -> "

@@ -22,6 +22,8 @@ COMMANDS = [
     "tools.payload_cmd",
     "tools.simulate_cmd",
     "tools.compare_cmd",
+    "tools.diagnose_cmd",
+    "tools.model_cmd",
 ]
 
 EXIT_USER_ERROR = 2

@@ -1,0 +1,29 @@
+"""Editing a model: add a library effect at a joint or link (what `stiffcomp model add` does)."""
+
+from __future__ import annotations
+
+from .effects import EFFECTS
+from .errors import ConfigError
+from .model import StiffnessModel
+
+
+def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
+               values: dict | None = None) -> StiffnessModel:
+    """A copy of ``model`` with the library effect ``effect`` added (parameters at their defaults).
+
+    ``joint`` is the joint (1..6) or, for link_bending, the link; global effects take none.
+    """
+    if effect not in EFFECTS:
+        raise ConfigError(f"effect {effect!r} is not in the library (one of {', '.join(sorted(EFFECTS))})")
+    cls = EFFECTS[effect]
+    entry = {"effect": effect, **(values or {})}
+    if cls.per_joint:
+        if joint is None:
+            raise ConfigError(f"effect {effect} needs --joint (one of {', '.join(map(str, cls.joints))})")
+        entry[cls.location_key] = joint
+    elif joint is not None:
+        raise ConfigError(f"effect {effect} is global: it takes no --joint")
+    data = model.to_dict()
+    data["name"] = f"{model.name}+{effect}" + (f"@{joint}" if joint is not None else "")
+    data["effects"] = data["effects"] + [entry]
+    return StiffnessModel.from_dict(data, model.source, robot=model.robot)

@@ -1,0 +1,41 @@
+"""Synthetic campaigns with hidden effects for the discovery tests (made by stiffness.simulate)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from stiffness.model import StiffnessModel
+from stiffness.simulate import Campaign, CampaignSpec
+
+ROOT = Path(__file__).resolve().parents[2]
+TRUTH = ROOT / "examples" / "truth_reference.yaml"
+MODELS = ROOT / "config" / "models"
+
+
+def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:
+    """The reference truth plus ``hidden`` effects; with ``axial_except``, every joint but that one
+    keeps only its axial spring (to hide a joint_6dof)."""
+    d = yaml.safe_load(TRUTH.read_text())
+    if axial_except is not None:
+        d["effects"] = [e if e["joint"] == axial_except else
+                        {"effect": "joint_spring", "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
+                        for e in d["effects"]]
+    d["effects"] = d["effects"] + hidden
+    return StiffnessModel.from_dict(d, "truth", TRUTH.parent)
+
+
+def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2):
+    spec = CampaignSpec.model_validate({
+        "name": f"hidden_{seed}", "truth": "-", "seed": seed,
+        "configurations": [],
+        "random_configurations": {"count": configs, "margin_deg": 25.0},
+        "loads": {"axes": ["x", "y", "z"], "max_N": 1200, "step_N": 300, "point_mm": [100, 0, 250]},
+        "readings": {"repeats": repeats, "interval_s": 4, "settle_s": 8, "move_s": 30},
+    })
+    return Campaign(spec, truth, f"<hidden effect campaign seed {seed}>").run()
+
+
+def start_model(name: str = "kr125_6dof") -> StiffnessModel:
+    return StiffnessModel.from_yaml(MODELS / f"{name}.yaml")

@@ -1,0 +1,54 @@
+"""`stiffcomp diagnose MODEL DATA [--report DIR] [--json]`: name the physical effect a model lacks."""
+
+from __future__ import annotations
+
+import sys
+
+from stiffness.diagnose import diagnose
+from stiffness.diagnose_report import build_report, to_dict
+
+from .common import load, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("diagnose", help="fit, show where the model fails, and name the missing effect")
+    p.add_argument("model", help="model YAML")
+    p.add_argument("data", help="measurement campaign (CSV or Parquet)")
+    p.add_argument("--report", metavar="DIR", help="write an HTML report with plots into DIR")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--top", type=int, default=None, help="list only the best N candidates")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    model, data = load(args.model, args.data)
+    tty = sys.stderr.isatty()
+
+    def progress(msg: str) -> None:
+        if tty:
+            print(f"\r\033[Kdiagnose: {msg}", end="", file=sys.stderr, flush=True)
+
+    d = diagnose(model, data, progress)
+    if tty:
+        print("\r\033[K", end="", file=sys.stderr)
+    if args.report:
+        path = build_report(d, args.model, args.data).write(args.report)
+        print(f"report: {path}", file=sys.stderr)
+    if args.json:
+        print_json(to_dict(d, args.top))
+        return 0
+    print(f"verdict: {d.verdict}")
+    print(f"  {d.message}")
+    print(f"  residual RMS {d.fit.rms_position_mm:.4f} mm, {d.fit.rms_rotation_deg:.5f} deg; worst body "
+          f"{d.worst['body']}, component {d.worst['component']}, configuration {d.worst['config']}, "
+          f"load {d.worst['load_range']}")
+    print("  candidates (best first):")
+    for c in d.candidates[:args.top or 8]:
+        where = f"{c.effect.location_key} {c.joint}" if c.joint is not None else "global"
+        print(f"    {'*' if c.named else ' '} {c.name:20s} {where:8s} CV {100 * c.cv_improvement:5.1f} %  "
+              f"dBIC {c.delta_bic:10.1f}  after {c.rms_position_mm_after:.4f} mm {c.rms_rotation_deg_after:.5f} deg")
+    if d.best is not None:
+        b = d.best
+        loc = f" --joint {b.joint}" if b.joint is not None else ""
+        print(f"  next: stiffcomp model add {args.model} {b.name}{loc} -o with_{b.name}.yaml")
+    return 0

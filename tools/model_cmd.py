@@ -1,0 +1,39 @@
+"""`stiffcomp model add MODEL EFFECT [--joint N] -o NEW.yaml` and `stiffcomp model effects`."""
+
+from __future__ import annotations
+
+from stiffness.edit import add_effect
+from stiffness.effects import EFFECTS
+from stiffness.model import StiffnessModel
+
+from .fit_cmd import _relative_robot
+
+
+def register(sub) -> None:
+    p = sub.add_parser("model", help="edit a model: add an effect, list the effect library")
+    msub = p.add_subparsers(dest="model_command", metavar="ACTION", required=True)
+    a = msub.add_parser("add", help="add a library effect to a model")
+    a.add_argument("model", help="model YAML")
+    a.add_argument("effect", choices=sorted(EFFECTS), help="effect name")
+    a.add_argument("--joint", "--link", type=int, dest="joint", help="joint 1..6 (link for link_bending)")
+    a.add_argument("-o", "--output", required=True, help="where to write the new model YAML")
+    a.set_defaults(func=run_add)
+    e = msub.add_parser("effects", help="list the effect library with each effect's equation")
+    e.set_defaults(func=run_effects)
+
+
+def run_add(args) -> int:
+    model = StiffnessModel.from_yaml(args.model)
+    new = add_effect(model, args.effect, args.joint)
+    new.robot_ref = _relative_robot(args.model, args.output, model.robot_ref)
+    new.to_yaml(args.output, f"# {args.model} with {args.effect} added"
+                + (f" at {args.joint}" if args.joint else "") + "; fit it with `stiffcomp fit`")
+    print(f"written: {args.output} ({args.effect} added; its parameters start at their defaults)")
+    return 0
+
+
+def run_effects(args) -> int:
+    for name, cls in EFFECTS.items():
+        where = f"{cls.location_key} {', '.join(map(str, cls.joints))}" if cls.per_joint else "global"
+        print(f"{name:20s} {where:20s} {cls.equation}")
+    return 0
