@@ -111,17 +111,17 @@ def read_values(cls_name: str, section: dict[str, Any], params: list[Param], whe
                           f"(known: {', '.join(sorted(known - {'effect', 'fit'}))})")
     theta = np.zeros(len(params))
     for k, p in enumerate(params):
-        v = section.get(p.key, 0.0)
+        raw = section.get(p.key, 0.0)
         try:
-            v = float(v)
+            v = float(raw)
         except (TypeError, ValueError):
-            raise ConfigError(f"{where}: {p.key} = {v!r} is not a number ({p.unit})") from None
+            raise ConfigError(f"{where}: {p.key} = {raw!r} is not a number ({p.unit})") from None
         if not np.isfinite(v):
-            raise ConfigError(f"{where}: {p.key} = {v!r} must be finite ({p.unit})")
+            raise ConfigError(f"{where}: {p.key} = {raw!r} must be finite ({p.unit})")
         lo, hi = p.bounds
         si = v / p.yaml_factor
         if not lo <= si <= hi:
-            raise ConfigError(f"{where}: {p.key} = {v!r} is outside [{lo * p.yaml_factor:g}, "
+            raise ConfigError(f"{where}: {p.key} = {raw!r} is outside [{lo * p.yaml_factor:g}, "
                               f"{hi * p.yaml_factor:g}] {p.unit}")
         theta[k] = si
     return theta

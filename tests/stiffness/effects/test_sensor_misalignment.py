@@ -1,0 +1,29 @@
+"""sensor_misalignment: W_true = blockdiag(R(phi), R(phi)) W_measured."""
+
+import numpy as np
+
+from stiffness.effects.sensor_misalignment import SensorMisalignment
+from stiffness.spatial import exp_so3
+
+from effect_helpers import context, model_with
+
+
+def test_rotates_force_and_moment(robot):
+    ctx = context(robot)
+    phi = np.radians([1.0, -2.0, 0.5])
+    w = SensorMisalignment(phi).wrench(ctx, phi, ctx.wrench_sensor)
+    R = exp_so3(phi)
+    np.testing.assert_allclose(w[:, :3], ctx.wrench_sensor[:, :3] @ R.T)
+    np.testing.assert_allclose(np.linalg.norm(w[:, 3:], axis=1), np.linalg.norm(ctx.wrench_sensor[:, 3:], axis=1))
+    np.testing.assert_allclose(SensorMisalignment().wrench(ctx, np.zeros(3), ctx.wrench_sensor), ctx.wrench_sensor)
+
+
+def test_prediction_equals_the_model_fed_the_rotated_wrench(robot):
+    from conftest import random_dataset
+    data = random_dataset(robot, 20, 3)
+    m = model_with({"effect": "sensor_misalignment", "rz_deg": 3.0}, base="kr125_6dof")
+    plain = model_with(base="kr125_6dof")
+    turned = data.subset(np.arange(len(data)))
+    R = exp_so3(np.radians([0, 0, 3.0]))
+    turned.wrench = np.c_[data.wrench[:, :3] @ R.T, data.wrench[:, 3:] @ R.T]
+    np.testing.assert_allclose(m.predict(data), plain.predict(turned), atol=1e-12)
