@@ -66,7 +66,8 @@ FAST_EFFECTS: dict[str, Callable[[object, np.ndarray, list[AxialTerm]], None]] =
 class FastPredictor:
     """Per-cycle deflection and δq for a model made of supported effects.
 
-    Call `kinematics(q)` once per cycle, then `wrench_base`, `deflection` and `correction`.
+    Call `kinematics(q)` when q changes (it also forms the damped pseudo-inverse), then
+    `wrench_base`, `deflection` and `correction` every cycle.
 
     Parameters
     ----------
@@ -101,6 +102,8 @@ class FastPredictor:
         self.Ad[0] = np.eye(6)                  # joint 1's spring sits in the base frame
         self._w = np.empty(6)
         self.J = np.zeros((6, 6))
+        self.J_pinv = np.zeros((6, 6))
+        self._eye = np.eye(6)
         self.R_s = np.eye(3).tolist()
         self.p_s = [0.0, 0.0, 0.0]
         self.T_tcp = np.eye(4)
@@ -116,7 +119,10 @@ class FastPredictor:
         pm, pd = self.pm, self.pd
         pin.computeJointJacobians(pm, pd, q_rad)
         pin.updateFramePlacements(pm, pd)
-        self.J = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
+        self.J = J = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
+        A = J @ J.T
+        A.flat[::7] += self.lam2
+        self.J_pinv = J.T @ lapack.dgesv(A, self._eye)[2]       # J^T (J J^T + λ² I)^-1
         oMf, Ad = pd.oMf, self.Ad
         for k, fid in enumerate(self.spring_ids):
             Ad[k + 1] = oMf[fid].action
@@ -154,7 +160,7 @@ class FastPredictor:
 
     def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:
         """δq (rad) that moves the unloaded TCP by -dX (m, rad); `kinematics(q_rad)` must have run."""
-        dq = -self._pinv_apply(self.J, dX)
+        dq = -(self.J_pinv @ dX)
         if self.iterations:
             T0 = self.T_tcp
             p_target = T0[:3, 3] - dX[:3]

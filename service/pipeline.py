@@ -75,6 +75,7 @@ class Compensator:
         self.dq_deg = [0.0] * 6               # δq before limits, deg
         self.correction = [0.0] * 6           # δq after limits, deg
         self.q_rad = np.zeros(6)
+        self._q_last: list[float] | None = None
         self.status_word = 0
         self.tares = 0
 
@@ -104,10 +105,11 @@ class Compensator:
         enabled = bool(command & CMD_ENABLE) or self.enable_on_start
         self._supervise_plc(t, plc_heartbeat, bool(rising & CMD_ENABLE), bool(command & CMD_ENABLE))
         self._supervise_overrun(overrun)
-        q_ok = self._check_q(q_deg)
-        if q_ok:
+        if q_deg != self._q_last and self._check_q(q_deg):
+            # kinematics only when q changes (exact comparison: a cache that never approximates)
             self.q_rad = np.array(q_deg) * _RAD
             self.predictor.kinematics(self.q_rad)
+            self._q_last = list(q_deg)
         pred = self.predictor
         R_s = pred.R_s
         if reading is not None:

@@ -26,9 +26,10 @@ def test_record_from_the_virtual_sensor_then_replay(tmp_path, suffix, capsys):
     frames = read_log(out)
     src = ReplaySource(frames, pacing="fast", loop=False, protocol=AtiProtocol(), timeout_s=1.0,
                        max_force_N=2500.0, max_torque_Nm=250.0)
-    readings = []
-    for k in range(len(frames)):
+    readings, k = [], 0
+    while not src.exhausted:
         r, errors = src.poll(k * 1e-3)
+        k += 1
         assert errors == []
         if r is not None:
             readings.append(r.wrench)
