@@ -59,7 +59,7 @@ def client_main(port: int, duration: float, rate_hz: float, count: int) -> None:
                                  "max": float(a.max())}}))
 
 
-def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int) -> dict:
+def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int, cpu: int | None) -> dict:
     import logging
 
     from service.app import Service
@@ -72,7 +72,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
         cfg = load_config(write_config(Path(tmp), {
             "plc": {"port": port, "enable_on_start": True},
             "faults": {"plc_heartbeat_timeout_ms": 0, "overrun_trip_count": 1000},
-            "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority},
+            "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority, "cpu": cpu},
         }))
         service = Service(cfg)
         service.start()
@@ -93,6 +93,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
             service.stop()
     return {"service": stats, "clients": clients, "duration_s": duration, "clients_n": n_clients,
             "rate_hz": rate_hz, "registers_per_read": count, "cpus": os.cpu_count(), "faults": faults,
+            "realtime_priority": priority, "cpu": cpu,
             "correction_deg": correction,
             "pass": {"exec_p99_le_100us": stats["exec_us"]["p99"] <= TARGET_P99_US,
                      "no_exceeded_cycle": stats["exceed_count"] == 0}}
@@ -108,9 +109,10 @@ def main() -> int:
     ap.add_argument("--rate-hz", type=float, default=500.0)
     ap.add_argument("--registers", type=int, default=32)
     ap.add_argument("--realtime-priority", type=int, default=0, help="SCHED_FIFO priority of the cycle thread")
+    ap.add_argument("--cpu", type=int, default=None, help="pin the cycle thread to this CPU")
     ap.add_argument("--json", default=None, help="write the result here too")
     args = ap.parse_args()
-    r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority)
+    r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority, args.cpu)
     s = r["service"]
     reqs = sum(c.get("requests", 0) for c in r["clients"])
     errs = sum(c.get("errors", 0) for c in r["clients"])

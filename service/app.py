@@ -96,7 +96,8 @@ class Service:
         out = [n & 0xFFFF, comp.status_word, comp.faults.word, TASK_RUN, n, info.exceed_count,
                info.last_exec_s * 1e6, self.period * 1e6, info.last_jitter_s * 1e6,
                *comp.correction, *comp.wrench_base, *comp.deflection]
-        image.publish(image.out_codec.encode([out[k] for k in self._order]))
+        self._out = ordered = [out[k] for k in self._order]
+        image.publish(image.out_codec.encode(ordered))
 
     def _on_error(self, e: BaseException) -> None:
         log.critical("the cycle stopped on an unexpected error: %r; outputs are zeroed", e)
@@ -126,7 +127,8 @@ class Service:
         except BaseException:
             self.source.close()
             raise
-        self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority)
+        self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
+                               cpu=self.cfg.cycle.cpu)
         self.task.start()
         self.task_state = TASK_RUN
         log.info("service running: %.3f ms cycle, source %s, PLC %s", self.period * 1000, self.cfg.source.type,

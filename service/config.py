@@ -42,6 +42,7 @@ class CycleConfig(_Strict):
     stats_log_interval_s: float = Field(10.0, ge=0.0)
     history: int = Field(600_000, ge=1000, le=10_000_000)
     realtime_priority: int = Field(0, ge=0, le=99)
+    cpu: int | None = Field(None, ge=0, le=1023)
 
 
 class ModelConfig(_Strict):
@@ -190,6 +191,11 @@ def load_config(path: str | Path | None = None) -> ServiceConfig:
 def check_consistency(cfg: ServiceConfig) -> None:
     """Checks that involve more than one key, and that the files the config names exist."""
     src = str(cfg.path)
+    import os
+
+    if cfg.cycle.cpu is not None and cfg.cycle.cpu >= (os.cpu_count() or 1):
+        raise ServiceConfigError(f"{src}: cycle.cpu = {cfg.cycle.cpu} must be below the number of CPUs "
+                                 f"({os.cpu_count()})")
     nyquist = 500.0 / cfg.cycle.period_ms
     if cfg.filter.type != "none" and not cfg.filter.cutoff_hz < nyquist:
         raise ServiceConfigError(f"{src}: filter.cutoff_hz = {cfg.filter.cutoff_hz:g} must be below half "

@@ -77,16 +77,19 @@ class CyclicTask:
         The policy for an exception escaping ``work``: the task stops after calling it.
     realtime_priority : int
         SCHED_FIFO priority to request (0 = leave the scheduler alone).
+    cpu : int or None
+        Pin the cycle thread to this CPU.
     """
 
     def __init__(self, period_s: float, work: Callable[[float, bool], None], info: TaskInfo,
                  on_error: Callable[[BaseException], None], realtime_priority: int = 0,
-                 clock: Callable[[], float] = time.perf_counter):
+                 clock: Callable[[], float] = time.perf_counter, cpu: int | None = None):
         self.period = float(period_s)
         self.work = work
         self.info = info
         self.on_error = on_error
         self.priority = realtime_priority
+        self.cpu = cpu
         self.clock = clock
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="stiffcomp-cycle", daemon=True)
@@ -105,6 +108,11 @@ class CyclicTask:
         return self._thread.is_alive()
 
     def _set_priority(self) -> None:
+        if self.cpu is not None:
+            try:
+                os.sched_setaffinity(0, {self.cpu})
+            except (OSError, AttributeError) as e:
+                log.warning("cannot pin the cycle thread to CPU %d (%s)", self.cpu, e)
         if self.priority <= 0:
             return
         try:

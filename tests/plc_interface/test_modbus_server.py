@@ -77,7 +77,7 @@ def test_writes_outside_plc_registers_get_0x02_and_change_nothing(served, addres
 
 
 def test_reads_outside_the_map_get_0x02(served):
-    _, client = served
+    _image, client = served
     r = client.read_input_registers(0x0000, count=4)
     assert r.isError() and r.exception_code == 0x02
     r = client.read_holding_registers(BASE + 0xFE, count=4)
@@ -93,3 +93,31 @@ def test_busy_port_is_a_clear_error():
             ModbusServerThread(image, "127.0.0.1", first.port).start()
     finally:
         first.stop()
+
+
+def test_coils_and_discrete_inputs_are_refused(served):
+    _, client = served
+    before = client.read_holding_registers(BASE, count=16).registers
+    r = client.write_coil(BASE, True)
+    assert r.isError() and r.exception_code == 0x01
+    r = client.read_coils(BASE, count=8)
+    assert r.isError() and r.exception_code == 0x01
+    r = client.read_discrete_inputs(BASE, count=8)
+    assert r.isError() and r.exception_code == 0x01
+    assert client.read_holding_registers(BASE, count=16).registers == before
+
+
+def test_garbage_on_the_socket_does_not_disturb_the_server(served):
+    import socket
+
+    _, client = served
+    port = client.comm_params.port
+    with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
+        s.sendall(b"\x00\x01\x00\x00\x00\xff\x01\x03garbage" + bytes(range(256)))
+        s.settimeout(0.5)
+        try:
+            s.recv(1024)
+        except (TimeoutError, ConnectionError):
+            pass
+    r = client.read_input_registers(BASE, count=4)
+    assert not r.isError()
