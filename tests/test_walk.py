@@ -4,7 +4,7 @@ import json
 import subprocess
 import sys
 
-from conftest import ROOT
+from stiffcomp_testlib import ROOT
 
 DATA = ROOT / "examples" / "campaign_backlash.csv"
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from conftest import with_deflection
+from stiffcomp_testlib import with_deflection
 from stiffness.cartesian import identify_cartesian, tcp_compliance, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.measurements import Dataset
 from stiffness.spatial import transform, transport_wrench

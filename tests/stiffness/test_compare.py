@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT
+from stiffcomp_testlib import ROOT
 
 from stiffness.compare import by_component, compare, load_direction, r2, summary
 from stiffness.measurements import Dataset

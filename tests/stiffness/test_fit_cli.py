@@ -7,7 +7,7 @@ import sys
 import pytest
 import yaml
 
-from conftest import DATA, MODELS, ROOT
+from stiffcomp_testlib import DATA, MODELS, ROOT
 
 
 def stiffcomp(*args, cwd=ROOT):

@@ -5,7 +5,7 @@ import csv
 import numpy as np
 import pytest
 
-from conftest import DATA
+from stiffcomp_testlib import DATA
 from stiffness.errors import DataError
 from stiffness.measurements import COLUMNS, read_measurements
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 import yaml
-from conftest import DATA, MODELS, ROOT
+from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.errors import ConfigError
 from stiffness.identify import fit

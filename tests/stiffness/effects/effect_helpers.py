@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from conftest import MODELS, random_dataset
+from stiffcomp_testlib import MODELS, random_dataset
 from stiffness.model import StiffnessModel
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from conftest import random_dataset
+from stiffcomp_testlib import random_dataset
 
 from effect_helpers import model_with
 

@@ -19,7 +19,7 @@ def test_rotates_force_and_moment(robot):
 
 
 def test_prediction_equals_the_model_fed_the_rotated_wrench(robot):
-    from conftest import random_dataset
+    from stiffcomp_testlib import random_dataset
     data = random_dataset(robot, 20, 3)
     m = model_with({"effect": "sensor_misalignment", "rz_deg": 3.0}, base="kr125_6dof")
     plain = model_with(base="kr125_6dof")

@@ -1,0 +1,40 @@
+"""Test helpers shared across directories: paths and a small synthetic-campaign generator.
+
+Imported by name (``from stiffcomp_testlib import ...``); conftest files only hold fixtures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from stiffness.measurements import Dataset
+from stiffness.model import StiffnessModel
+from stiffness.robot import Robot
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+MODELS = ROOT / "config" / "models"
+
+
+def random_dataset(robot: Robot, n_readings: int, seed: int, max_force: float = 1200.0,
+                   bodies=range(7)) -> Dataset:
+    """Random configurations inside the limits and random wrenches; deflections zero (to be predicted)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.limits_deg[:, 0] * 0.7, robot.limits_deg[:, 1] * 0.7
+    q = rng.uniform(lo, hi, size=(n_readings, 6))
+    f = rng.uniform(-max_force, max_force, size=(n_readings, 3))
+    lever = rng.uniform(-0.3, 0.3, size=(n_readings, 3))
+    m = np.cross(lever, f)
+    bodies = list(bodies)
+    nb = len(bodies)
+    rows = n_readings * nb
+    rep = np.repeat(np.arange(n_readings), nb)
+    return Dataset(time_s=rep.astype(float), config=np.array([f"C{i}" for i in rep]), q_deg=q[rep],
+                   wrench=np.concatenate([f, m], axis=1)[rep], body=np.tile(bodies, n_readings),
+                   deflection=np.zeros((rows, 6)))
+
+
+def with_deflection(data: Dataset, deflection: np.ndarray) -> Dataset:
+    out = data.subset(np.arange(len(data)))
+    out.deflection = np.asarray(deflection, dtype=float)
+    return out
