@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: install test run bench lint clean
+.PHONY: install test run walk bench lint clean
 
 install: $(STAMP)
 
@@ -20,11 +20,24 @@ test: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/stiffcomp run
 
+# The discovery walk of the README on the shipped example campaign; reports land in out/.
+WALK_DATA := examples/campaign_backlash.csv
+SC := $(VENV)/bin/stiffcomp
+walk: $(STAMP)
+	mkdir -p out
+	$(SC) fit config/models/kr125_6dof.yaml $(WALK_DATA) -o out/6dof.yaml
+	$(SC) compare out/6dof.yaml $(WALK_DATA) --report out/compare_before
+	$(SC) diagnose out/6dof.yaml $(WALK_DATA) --report out/diagnose
+	$(SC) model add out/6dof.yaml backlash --joint 3 -o out/6dof_backlash.yaml
+	$(SC) fit out/6dof_backlash.yaml $(WALK_DATA) -o out/6dof_backlash_fitted.yaml
+	$(SC) compare out/6dof.yaml out/6dof_backlash_fitted.yaml $(WALK_DATA) --report out/compare
+
 bench: $(STAMP)
 	$(PY) benchmarks/bench_model.py
+	$(PY) benchmarks/bench_diagnose.py
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache out
