@@ -27,8 +27,14 @@ sys.path.insert(0, str(ROOT))
 TARGET_P99_US = 100.0
 
 
-def client_main(port: int, duration: float, rate_hz: float, count: int) -> None:
-    """One PLC-like poller: read ``count`` input registers every 1/rate_hz s on absolute deadlines."""
+def client_main(port: int, duration: float, rate_hz: float, count: int, writer: bool = False) -> None:
+    """One PLC-like poller: read ``count`` input registers every 1/rate_hz s on absolute deadlines.
+
+    A ``writer`` also writes the heartbeat and moving joint positions each period, as the PLC would.
+    """
+    import math
+    import struct
+
     import numpy as np
     from pymodbus.client import ModbusTcpClient
 
@@ -40,8 +46,13 @@ def client_main(port: int, duration: float, rate_hz: float, count: int) -> None:
     rtt, errors, late = [], 0, 0
     t_end = time.perf_counter() + duration
     due = time.perf_counter()
+    k = 0
     while due < t_end:
         t0 = time.perf_counter()
+        if writer:
+            k += 1
+            q = [10.0 + 5.0 * math.sin(k * 0.01), -80.0, 100.0, 20.0, 40.0 + 3.0 * math.cos(k * 0.01), 30.0]
+            c.write_registers(0x8001, [k & 0xFFFF] + list(struct.unpack("<12H", struct.pack("<6f", *q))))
         r = c.read_input_registers(0x8000, count=count)
         rtt.append(time.perf_counter() - t0)
         if r.isError():
@@ -59,7 +70,26 @@ def client_main(port: int, duration: float, rate_hz: float, count: int) -> None:
                                  "max": float(a.max())}}))
 
 
-def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int, cpu: int | None) -> dict:
+def floor(seconds: float, priority: int, cpu: int | None) -> dict:
+    """The machine's own noise: the same cyclic task with a fixed ~20 us pure-Python work, no load."""
+    from service.task import CyclicTask, TaskInfo
+
+    info = TaskInfo(1e-3, history=int(seconds * 1000) + 1000)
+
+    def work(t, exceeded):
+        x = 0.0
+        for i in range(400):
+            x += i * 0.5
+
+    task = CyclicTask(1e-3, work, info, lambda e: None, priority, cpu=cpu)
+    task.start()
+    time.sleep(seconds)
+    task.stop()
+    return info.stats()
+
+
+def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int, cpu: int | None,
+          moving_q: bool = False) -> dict:
     import logging
 
     from service.app import Service
@@ -70,7 +100,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
         cfg = load_config(write_config(Path(tmp), {
-            "plc": {"port": port, "enable_on_start": True},
+            "plc": {"port": port, "enable_on_start": True, "initial_q_deg": [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]},
             "faults": {"plc_heartbeat_timeout_ms": 0, "overrun_trip_count": 1000},
             "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority, "cpu": cpu},
         }))
@@ -80,8 +110,9 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
             time.sleep(1.0)                               # warm-up, not measured
             service.info.__init__(service.info.period_s, service.info._exec.size)
             procs = [subprocess.Popen([sys.executable, __file__, "--client", str(port), str(duration), str(rate_hz),
-                                       str(count)], stdout=subprocess.PIPE, text=True, cwd=ROOT)
-                     for _ in range(n_clients)]
+                                       str(count), "1" if (moving_q and i == 0) else "0"],
+                                      stdout=subprocess.PIPE, text=True, cwd=ROOT)
+                     for i in range(n_clients)]
             clients = []
             for p in procs:
                 out, _ = p.communicate(timeout=duration + 60)
@@ -101,7 +132,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--client":
-        client_main(int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]))
+        client_main(int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6] == "1")
         return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=60.0)
@@ -110,14 +141,24 @@ def main() -> int:
     ap.add_argument("--registers", type=int, default=32)
     ap.add_argument("--realtime-priority", type=int, default=0, help="SCHED_FIFO priority of the cycle thread")
     ap.add_argument("--cpu", type=int, default=None, help="pin the cycle thread to this CPU")
+    ap.add_argument("--moving-q", action="store_true",
+                    help="the first client also writes heartbeat and moving q1..q6 every period (kinematics each cycle)")
+    ap.add_argument("--floor-seconds", type=float, default=5.0, help="length of the noise-floor run (0: skip)")
     ap.add_argument("--json", default=None, help="write the result here too")
     args = ap.parse_args()
-    r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority, args.cpu)
+    fl = floor(args.floor_seconds, args.realtime_priority, args.cpu) if args.floor_seconds > 0 else None
+    r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority, args.cpu,
+              args.moving_q)
+    r["floor"] = fl
     s = r["service"]
+    if fl:
+        print(f"noise floor (same task, fixed ~20 us work, no load, {args.floor_seconds:g} s): exec p99 "
+              f"{fl['exec_us']['p99']:.1f} us, max {fl['exec_us']['max']:.1f} us; jitter p99.9 "
+              f"{fl['period_jitter_us']['p999']:.1f} us; exceeded {fl['exceed_count']}")
     reqs = sum(c.get("requests", 0) for c in r["clients"])
     errs = sum(c.get("errors", 0) for c in r["clients"])
     print(f"service, {args.duration:g} s at 1 ms with {args.clients} clients x {args.registers} registers "
-          f"@ {args.rate_hz:g} Hz ({r['cpus']} CPUs):")
+          f"@ {args.rate_hz:g} Hz ({r['cpus']} CPUs){', moving q' if args.moving_q else ''}:")
     print(f"  cycles {s['cycles']}, exceeded {s['exceed_count']}")
     print(f"  exec us   p50 {s['exec_us']['p50']:.1f}  p99 {s['exec_us']['p99']:.1f}  max {s['exec_us']['max']:.1f}")
     print(f"  jitter us p99 {s['period_jitter_us']['p99']:.1f}  p99.9 {s['period_jitter_us']['p999']:.1f}  "

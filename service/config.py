@@ -207,7 +207,8 @@ def check_consistency(cfg: ServiceConfig) -> None:
     if 0 < hb <= cfg.cycle.period_ms:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer "
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
-    files = [("model.file", cfg.model.file), ("plc.register_map", cfg.plc.register_map)]
+    files = [("model.file", cfg.model.file), ("plc.register_map", cfg.plc.register_map),
+             ("source.ati.dbc", cfg.source.ati.dbc)]
     if cfg.source.type == "replay" and cfg.source.replay is not None:
         files.append(("source.replay.file", cfg.source.replay.file))
     for key, rel in files:

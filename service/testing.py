@@ -44,6 +44,7 @@ def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: st
     data["model"]["file"] = str(CONFIG / "models" / "kr125_6dof.yaml")
     data["plc"]["register_map"] = str(CONFIG / "registers.yaml")
     data["source"]["replay"]["file"] = str(CONFIG / "replay" / "demo_milling.blf")
+    data["source"]["ati"]["dbc"] = str(CONFIG / "ati_netft_can.dbc")
     deep_update(data, overrides or {})
     path = Path(folder) / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))

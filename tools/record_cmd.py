@@ -50,7 +50,7 @@ def run(args) -> int:
     sensor = None
     if args.virtual_sensor:
         sensor = VirtualAtiSensor(open_bus(interface, channel, c.bitrate, **c.options), protocol,
-                                  lambda t: milling_wrench(np.array([t]), seed=int(t * 1000))[0]).start()
+                                  lambda t: milling_wrench(np.array([t]), seed=int(t * 1000), spikes=False)[0]).start()
     bus = open_bus(interface, channel, c.bitrate, **c.options)
     logger = can.Logger(args.out)
     notifier = can.Notifier(bus, [logger])
@@ -86,4 +86,28 @@ def run(args) -> int:
         if sensor is not None:
             sensor.stop()
     print(f"recorded {args.out}: {sent} requests sent on {interface}:{channel}")
+    print(summarize(args.out, cfg.resolve(cfg.source.ati.dbc), protocol.base_id))
     return 0
+
+
+def summarize(path: str, dbc_path, base_id: int) -> str:
+    """Decode the log with the protocol's DBC (cantools) and summarise each signal."""
+    import cantools
+
+    db = cantools.database.load_file(str(dbc_path))
+    shift = base_id - min(m.frame_id for m in db.messages)      # the DBC is written for its own base id
+    values: dict[str, list[float]] = {}
+    with can.LogReader(path) as reader:
+        for msg in reader:
+            try:
+                decoded = db.decode_message(msg.arbitration_id - shift, bytes(msg.data), decode_choices=False)
+            except (KeyError, ValueError, cantools.database.DecodeError):
+                continue
+            for name, v in decoded.items():
+                values.setdefault(name, []).append(float(v))
+    lines = [f"{len(values.get('Fz', []))} samples decoded with {dbc_path}:"]
+    for name in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz", "status"):
+        if values.get(name):
+            v = np.array(values[name])
+            lines.append(f"  {name:>6}: min {v.min():9.2f}  mean {v.mean():9.2f}  max {v.max():9.2f}")
+    return "\n".join(lines)

@@ -20,8 +20,9 @@ import numpy as np
 from ..ati import AtiProtocol
 
 
-def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: int = 1) -> np.ndarray:
-    """(N, 6) wrench in N, Nm at times ``t`` (s)."""
+def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: int = 1,
+                   spikes: bool = True) -> np.ndarray:
+    """(N, 6) wrench in N, Nm at times ``t`` (s); ``spikes`` adds a few single-sample spikes on Fz."""
     rng = np.random.default_rng(seed)
     period = 8.0
     phase = np.mod(t, period)
@@ -35,8 +36,8 @@ def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: 
     w[:, 4] = envelope * (9.0 - 2.0 * tooth)
     w[:, 5] = envelope * 4.0
     w += rng.normal(0.0, [1.5, 1.5, 1.5, 0.05, 0.05, 0.05], size=w.shape)
-    spikes = rng.choice(len(t), size=max(1, len(t) // 4000), replace=False)
-    w[spikes, 2] += 900.0
+    if spikes:
+        w[rng.choice(len(t), size=max(1, len(t) // 4000), replace=False), 2] += 900.0
     if gravity_bias is not None:
         w += gravity_bias
     return w
