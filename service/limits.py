@@ -46,7 +46,8 @@ class CorrectionLimiter:
         out = []
         for o, tg, r in zip(self.out, target, rate):
             step = r * dt
-            out.append(o + min(max(tg - o, -step), step))
+            d = tg - o
+            out.append(tg if -step <= d <= step else (o + step if d > 0 else o - step))
         self.out = out
         return out
 

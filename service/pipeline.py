@@ -128,7 +128,7 @@ class Compensator:
         dq = pred.correction(self.q_rad, dX)
         self.deflection = (dX * _OUT_SCALE).tolist()
         self.dq_deg = dq_deg = (dq * DEG).tolist()
-        if not all(math.isfinite(v) for v in dq_deg):
+        if not math.isfinite(sum(dq_deg)):          # NaN and inf propagate through the sum
             faults.trip("value_invalid", "the predicted correction is not finite")
             dq_deg = [0.0] * 6
         safe = faults.word != 0 or not enabled or not self.have_sample
