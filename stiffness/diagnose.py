@@ -14,7 +14,9 @@ small grid and the best is kept). Each candidate is judged by three criteria:
 It counts (``significant``) only if it passes cross-validation and at least one of the two
 in-sample tests. When the residual still holds structure (a body's RMS above LACK_OF_FIT times the
 noise seen between repeated readings), the named effect must also remove at least EXCESS_MIN of the
-residual's excess over that noise; an effect that only nibbles at the structure is not named. Cross-validation is required because, when the residual holds structure no
+residual's excess over that noise; an effect that only nibbles at the structure is not named.
+Without enough repeated readings the model's stated noise is the reference, with the looser
+threshold LACK_OF_FIT_STATED. Cross-validation is required because, when the residual holds structure no
 candidate describes, the in-sample tests on tens of thousands of correlated residuals pass for any
 effect that soaks up part of it, while only an effect that predicts held-out configurations is
 physical. Candidates are ranked by cv_improvement. The verdict is ``missing_effect`` when one counts; otherwise ``unexplained`` when
@@ -50,6 +52,7 @@ BIC_MIN = 10.0
 ALPHA = 0.01
 LACK_OF_FIT = 1.15     # residual RMS above this multiple of the repeat noise: structure is left
 EXCESS_MIN = 0.2       # with structure left, the share of the excess a named effect must explain
+LACK_OF_FIT_STATED = 1.5   # the same, against the model's stated noise when the data hold no repeats
 BENDING_LINKS = (2, 3)
 MAX_FOLDS = 10
 
@@ -259,7 +262,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
                                     criteria, est, se, contribution))
     noise = pure_error(ctx, data.deflection)
     lof = _lack_of_fit(result, noise, model, ctx)
-    structure_left = lof["worst_body"] > LACK_OF_FIT
+    structure_left = lof["worst_body"] > lof["threshold"]
     for c in candidates:
         c.excess_explained = _excess_explained(result, c, lof)
         c.named = c.significant and (not structure_left or c.excess_explained >= EXCESS_MIN)
@@ -276,6 +279,7 @@ def _lack_of_fit(result: FitResult, noise: dict | None, model: StiffnessModel, c
     per_body = [max(rms(r[ctx.body == b, :3]) / ref["position_mm"], rms(r[ctx.body == b, 3:]) / ref["rotation_deg"])
                 for b in np.unique(ctx.body)]
     return {"reference": "repeated readings" if noise else "the model's stated noise",
+            "threshold": LACK_OF_FIT if noise else LACK_OF_FIT_STATED,
             "position_mm": ref["position_mm"], "rotation_deg": ref["rotation_deg"],
             "position": result.rms_position_mm / ref["position_mm"],
             "rotation": result.rms_rotation_deg / ref["rotation_deg"],
@@ -293,13 +297,13 @@ def _excess_explained(result: FitResult, c: Candidate, lof: dict) -> float:
 
 
 def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple[str, str]:
-    structure_left = lof["worst_body"] > LACK_OF_FIT
+    structure_left = lof["worst_body"] > lof["threshold"]
     best = candidates[0] if candidates and candidates[0].named else None
     if best is not None:
         ref = lof["position"] / max(result.rms_position_mm, 1e-300)   # 1 / noise, per mm
         left = best.rms_position_mm_after * ref
         left_rot = best.rms_rotation_deg_after * lof["rotation"] / max(result.rms_rotation_deg, 1e-300)
-        if max(left, left_rot) > LACK_OF_FIT:
+        if max(left, left_rot) > lof["threshold"]:
             return "missing_effect", (best.explanation + f" Structure remains after it ({left:.2f}x / "
                                       f"{left_rot:.2f}x the noise): add it, fit, and diagnose again.")
         return "missing_effect", best.explanation

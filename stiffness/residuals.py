@@ -12,6 +12,7 @@ from .measurements import COMPONENTS
 from .robot import BODIES
 
 LOAD_BINS = 4
+MIN_PURE_ERROR_DOF = 200
 
 
 def normalised_rms(resid: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -57,13 +58,14 @@ def repeat_groups(ctx: Context, tolerance: float = 0.05) -> np.ndarray:
 def pure_error(ctx: Context, y: np.ndarray) -> dict | None:
     """The measurement noise seen between repeated readings of one load state (model-free).
 
-    Returns ``{"position_mm", "rotation_deg", "dof"}`` per component, or None without repeats.
+    Returns ``{"position_mm", "rotation_deg", "dof"}`` per component, or None when the repeats give
+    fewer than MIN_PURE_ERROR_DOF degrees of freedom (the estimate would be looser than about 5 %).
     """
     gid = repeat_groups(ctx)[ctx.row_reading]
     key = gid * len(BODIES) + ctx.body
     _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
     dof = int(np.sum(counts - 1))
-    if dof < 10:
+    if dof < MIN_PURE_ERROR_DOF:
         return None
     sums = np.zeros((inv.max() + 1, 6))
     np.add.at(sums, inv, y)

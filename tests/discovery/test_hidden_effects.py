@@ -101,3 +101,14 @@ def test_an_effect_outside_the_library_is_not_guessed():
     assert d.verdict == "unexplained", [(c.name, c.joint, c.criteria) for c in d.candidates[:3]]
     assert "does not guess" in d.message
     assert d.worst["body"] == "TCP"
+
+
+def test_campaign_without_repeats_uses_the_stated_noise():
+    """One reading per load state: no model-free noise; the diagnosis says so and still names effects."""
+    clean = campaign(truth_with([]), 20, repeats=1)
+    d = diagnose(start_model(), clean)
+    assert d.noise is None and d.lack_of_fit["reference"] == "the model's stated noise"
+    assert d.verdict == "no_missing_effect"
+    hidden = campaign(truth_with([{"effect": "hysteresis", "joint": 3, "offset_deg": 0.005}]), 21, repeats=1)
+    d = diagnose(start_model(), hidden)
+    assert (d.verdict, d.best.name, d.best.joint) == ("missing_effect", "hysteresis", 3)
