@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import threading
 from pathlib import Path
 
@@ -127,6 +128,11 @@ class Service:
         except BaseException:
             self.source.close()
             raise
+        # The Modbus thread shares the interpreter lock: a short switch interval bounds how long the
+        # cycle waits for it after waking up, and stays longer than the cycle's work (so the work
+        # itself is not interrupted by a forced switch).
+        self._switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(self.cfg.cycle.gil_switch_interval_us * 1e-6)
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu)
         self.task.start()
@@ -138,6 +144,7 @@ class Service:
         """Stop the cycle, publish the stopped state with zero correction, then stop the PLC side."""
         if self.task is not None:
             self.task.stop()
+            sys.setswitchinterval(self._switch_interval)
         for k in self._corr:
             self._out[k] = 0.0
         self._set("status_word", ST_STOPPED)

@@ -43,6 +43,7 @@ class CycleConfig(_Strict):
     history: int = Field(600_000, ge=1000, le=10_000_000)
     realtime_priority: int = Field(0, ge=0, le=99)
     cpu: int | None = Field(None, ge=0, le=1023)
+    gil_switch_interval_us: float = Field(200.0, ge=20.0, le=5000.0)
 
 
 class ModelConfig(_Strict):

@@ -85,6 +85,8 @@ def case(name):
         return {"wrench": w, "overrides": {"source": {"max_force_N": 2000.0}}}, {}
     if name == "value_invalid_q":
         return {}, {"q": [math.nan] + Q[1:]}
+    if name == "value_invalid_q_inf":
+        return {}, {"q": Q[:3] + [math.inf] + Q[4:]}
     if name == "can_frame":
         p = AtiProtocol()
         return {"extra": [(INJECT_AT, p.id_1, b"\x01\x02\x03")]}, {}
@@ -99,8 +101,10 @@ def case(name):
     raise KeyError(name)
 
 
-FAULT_OF = {"value_invalid_q": "value_invalid", "can_frame_unknown_id": "can_frame"}
+FAULT_OF = {"value_invalid_q": "value_invalid", "value_invalid_q_inf": "value_invalid",
+            "can_frame_unknown_id": "can_frame"}
 CASES = ["sensor_timeout", "sensor_status", "sensor_saturated", "value_invalid", "value_invalid_q",
+         "value_invalid_q_inf",
          "can_frame", "can_frame_unknown_id", "plc_heartbeat", "overrun", "joint_limits"]
 
 
