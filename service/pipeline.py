@@ -90,7 +90,7 @@ class Compensator:
 
     # -- one cycle ------------------------------------------------------------------------------
     def cycle(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
-              plc_heartbeat: int, q_deg: list[float], overrun: bool = False) -> np.ndarray:
+              plc_heartbeat: int, q_deg: list[float], overrun: bool = False) -> list[float]:
         """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats)."""
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
