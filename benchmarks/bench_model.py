@@ -19,14 +19,14 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")       # one core
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from stiffness.identify import fit  # noqa: E402
-from stiffness.measurements import Dataset, read_measurements  # noqa: E402
-from stiffness.model import StiffnessModel  # noqa: E402
+from stiffness.identify import fit
+from stiffness.measurements import Dataset, read_measurements
+from stiffness.model import StiffnessModel
 
 
 def median_time(fn, repeat: int) -> float:

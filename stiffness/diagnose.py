@@ -41,11 +41,11 @@ from .effects.joint_spring import Joint6Dof, JointSpring
 from .effects.link_bending import LinkBending
 from .effects.nonlinear_stiffness import NonlinearStiffness
 from .effects.sensor_misalignment import SensorMisalignment
+from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
 from .model import StiffnessModel
 from .residuals import pure_error, worst
-from .explain import describe
 
 CV_MIN = 0.005
 BIC_MIN = 10.0

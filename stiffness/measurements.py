@@ -64,7 +64,7 @@ class Dataset:
     def __len__(self) -> int:
         return len(self.time_s)
 
-    def subset(self, mask: np.ndarray) -> "Dataset":
+    def subset(self, mask: np.ndarray) -> Dataset:
         """The rows where ``mask`` (boolean or index array) selects."""
         return Dataset(
             self.time_s[mask], self.config[mask], self.q_deg[mask], self.wrench[mask], self.body[mask],
@@ -128,26 +128,29 @@ def read_measurements(path: str | Path, robot: Robot | None = None) -> Dataset:
 
 def _csv_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
     try:
-        fh = open(path, newline="")
+        with open(path, newline="") as fh:
+            return _parse_csv(path, fh)
     except OSError as e:
         raise DataError(f"{path}: cannot read: {e.strerror or e}") from e
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = next(reader)
-        except StopIteration:
-            raise DataError(f"{path}: the file is empty; expected a header row") from None
-        except (csv.Error, UnicodeDecodeError) as e:
-            raise DataError(f"{path}: line 1: cannot parse the header: {e}") from e
-        rows, lines = [], []
-        try:
-            for row in reader:
-                if not row or all(not c.strip() for c in row):
-                    continue  # blank line: holds no data
-                rows.append(row)
-                lines.append(reader.line_num)
-        except (csv.Error, UnicodeDecodeError) as e:
-            raise DataError(f"{path}: line {reader.line_num}: cannot parse: {e}") from e
+
+
+def _parse_csv(path: Path, fh) -> tuple[list[str], list[list[str]], list[int]]:
+    reader = csv.reader(fh)
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise DataError(f"{path}: the file is empty; expected a header row") from None
+    except (csv.Error, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: line 1: cannot parse the header: {e}") from e
+    rows, lines = [], []
+    try:
+        for row in reader:
+            if not row or all(not c.strip() for c in row):
+                continue  # blank line: holds no data
+            rows.append(row)
+            lines.append(reader.line_num)
+    except (csv.Error, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: line {reader.line_num}: cannot parse: {e}") from e
     return [h.strip() for h in header], rows, lines
 
 

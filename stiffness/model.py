@@ -58,7 +58,7 @@ class StiffnessModel:
 
     # -- YAML -----------------------------------------------------------------------------------
     @classmethod
-    def from_yaml(cls, path: str | Path) -> "StiffnessModel":
+    def from_yaml(cls, path: str | Path) -> StiffnessModel:
         path = Path(path)
         if not path.exists():
             raise ConfigError(f"{path}: model file not found")
@@ -67,7 +67,7 @@ class StiffnessModel:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "<model>", base_dir: Path | None = None,
-                  robot: Robot | None = None) -> "StiffnessModel":
+                  robot: Robot | None = None) -> StiffnessModel:
         unknown = sorted(set(data) - TOP_KEYS)
         if unknown:
             raise ConfigError(f"{source}: {unknown[0]} is not a known key (known: {', '.join(sorted(TOP_KEYS))})")
@@ -123,7 +123,7 @@ class StiffnessModel:
         text = yaml.safe_dump(self.to_dict(), sort_keys=False, width=110)
         Path(path).write_text((header + "\n" if header else "") + text)
 
-    def copy(self) -> "StiffnessModel":
+    def copy(self) -> StiffnessModel:
         return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)
 
     def check(self) -> None:

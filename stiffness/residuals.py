@@ -33,7 +33,7 @@ def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
         m = (fmag >= edges[k]) & ((fmag < edges[k + 1]) | (k == LOAD_BINS - 1))
         if m.any():
             load_scores[f"{edges[k]:.0f}-{edges[k + 1]:.0f} N"] = normalised_rms(resid, sigma, m)
-    pick = lambda d: max(d, key=d.get)  # noqa: E731
+    pick = lambda d: max(d, key=d.get)
     return {"body": pick(body_scores), "component": pick(comp_scores), "config": pick(cfg_scores),
             "load_range": pick(load_scores), "scores": {"body": body_scores, "component": comp_scores,
                                                        "config": cfg_scores, "load_range": load_scores}}

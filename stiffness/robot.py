@@ -97,7 +97,7 @@ class Robot:
         self.T_flange_tcp = config.tcp.matrix()
 
     @classmethod
-    def from_yaml(cls, path: str | Path) -> "Robot":
+    def from_yaml(cls, path: str | Path) -> Robot:
         data = read_yaml(path)
         return cls(validate(RobotConfig, data, str(path)), str(path))
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
 from stiffcomp_testlib import MODELS, ROOT
+
 from stiffness.model import StiffnessModel
 from stiffness.robot import Robot
 

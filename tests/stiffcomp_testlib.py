@@ -7,8 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
 from stiffness.measurements import Dataset
-from stiffness.model import StiffnessModel
 from stiffness.robot import Robot
 
 ROOT = Path(__file__).resolve().parents[1]

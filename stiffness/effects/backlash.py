@@ -39,7 +39,7 @@ class Backlash(Effect):
         self.fixed_width = None if fit_width else width_Nm
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "Backlash":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Backlash:
         joint = read_location(section, "joint", cls.joints, where)
         probe = cls(joint)
         section = {"width_Nm": cls.default_width_Nm, **section}

@@ -56,7 +56,7 @@ class Effect(ABC):
     # -- construction from / to YAML ----------------------------------------------------------
     @classmethod
     @abstractmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "Effect":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Effect:
         """Build from a YAML entry; raise ConfigError naming ``where`` and the key on bad values."""
 
     def to_config(self) -> dict[str, Any]:

@@ -35,7 +35,7 @@ class Drift(Effect):
         super().__init__(params, np.zeros(6) if theta is None else theta, None)
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "Drift":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Drift:
         return cls(read_values(cls.name, section, cls().params, where))
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:

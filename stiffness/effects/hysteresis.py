@@ -53,7 +53,7 @@ class Hysteresis(Effect):
         self.threshold_fraction = threshold_fraction
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "Hysteresis":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Hysteresis:
         joint = read_location(section, "joint", cls.joints, where)
         thr = section.get("threshold_fraction", 0.02)
         if not isinstance(thr, (int, float)) or not 0 < thr < 1:

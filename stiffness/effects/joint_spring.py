@@ -43,7 +43,7 @@ class JointSpring(Effect):
         super().__init__(params, np.zeros(len(params)) if theta is None else theta, joint)
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "JointSpring":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> JointSpring:
         joint = read_location(section, "joint", cls.joints, where)
         allowed = cls.allowed_components()
         keys = {spring_param(c).key: c for c in allowed}

@@ -36,7 +36,7 @@ class LinkBending(Effect):
         super().__init__([Param("compliance_per_Nm2", "1/(N m^2)", 1e-10)], np.array([compliance]), link)
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "LinkBending":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> LinkBending:
         link = read_location(section, "link", cls.joints, where)
         theta = read_values(cls.name, section, cls(link).params, where, ("link",))
         return cls(link, theta[0])

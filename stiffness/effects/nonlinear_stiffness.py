@@ -45,7 +45,7 @@ class NonlinearStiffness(Effect):
                                                       else 300.0)
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "NonlinearStiffness":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> NonlinearStiffness:
         joint = read_location(section, "joint", cls.joints, where)
         form = section.get("form", "cubic")
         if form not in FORMS:

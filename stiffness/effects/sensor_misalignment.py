@@ -34,7 +34,7 @@ class SensorMisalignment(Effect):
         super().__init__(params, np.zeros(3) if phi_rad is None else phi_rad, None)
 
     @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> "SensorMisalignment":
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> SensorMisalignment:
         return cls(read_values(cls.name, section, cls().params, where))
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:

@@ -1,8 +1,8 @@
 """Cartesian stiffness at the TCP: W = K dX round trips, and Eq. 15 identifies K from TCP data."""
 
 import numpy as np
-
 from stiffcomp_testlib import with_deflection
+
 from stiffness.cartesian import identify_cartesian, tcp_compliance, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.measurements import Dataset
 from stiffness.spatial import transform, transport_wrench

@@ -4,8 +4,8 @@ import csv
 
 import numpy as np
 import pytest
-
 from stiffcomp_testlib import DATA
+
 from stiffness.errors import DataError
 from stiffness.measurements import COLUMNS, read_measurements
 
@@ -82,7 +82,8 @@ def test_parquet_round_trip(tmp_path, robot):
     import pyarrow.parquet as pq
     d = read_measurements(REF, robot).subset(np.arange(70))
     d.to_csv(tmp_path / "a.csv")
-    header, *rows = list(csv.reader(open(tmp_path / "a.csv")))
+    with open(tmp_path / "a.csv") as fh:
+        header, *rows = list(csv.reader(fh))
     cols = {h: [r[k] for r in rows] for k, h in enumerate(header)}
     table = pa.table({h: (v if h in ("config", "body") else [float(x) for x in v]) for h, v in cols.items()})
     pq.write_table(table, tmp_path / "a.parquet")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 import yaml
-
 from stiffcomp_testlib import DATA, MODELS, random_dataset, with_deflection
+
 from stiffness.effects.joint_spring import COMPONENTS
 from stiffness.identify import fit
 from stiffness.measurements import read_measurements

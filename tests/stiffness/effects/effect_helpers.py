@@ -1,8 +1,8 @@
 """A small campaign and context for the effect tests."""
 
 import numpy as np
-
 from stiffcomp_testlib import MODELS, random_dataset
+
 from stiffness.model import StiffnessModel
 
 

@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from effect_helpers import context, model_with, only
 
 from stiffness.effects.backlash import Backlash
 from stiffness.errors import ConfigError
-
-from effect_helpers import context, model_with, only
 
 
 def test_equation_and_limits(robot):

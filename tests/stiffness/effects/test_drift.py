@@ -1,10 +1,9 @@
 """drift: a base twist [v, w] (t - t0_config) growing within each configuration."""
 
 import numpy as np
+from effect_helpers import model_with
 
 from stiffness.measurements import Dataset
-
-from effect_helpers import model_with
 
 
 def test_offset_grows_with_time_in_each_configuration(robot):

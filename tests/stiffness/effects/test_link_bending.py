@@ -1,10 +1,9 @@
 """link_bending: the Euler-Bernoulli cantilever at the link's tip."""
 
 import numpy as np
+from effect_helpers import context
 
 from stiffness.effects.link_bending import LinkBending
-
-from effect_helpers import context
 
 
 def tip_quantities(ctx, e):

@@ -1,11 +1,10 @@
 """sensor_misalignment: W_true = blockdiag(R(phi), R(phi)) W_measured."""
 
 import numpy as np
+from effect_helpers import context, model_with
 
 from stiffness.effects.sensor_misalignment import SensorMisalignment
 from stiffness.spatial import exp_so3
-
-from effect_helpers import context, model_with
 
 
 def test_rotates_force_and_moment(robot):
