@@ -70,7 +70,7 @@ def client_main(port: int, duration: float, rate_hz: float, count: int, writer: 
                                  "max": float(a.max())}}))
 
 
-def floor(seconds: float, priority: int, cpu: int | None) -> dict:
+def floor(seconds: float, priority: int, cpu: int | None, spin_us: float = 0.0) -> dict:
     """The machine's own noise: the same cyclic task with a fixed ~20 us pure-Python work, no load."""
     from service.task import CyclicTask, TaskInfo
 
@@ -81,7 +81,7 @@ def floor(seconds: float, priority: int, cpu: int | None) -> dict:
         for i in range(400):
             x += i * 0.5
 
-    task = CyclicTask(1e-3, work, info, lambda e: None, priority, cpu=cpu)
+    task = CyclicTask(1e-3, work, info, lambda e: None, priority, cpu=cpu, spin_s=spin_us * 1e-6)
     task.start()
     time.sleep(seconds)
     task.stop()
@@ -89,7 +89,7 @@ def floor(seconds: float, priority: int, cpu: int | None) -> dict:
 
 
 def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int, cpu: int | None,
-          moving_q: bool = False) -> dict:
+          moving_q: bool = False, spin_us: float = 0.0) -> dict:
     import logging
 
     from service.app import Service
@@ -102,7 +102,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
         cfg = load_config(write_config(Path(tmp), {
             "plc": {"port": port, "enable_on_start": True, "initial_q_deg": [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]},
             "faults": {"plc_heartbeat_timeout_ms": 0, "overrun_trip_count": 1000},
-            "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority, "cpu": cpu},
+            "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority, "cpu": cpu, "spin_us": spin_us},
         }))
         service = Service(cfg)
         service.start()
@@ -114,6 +114,8 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
                                       stdout=subprocess.PIPE, text=True, cwd=ROOT)
                      for i in range(n_clients)]
             clients = []
+            if not procs:
+                time.sleep(duration)
             for p in procs:
                 out, _ = p.communicate(timeout=duration + 60)
                 clients.append(json.loads(out.strip().splitlines()[-1]))
@@ -124,7 +126,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
             service.stop()
     return {"service": stats, "clients": clients, "duration_s": duration, "clients_n": n_clients,
             "rate_hz": rate_hz, "registers_per_read": count, "cpus": os.cpu_count(), "faults": faults,
-            "realtime_priority": priority, "cpu": cpu,
+            "realtime_priority": priority, "cpu": cpu, "spin_us": spin_us, "moving_q": moving_q,
             "correction_deg": correction,
             "pass": {"exec_p99_le_100us": stats["exec_us"]["p99"] <= TARGET_P99_US,
                      "no_exceeded_cycle": stats["exceed_count"] == 0}}
@@ -141,14 +143,15 @@ def main() -> int:
     ap.add_argument("--registers", type=int, default=32)
     ap.add_argument("--realtime-priority", type=int, default=0, help="SCHED_FIFO priority of the cycle thread")
     ap.add_argument("--cpu", type=int, default=None, help="pin the cycle thread to this CPU")
+    ap.add_argument("--spin-us", type=float, default=0.0, help="poll the clock for the last N us before each deadline")
     ap.add_argument("--moving-q", action="store_true",
                     help="the first client also writes heartbeat and moving q1..q6 every period (kinematics each cycle)")
     ap.add_argument("--floor-seconds", type=float, default=5.0, help="length of the noise-floor run (0: skip)")
     ap.add_argument("--json", default=None, help="write the result here too")
     args = ap.parse_args()
-    fl = floor(args.floor_seconds, args.realtime_priority, args.cpu) if args.floor_seconds > 0 else None
+    fl = floor(args.floor_seconds, args.realtime_priority, args.cpu, args.spin_us) if args.floor_seconds > 0 else None
     r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority, args.cpu,
-              args.moving_q)
+              args.moving_q, args.spin_us)
     r["floor"] = fl
     s = r["service"]
     if fl:

@@ -134,7 +134,7 @@ class Service:
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(self.cfg.cycle.gil_switch_interval_us * 1e-6)
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
-                               cpu=self.cfg.cycle.cpu)
+                               cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6)
         self.task.start()
         self.task_state = TASK_RUN
         log.info("service running: %.3f ms cycle, source %s, PLC %s", self.period * 1000, self.cfg.source.type,

@@ -44,6 +44,7 @@ class CycleConfig(_Strict):
     realtime_priority: int = Field(0, ge=0, le=99)
     cpu: int | None = Field(None, ge=0, le=1023)
     gil_switch_interval_us: float = Field(200.0, ge=20.0, le=5000.0)
+    spin_us: float = Field(0.0, ge=0.0, le=1000.0)
 
 
 class ModelConfig(_Strict):
@@ -197,6 +198,9 @@ def check_consistency(cfg: ServiceConfig) -> None:
     if cfg.cycle.cpu is not None and cfg.cycle.cpu >= (os.cpu_count() or 1):
         raise ServiceConfigError(f"{src}: cycle.cpu = {cfg.cycle.cpu} must be below the number of CPUs "
                                  f"({os.cpu_count()})")
+    if cfg.cycle.spin_us >= cfg.cycle.period_ms * 1000.0:
+        raise ServiceConfigError(f"{src}: cycle.spin_us = {cfg.cycle.spin_us:g} must be below the period "
+                                 f"({cfg.cycle.period_ms * 1000:g} us)")
     nyquist = 500.0 / cfg.cycle.period_ms
     if cfg.filter.type != "none" and not cfg.filter.cutoff_hz < nyquist:
         raise ServiceConfigError(f"{src}: filter.cutoff_hz = {cfg.filter.cutoff_hz:g} must be below half "
