@@ -154,3 +154,21 @@ def test_can_source_between_processes_over_udp_multicast():
         proc.terminate()
         proc.wait(10)
         proc.stdout.close()
+
+
+def test_error_frames_in_a_log_are_can_frame_errors(tmp_path):
+    from service.errors import CanFrameError
+
+    path = tmp_path / "err.asc"
+    p = AtiProtocol()
+    with can.Logger(str(path)) as log:
+        for k in range(3):
+            for j, (arb, data) in enumerate(p.encode([1.0, 2.0, 3.0, 0.1, 0.2, 0.3], 0, k)):
+                log(can.Message(timestamp=1.0 + k * 1e-3 + j * 1e-4, arbitration_id=arb, data=data,
+                                is_extended_id=False))
+        log(can.Message(timestamp=1.01, is_error_frame=True, arbitration_id=0x020))
+    src = ReplaySource(read_log(path), pacing="realtime", loop=False, protocol=p, **KW)
+    src.poll(0.0)
+    reading, errors = src.poll(0.05)
+    assert reading is not None
+    assert any(isinstance(e, CanFrameError) and "error frame" in str(e) for e in errors)
