@@ -20,14 +20,16 @@ with J the TCP Jacobian [v; ω] in base axes and λ a small damping for wrist si
 δq += J(q+δq)^+ (X_target - X(q + δq)).
 
 Effects. `FAST_EFFECTS` says how each effect of the model enters this fast path. Joint springs add to
-the diagonal compliances. An effect not in the table is refused at start-up (ModelUnsupportedError)
-rather than left out, so the service never sends a correction from a partial model. Effects acting
-on the joint axis (backlash, hysteresis, ...) can hook in as an `AxialTerm`: a function of the
-joint's axial moment W_i[5] returning an extra axial twist (rad).
+the diagonal compliances; backlash and nonlinear stiffness are `AxialTerm`s, functions of the
+joint's axial moment tau_i = W_i[5] returning an extra axial twist (rad). An effect not in the table
+(hysteresis and drift depend on the load history; sensor misalignment and link bending are not
+ported yet) is refused at start-up (ModelUnsupportedError) rather than left out, so the service never
+sends a correction from a partial model. The tests check every supported effect against the model.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -52,14 +54,36 @@ class AxialTerm:
 
 
 def _spring_terms(effect: JointSpring, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
+    """joint_spring, joint_6dof: delta_i = C_i W_i, C_i diagonal (Eq. 1, 5)."""
     for c, theta in zip(effect.components, effect.theta):
         compliance[effect.joint - 1, COMPONENTS.index(c)] += theta
 
 
-# effect name -> how it enters the fast path: fn(effect, compliance (6, 6), axial terms list)
+def _backlash_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
+    """backlash: delta_rz = (b/2) tanh(tau / tau_w)  (stiffness/effects/backlash.py)."""
+    b, w = float(effect.theta[0]), float(effect.width(effect.theta))
+    axial.append(AxialTerm(effect.joint, lambda tau: 0.5 * b * math.tanh(tau / w)))
+
+
+def _nonlinear_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
+    """nonlinear_stiffness: c3 tau (tau/tau_ref)^2 or c_s tau_k tanh(tau/tau_k)  (nonlinear_stiffness.py)."""
+    c = float(effect.theta[0])
+    if effect.form == "cubic":
+        ref = float(effect.reference_torque_Nm)
+        axial.append(AxialTerm(effect.joint, lambda tau: c * tau * (tau / ref) ** 2))
+    else:
+        k = float(effect.knee(effect.theta))
+        axial.append(AxialTerm(effect.joint, lambda tau: c * k * math.tanh(tau / k)))
+
+
+# effect name -> how it enters the fast path: fn(effect, compliance (6, 6), axial terms list).
+# Effects that depend on the load history (hysteresis, drift) or act on the input wrench are not
+# here: a model holding one is refused at start-up.
 FAST_EFFECTS: dict[str, Callable[[object, np.ndarray, list[AxialTerm]], None]] = {
     "joint_spring": _spring_terms,
     "joint_6dof": _spring_terms,
+    "backlash": _backlash_terms,
+    "nonlinear_stiffness": _nonlinear_terms,
 }
 
 
