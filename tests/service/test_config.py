@@ -59,9 +59,9 @@ def test_unsupported_effect_refuses_start(tmp_path, capsys):
     model = tmp_path / "model.yaml"
     data = yaml.safe_load((DEFAULT_CONFIG.parent / "models" / "kr125_axial.yaml").read_text())
     data["robot"] = str(DEFAULT_CONFIG.parent / "robots" / "kr125.yaml")
-    data["effects"].append({"effect": "backlash", "joint": 2, "lost_motion_deg": 0.01})
+    data["effects"].append({"effect": "hysteresis", "joint": 2})
     model.write_text(yaml.safe_dump(data))
     path = write_config(tmp_path, {"model": {"file": str(model)}, "plc": {"port": free_port()}})
     assert main(["run", "--config", str(path), "--duration", "5"]) == 2
     err = capsys.readouterr().err
-    assert "backlash@joint2 is not supported by the real-time predictor" in err
+    assert "hysteresis@joint2 is not supported by the real-time predictor" in err
