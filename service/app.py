@@ -66,11 +66,10 @@ class Service:
         names = self.image.out_codec.names
         self._out_index = {n: k for k, n in enumerate(names)}
         self._out = [0.0] * len(names)
-        missing = [n for n in WORK_ORDER if n not in self._out_index]
         extra = [n for n in names if n not in WORK_ORDER]
-        if missing or extra:
-            raise ServiceConfigError(f"{self.rmap.source}: to_plc must hold exactly {', '.join(WORK_ORDER)}"
-                                     f" (missing: {missing}, unknown: {extra})")
+        if extra:       # the map's own check has made sure every required name is there
+            raise ServiceConfigError(f"{self.rmap.source}: to_plc register {extra[0]!r} is not a value the service "
+                                     f"produces (known: {', '.join(WORK_ORDER)})")
         self._order = [WORK_ORDER.index(n) for n in names]      # codec order -> work() order
         in_names = self.image.in_codec.names
         self._cmd_idx, self._hb_idx = in_names.index("command_word"), in_names.index("plc_heartbeat")

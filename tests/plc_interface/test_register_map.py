@@ -92,3 +92,23 @@ def test_bad_maps_are_refused_with_the_key(tmp_path, edit, match):
     with pytest.raises(RegisterMapError, match=match) as e:
         RegisterMap.from_yaml(path)
     assert str(path) in str(e.value)
+
+
+def test_service_accepts_a_map_without_optional_registers_and_refuses_unknown_ones(tmp_path):
+    from service.app import Service
+    from service.config import load_config
+    from service.errors import ServiceConfigError
+    from service.testing import write_config
+
+    data = yaml.safe_load(MAP.read_text())
+    data["to_plc"]["registers"] = [r for r in data["to_plc"]["registers"]
+                                   if r["name"] not in ("task_state", "cycle_time_us", "period_jitter_us")]
+    (tmp_path / "small.yaml").write_text(yaml.safe_dump(data))
+    s = Service(load_config(write_config(tmp_path, {"plc": {"register_map": str(tmp_path / "small.yaml")}})))
+    s.work(0.0, False)
+    assert s.image.outputs()["cycle_count"] == 1
+    s.source.close()
+    data["to_plc"]["registers"].append({"name": "spindle_speed", "address": 0x8050, "type": "float32"})
+    (tmp_path / "extra.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(ServiceConfigError, match="'spindle_speed' is not a value the service produces"):
+        Service(load_config(write_config(tmp_path, {"plc": {"register_map": str(tmp_path / "extra.yaml")}})))
