@@ -25,6 +25,22 @@ from service.sources.replay import LOG_SUFFIXES
 from service.sources.virtual_sensor import VirtualAtiSensor
 
 
+class LockedLogger(can.Listener):
+    """A log writer shared by the Notifier's thread (received frames) and ours (sent requests)."""
+
+    def __init__(self, path: str):
+        self.logger = can.Logger(path)
+        self.lock = threading.Lock()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self.lock:
+            self.logger.on_message_received(msg)
+
+    def stop(self) -> None:
+        with self.lock:
+            self.logger.stop()
+
+
 def register(sub) -> None:
     p = sub.add_parser("record", help="record the F/T sensor's CAN frames to a log file for replay")
     p.add_argument("out", help=f"log file to write ({', '.join(LOG_SUFFIXES)})")
@@ -52,7 +68,7 @@ def run(args) -> int:
         sensor = VirtualAtiSensor(open_bus(interface, channel, c.bitrate, **c.options), protocol,
                                   lambda t: milling_wrench(np.array([t]), seed=int(t * 1000), spikes=False)[0]).start()
     bus = open_bus(interface, channel, c.bitrate, **c.options)
-    logger = can.Logger(args.out)
+    logger = LockedLogger(args.out)
     notifier = can.Notifier(bus, [logger])
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
