@@ -29,7 +29,6 @@ sends a correction from a partial model. The tests check every supported effect 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -59,21 +58,11 @@ def _spring_terms(effect: JointSpring, compliance: np.ndarray, axial: list[Axial
         compliance[effect.joint - 1, COMPONENTS.index(c)] += theta
 
 
-def _backlash_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
-    """backlash: delta_rz = (b/2) tanh(tau / tau_w)  (stiffness/effects/backlash.py)."""
-    b, w = float(effect.theta[0]), float(effect.width(effect.theta))
-    axial.append(AxialTerm(effect.joint, lambda tau: 0.5 * b * math.tanh(tau / w)))
-
-
-def _nonlinear_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
-    """nonlinear_stiffness: c3 tau (tau/tau_ref)^2 or c_s tau_k tanh(tau/tau_k)  (nonlinear_stiffness.py)."""
-    c = float(effect.theta[0])
-    if effect.form == "cubic":
-        ref = float(effect.reference_torque_Nm)
-        axial.append(AxialTerm(effect.joint, lambda tau: c * tau * (tau / ref) ** 2))
-    else:
-        k = float(effect.knee(effect.theta))
-        axial.append(AxialTerm(effect.joint, lambda tau: c * k * math.tanh(tau / k)))
+def _axial_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
+    """backlash, nonlinear_stiffness: delta_rz = f(tau), the effect's own equation
+    (`stiffness.effects.axial.AxialEffect.axial_twist`), with its parameters frozen at start-up."""
+    theta = effect.theta.copy()
+    axial.append(AxialTerm(effect.joint, lambda tau: float(effect.axial_twist(tau, theta))))
 
 
 # effect name -> how it enters the fast path: fn(effect, compliance (6, 6), axial terms list).
@@ -82,8 +71,8 @@ def _nonlinear_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> 
 FAST_EFFECTS: dict[str, Callable[[object, np.ndarray, list[AxialTerm]], None]] = {
     "joint_spring": _spring_terms,
     "joint_6dof": _spring_terms,
-    "backlash": _backlash_terms,
-    "nonlinear_stiffness": _nonlinear_terms,
+    "backlash": _axial_terms,
+    "nonlinear_stiffness": _axial_terms,
 }
 
 

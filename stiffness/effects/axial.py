@@ -28,3 +28,23 @@ def axial_basis(ctx: Context, joint: int, columns: list[np.ndarray]) -> np.ndarr
 def torque_range(ctx: Context, joint: int) -> float:
     """The largest |tau_i| in the campaign (Nm), at least 1 Nm."""
     return max(float(np.abs(joint_torque(ctx.frame_wrench, joint)).max(initial=0.0)), 1.0)
+
+
+class AxialEffect(Effect):
+    """An effect on joint i's axial twist of the form delta_rz = theta[0] * shape(tau_i; theta).
+
+    ``axial_twist`` is the effect's equation, in one place: the model's basis and the service's
+    real-time path both call it.
+    """
+
+    def shape(self, tau, theta: np.ndarray):
+        """delta_rz per unit of the linear parameter theta[0], for torque tau (Nm, scalar or array)."""
+        raise NotImplementedError
+
+    def axial_twist(self, tau, theta: np.ndarray | None = None):
+        """delta_rz (rad) for joint torque tau (Nm, scalar or array)."""
+        theta = self.theta if theta is None else theta
+        return theta[0] * self.shape(tau, theta)
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return axial_basis(ctx, self.joint, [self.shape(joint_torque(W, self.joint), theta)])

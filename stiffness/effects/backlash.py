@@ -16,14 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
-from .axial import axial_basis, joint_torque
-from .base import Effect, Param, read_location, read_values
+from .axial import AxialEffect
+from .base import Param, read_location, read_values
 
 DEG = np.pi / 180.0
 
 
-class Backlash(Effect):
+class Backlash(AxialEffect):
     name = "backlash"
     equation = "delta_rz,i = (b/2) tanh(tau_i / tau_w)"
     default_width_Nm = 20.0
@@ -55,6 +54,5 @@ class Backlash(Effect):
     def width(self, theta: np.ndarray) -> float:
         return self.fixed_width if self.fixed_width is not None else float(theta[1])
 
-    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        tau = joint_torque(W, self.joint)
-        return axial_basis(ctx, self.joint, [0.5 * np.tanh(tau / self.width(theta))])
+    def shape(self, tau, theta: np.ndarray):
+        return 0.5 * np.tanh(tau / self.width(theta))

@@ -17,15 +17,14 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
 from ..errors import ConfigError
-from .axial import axial_basis, joint_torque
-from .base import Effect, Param, read_location, read_values
+from .axial import AxialEffect
+from .base import Param, read_location, read_values
 
 FORMS = ("cubic", "two_slope")
 
 
-class NonlinearStiffness(Effect):
+class NonlinearStiffness(AxialEffect):
     name = "nonlinear_stiffness"
     equation = "delta_rz,i = c3 tau (tau/tau_ref)^2  |  c_s tau_k tanh(tau/tau_k)"
 
@@ -70,11 +69,8 @@ class NonlinearStiffness(Effect):
     def knee(self, theta: np.ndarray) -> float:
         return self.fixed_knee if self.fixed_knee is not None else float(theta[1])
 
-    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        tau = joint_torque(W, self.joint)
+    def shape(self, tau, theta: np.ndarray):
         if self.form == "cubic":
-            col = tau * (tau / self.reference_torque_Nm) ** 2
-        else:
-            k = self.knee(theta)
-            col = k * np.tanh(tau / k)
-        return axial_basis(ctx, self.joint, [col])
+            return tau * (tau / self.reference_torque_Nm) ** 2
+        k = self.knee(theta)
+        return k * np.tanh(tau / k)
