@@ -88,8 +88,16 @@ def floor(seconds: float, priority: int, cpu: int | None, spin_us: float = 0.0) 
     return info.stats()
 
 
+def _keep_off_cpu(cpu: int) -> None:
+    """Client processes keep off the cycle's CPU when the cycle is pinned (as the server process does)."""
+    if cpu >= 0:
+        others = os.sched_getaffinity(0) - {cpu}
+        if others:
+            os.sched_setaffinity(0, others)
+
+
 def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority: int, cpu: int | None,
-          moving_q: bool = False, spin_us: float = 0.0) -> dict:
+          moving_q: bool = False, spin_us: float = 0.0, server_process: bool = False) -> dict:
     import logging
 
     from service.app import Service
@@ -100,7 +108,8 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
         cfg = load_config(write_config(Path(tmp), {
-            "plc": {"port": port, "enable_on_start": True, "initial_q_deg": [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]},
+            "plc": {"port": port, "enable_on_start": True, "initial_q_deg": [10.0, -80.0, 100.0, 20.0, 40.0, 30.0],
+                    "server_process": server_process},
             "faults": {"plc_heartbeat_timeout_ms": 0, "overrun_trip_count": 1000},
             "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority, "cpu": cpu, "spin_us": spin_us},
         }))
@@ -110,7 +119,8 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
             time.sleep(1.0)                               # warm-up, not measured
             service.info.__init__(service.info.period_s, service.info._exec.size)
             procs = [subprocess.Popen([sys.executable, __file__, "--client", str(port), str(duration), str(rate_hz),
-                                       str(count), "1" if (moving_q and i == 0) else "0"],
+                                       str(count), "1" if (moving_q and i == 0) else "0",
+                                       str(-1 if cpu is None else cpu)],
                                       stdout=subprocess.PIPE, text=True, cwd=ROOT)
                      for i in range(n_clients)]
             clients = []
@@ -127,6 +137,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
     return {"service": stats, "clients": clients, "duration_s": duration, "clients_n": n_clients,
             "rate_hz": rate_hz, "registers_per_read": count, "cpus": os.cpu_count(), "faults": faults,
             "realtime_priority": priority, "cpu": cpu, "spin_us": spin_us, "moving_q": moving_q,
+            "server_process": server_process,
             "correction_deg": correction,
             "pass": {"exec_p99_le_100us": stats["exec_us"]["p99"] <= TARGET_P99_US,
                      "no_exceeded_cycle": stats["exceed_count"] == 0}}
@@ -134,6 +145,7 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--client":
+        _keep_off_cpu(int(sys.argv[7]))
         client_main(int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6] == "1")
         return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -146,12 +158,14 @@ def main() -> int:
     ap.add_argument("--spin-us", type=float, default=0.0, help="poll the clock for the last N us before each deadline")
     ap.add_argument("--moving-q", action="store_true",
                     help="the first client also writes heartbeat and moving q1..q6 every period (kinematics each cycle)")
+    ap.add_argument("--server-process", action="store_true",
+                    help="serve Modbus from a process of its own (plc.server_process), not a thread")
     ap.add_argument("--floor-seconds", type=float, default=5.0, help="length of the noise-floor run (0: skip)")
     ap.add_argument("--json", default=None, help="write the result here too")
     args = ap.parse_args()
     fl = floor(args.floor_seconds, args.realtime_priority, args.cpu, args.spin_us) if args.floor_seconds > 0 else None
     r = bench(args.duration, args.clients, args.rate_hz, args.registers, args.realtime_priority, args.cpu,
-              args.moving_q, args.spin_us)
+              args.moving_q, args.spin_us, args.server_process)
     r["floor"] = fl
     s = r["service"]
     if fl:
@@ -161,7 +175,8 @@ def main() -> int:
     reqs = sum(c.get("requests", 0) for c in r["clients"])
     errs = sum(c.get("errors", 0) for c in r["clients"])
     print(f"service, {args.duration:g} s at 1 ms with {args.clients} clients x {args.registers} registers "
-          f"@ {args.rate_hz:g} Hz ({r['cpus']} CPUs){', moving q' if args.moving_q else ''}:")
+          f"@ {args.rate_hz:g} Hz ({r['cpus']} CPUs){', moving q' if args.moving_q else ''}"
+          f"{', Modbus server in its own process' if args.server_process else ', Modbus server thread'}:")
     print(f"  cycles {s['cycles']}, exceeded {s['exceed_count']}")
     print(f"  exec us   p50 {s['exec_us']['p50']:.1f}  p99 {s['exec_us']['p99']:.1f}  max {s['exec_us']['max']:.1f}")
     print(f"  jitter us p99 {s['period_jitter_us']['p99']:.1f}  p99.9 {s['period_jitter_us']['p999']:.1f}  "

@@ -124,6 +124,7 @@ class RegisterMap:
 
     def __init__(self, cfg: MapConfig, source: str = "<registers>"):
         self.source = source
+        self._cfg = cfg
         self.blocks = {"to_plc": cfg.to_plc, "from_plc": cfg.from_plc}
         self.registers: list[Register] = []
         for direction, block in self.blocks.items():
@@ -160,6 +161,10 @@ class RegisterMap:
                        for d, b in self.blocks.items()}
         self.writable = {a for r in self.registers if r.direction == "from_plc"
                          for a in range(r.address, r.address + r.count)}
+
+    def __reduce__(self):
+        """Pickled as its validated config (the compiled codecs are rebuilt): for the server process."""
+        return (RegisterMap, (self._cfg, self.source))
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RegisterMap:

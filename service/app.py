@@ -54,7 +54,11 @@ class Service:
             raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
         self.compensator = Compensator.from_config(cfg, self.model)
         self.rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
-        self.image = RegisterImage(self.rmap)
+        if cfg.plc.role == "server" and cfg.plc.server_process:
+            from plc_interface.shared_image import SharedRegisterImage
+            self.image = SharedRegisterImage(self.rmap)
+        else:
+            self.image = RegisterImage(self.rmap)
         self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
         self.period = cfg.cycle.period_ms / 1000.0
         self.info = TaskInfo(self.period, cfg.cycle.history)
@@ -112,7 +116,11 @@ class Service:
     def start(self) -> None:
         self._set("task_state", TASK_INIT)
         self.image.publish(self.image.out_codec.encode(self._out))
-        if self.cfg.plc.role == "server":
+        if self.cfg.plc.role == "server" and self.cfg.plc.server_process:
+            from plc_interface.modbus_process import ModbusServerProcess
+            self.plc = ModbusServerProcess(self.image, self.cfg.plc.host, self.cfg.plc.port,
+                                           avoid_cpu=self.cfg.cycle.cpu)
+        elif self.cfg.plc.role == "server":
             from plc_interface.modbus_server import ModbusServerThread
             self.plc = ModbusServerThread(self.image, self.cfg.plc.host, self.cfg.plc.port)
         elif self.cfg.plc.role == "client":
@@ -152,6 +160,8 @@ class Service:
         self.task_state = TASK_STOP
         if self.plc is not None:
             self.plc.stop()
+        if hasattr(self.image, "close"):
+            self.image.close()
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
 

@@ -148,6 +148,7 @@ class PlcConfig(_Strict):
     initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
                                        min_length=6, max_length=6)
     enable_on_start: bool = False
+    server_process: bool = False
     client: PlcClientConfig = Field(default_factory=PlcClientConfig)
 
 
