@@ -26,6 +26,7 @@ when it is not.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -112,7 +113,6 @@ class Diagnosis:
 
 
 def _with_theta(effect: Effect, theta: np.ndarray) -> Effect:
-    import copy
     e = copy.copy(effect)
     e.theta = np.asarray(theta, dtype=float)
     return e
@@ -149,14 +149,11 @@ def candidate_variants(model: StiffnessModel, ctx: Context) -> list[list[Effect]
 
 def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np.ndarray:
     """(N, 6, Pc) deflection per unit of the effect's parameters, at the fitted model."""
-    theta = model.theta
-    if effect.kind == "site":
-        aug = StiffnessModel(model.robot, model.effects + [effect], noise=model.noise, source=model.source)
-        th = np.concatenate([theta, effect.theta])
-        return design(aug, ctx, aug.frame_wrenches(ctx, th), th, [effect])
     aug = StiffnessModel(model.robot, model.effects + [effect], noise=model.noise, source=model.source)
-    th = np.concatenate([theta, effect.theta])
-    return jacobian(aug, ctx, th)[:, :, len(theta):]
+    th = np.concatenate([model.theta, effect.theta])
+    if effect.linear:      # closed form for its columns alone (the candidates' shapes are fixed)
+        return design(aug, ctx, aug.frame_wrenches(ctx, th), th, [effect])
+    return jacobian(aug, ctx, th)[:, :, len(model.theta):]
 
 
 # -- scoring ------------------------------------------------------------------------------------
