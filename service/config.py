@@ -128,7 +128,7 @@ class LimitsConfig(_Strict):
 class FaultsConfig(_Strict):
     sensor_timeout_ms: float = Field(10.0, gt=0)
     plc_heartbeat_timeout_ms: float = Field(200.0, ge=0)
-    overrun_trip_count: int = Field(3, ge=1, le=1000)
+    overrun_trip_count: int = Field(10, ge=1, le=1000)
 
 
 class PlcClientConfig(_Strict):
