@@ -24,6 +24,7 @@ COMMANDS = [
     "tools.compare_cmd",
     "tools.diagnose_cmd",
     "tools.model_cmd",
+    "tools.hil_cmd",
 ]
 
 EXIT_USER_ERROR = 2

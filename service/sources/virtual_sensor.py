@@ -69,12 +69,18 @@ class VirtualAtiSensor:
             t = time.monotonic() - self._t0
             if msg.data[0] == REQ_SHORT_DATA:
                 self.requests += 1
-                self.counter = (self.counter + 1) & 0xFFFF
-                for arb, data in self.protocol.encode(np.asarray(self.load(t)) - self.bias,
-                                                      self.status(t), self.counter):
+                for arb, data in self.answer(t):
                     self.bus.send(can.Message(arbitration_id=arb, data=data, is_extended_id=False))
             elif msg.data[0] == REQ_BIAS:
                 self.bias = np.asarray(self.load(t), dtype=float).copy()
+
+    def answer(self, t: float) -> list[tuple[int, bytes]]:
+        """The frames (id, data) that answer a short-data request at ``t`` (s since start).
+
+        The hook a fault-injecting sensor overrides (a silent or babbling sensor in the HIL tests).
+        """
+        self.counter = (self.counter + 1) & 0xFFFF
+        return self.protocol.encode(np.asarray(self.load(t)) - self.bias, self.status(t), self.counter)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,83 @@
+"""`stiffcomp hil circle`: mill the circle twice on the same force trace, without then with compensation."""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from stiffness.model import StiffnessModel
+
+from .report import errors, evaluate, plot
+from .robot_stub import RobotStub
+from .run import Faults, PassResult, run_pass
+from .scenario import Scenario
+from .world import World
+
+
+@dataclass
+class CircleResult:
+    """Both passes, their evaluations and the summary printed by the command."""
+
+    summary: dict
+    passes: dict[str, PassResult]
+    evaluations: dict[str, dict]
+    world: World
+
+
+def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, dict]:
+    world = World(scenario, truth.robot)
+    return world, evaluate(world, RobotStub(truth, scenario.robot.structure_hz), result.log)
+
+
+def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,
+               compensation: bool = True, report: Path | None = None, workdir: Path | None = None,
+               faults: Faults | None = None, service_overrides: dict | None = None) -> CircleResult:
+    """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
+
+    ``faults`` are injected in the compensated pass only.
+    """
+    truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
+    model_path = Path(model_path or scenario.resolve(scenario.model))
+    StiffnessModel.from_yaml(model_path)               # a bad model fails here, before any process starts
+    with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
+        base = Path(workdir or tmp)
+        passes = {"uncompensated": run_pass(scenario, truth, model_path, False, base / "uncompensated",
+                                            service_overrides=service_overrides)}
+        if compensation:
+            passes["compensated"] = run_pass(scenario, truth, model_path, True, base / "compensated", faults,
+                                             service_overrides)
+    evals = {}
+    world = None
+    for name, r in passes.items():
+        world, evals[name] = evaluate_pass(scenario, truth, r)
+    mean_u, max_u = errors(evals["uncompensated"])
+    mean_c, max_c = errors(evals["compensated"]) if compensation else (mean_u, max_u)
+    last = passes["compensated" if compensation else "uncompensated"].stats[-1]
+    summary = {"mean_error_mm": round(mean_c, 4), "max_error_mm": round(max_c, 4),
+               "mean_error_mm_uncompensated": round(mean_u, 4), "max_error_mm_uncompensated": round(max_u, 4),
+               "cycles": int(last.get("cycles", 0)), "exceed_count": int(last.get("exceed_count", 0))}
+    if report is not None:
+        write_report(Path(report), world, evals, passes, summary)
+    return CircleResult(summary, passes, evals, world)
+
+
+def write_report(folder: Path, world: World, evals: dict, passes: dict, summary: dict) -> None:
+    """hil_circle.png (Fig. 8), summary.json (with the task statistics) and the per-cycle errors."""
+    folder.mkdir(parents=True, exist_ok=True)
+    plot(world, evals, folder / "hil_circle.png")
+    detail = dict(summary)
+    detail["reduction_pct"] = (round(100.0 * (1 - summary["mean_error_mm"] / summary["mean_error_mm_uncompensated"]),
+                                     1) if summary["mean_error_mm_uncompensated"] > 0 else None)
+    detail["service_stats"] = {k: p.stats for k, p in passes.items()}
+    detail["plc"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
+                         "modbus_errors": int(p.log["errors"])} for k, p in passes.items()}
+    (folder / "summary.json").write_text(json.dumps(detail, indent=2) + "\n")
+    for k, ev in evals.items():
+        c = ev["cut"]
+        np.savetxt(folder / f"errors_{k}.csv", np.column_stack([ev["t"][c], np.degrees(ev["angle"][c]),
+                                                                 ev["err_mm"][c]]),
+                   delimiter=",", header="t_s,angle_deg,radial_error_mm", comments="", fmt="%.6f")

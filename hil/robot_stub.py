@@ -1,0 +1,60 @@
+"""The robot stub: commanded joints and the process load in, the actual (deflected) TCP out.
+
+The "real" robot is a truth stiffness model (YAML, the same format as the models). Its servos hold
+the commanded joints exactly (the encoders read q_cmd); the arm deflects under the load by the
+truth model's prediction (Eq. 4-7, the full loaded chain, every effect the truth holds):
+
+    p_actual = p_TCP(q_cmd) + dp_truth(q_cmd, W_s)
+
+W_s is the process force at the TCP seen through the arm's first mode: a critically damped
+second-order low-pass at ``structure_hz`` (the arm does not follow the 400 Hz tooth passing; 0 makes
+the deflection static). Nothing in the loop reads the actual pose (the PLC gets encoder values), so
+the stub evaluates a whole pass in one batch after it; `tcp` does the same for one cycle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from stiffness.measurements import Dataset
+from stiffness.model import StiffnessModel
+from stiffness.spatial import transform, transport_wrench
+
+
+class RobotStub:
+    """The truth robot.
+
+    Parameters
+    ----------
+    truth : StiffnessModel
+    structure_hz : float
+        Natural frequency of the arm's first mode (Hz); 0 = static.
+    """
+
+    def __init__(self, truth: StiffnessModel, structure_hz: float = 0.0):
+        self.truth = truth
+        self.robot = truth.robot
+        self.structure_hz = float(structure_hz)
+
+    def structural_load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """The force (N, 3) the arm feels at times ``t`` (uniformly spaced, s) for the process force."""
+        if self.structure_hz <= 0 or len(t) < 2:
+            return np.asarray(force, dtype=float)
+        w = 2 * np.pi * self.structure_hz
+        fs = 1.0 / float(t[1] - t[0])
+        b, a = signal.bilinear([w * w], [1.0, 2 * w, w * w], fs)         # critically damped
+        return signal.lfilter(b, a, force, axis=0)
+
+    def tcp(self, q_cmd_deg: np.ndarray, force_tcp: np.ndarray) -> np.ndarray:
+        """Actual TCP positions (m, base), (N, 3), for commanded joints (N, 6 deg) and TCP forces (N, 3 N)."""
+        q = np.atleast_2d(np.asarray(q_cmd_deg, dtype=float))
+        f = np.atleast_2d(np.asarray(force_tcp, dtype=float))
+        n = len(q)
+        F = self.robot.frames(np.radians(q))
+        T_tcp_axes = transform(np.broadcast_to(np.eye(3), (n, 3, 3)), F[:, 7, :3, 3])
+        W_tcp = np.concatenate([f, np.zeros_like(f)], axis=1)
+        W_s = transport_wrench(W_tcp, T_tcp_axes, self.robot.sensor_pose(F))
+        data = Dataset(np.arange(n, dtype=float), np.array([f"c{k}" for k in range(n)]), q, W_s,
+                       np.full(n, 6), np.zeros((n, 6)))
+        return F[:, 7, :3, 3] + self.truth.predict(data)[:, :3] / 1000.0

@@ -1,0 +1,218 @@
+"""One HIL pass: the service, the virtual sensor and the virtual PLC, each in its own process.
+
+    virtual sensor --CAN (udp_multicast)--> service (`stiffcomp run`) <--Modbus TCP-- virtual PLC
+         ^ process force of the world                                      | q_cmd, logged
+                                                         robot stub (truth model) -> actual TCP
+
+The three processes share nothing but the protocols and the start time of the cut (a
+multiprocessing Value holding a CLOCK_MONOTONIC time, which is system-wide on Linux). Every run
+picks its own multicast group, UDP port and Modbus port, so parallel runs never collide. Every
+process is stopped and joined on every path (try/finally).
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from plc_interface.virtual_plc import PlcFaults
+from service.config import load_config
+from service.testing import free_port
+from stiffness.model import StiffnessModel
+from stiffness.robot import load_robot
+
+from .plc_process import plc_main
+from .scenario import ROOT, Scenario
+from .sensor import sensor_main
+
+START_TIMEOUT_S = 90.0
+
+
+class HilError(RuntimeError):
+    """A HIL pass could not run (a process did not start or died)."""
+
+
+@dataclass
+class Faults:
+    """Faults to inject in one pass (times in s since the cut started)."""
+
+    sensor: tuple[str, float] | None = None          # ("stop" | "babble", t)
+    plc: PlcFaults | None = None
+    service_restart_at: float | None = None
+    service_down_s: float = 0.3
+
+
+@dataclass
+class PassResult:
+    """What one pass left: the PLC's cycle log, the service's stats and log, what was refused."""
+
+    log: dict
+    stats: list[dict]
+    service_log: str
+    compensate: bool
+    extra: dict = field(default_factory=dict)
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def write_service_config(scenario: Scenario, model_path: Path, folder: Path, group: str, can_port: int,
+                         modbus_port: int, overrides: dict | None = None) -> Path:
+    """The scenario's service config with this run's model, bus and port; paths made absolute."""
+    src = scenario.resolve(scenario.service)
+    data = yaml.safe_load(src.read_text())
+    base = src.parent
+    data["model"]["file"] = str(Path(model_path).resolve())
+    plc = data.setdefault("plc", {})
+    plc["register_map"] = str((base / plc.get("register_map", "registers.yaml")).resolve())
+    plc["port"] = modbus_port
+    source = data["source"]
+    ati = source.setdefault("ati", {})
+    ati["dbc"] = str((base / ati.get("dbc", "ati_netft_can.dbc")).resolve())
+    source["can"]["channel"] = group
+    source["can"].setdefault("options", {})["port"] = can_port
+    for k, v in (overrides or {}).items():
+        section = data.setdefault(k, {})
+        section.update(v)
+    path = folder / "service.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+class ServiceProcess:
+    """`stiffcomp run` as a child process; its log goes to a file (a pipe could fill and block it)."""
+
+    def __init__(self, config: Path, folder: Path, index: int = 0):
+        self.stats = folder / f"service_stats_{index}.json"
+        self.log_path = folder / f"service_{index}.log"
+        self._log = self.log_path.open("w")
+        self.proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(config),
+                                      "--stats-json", str(self.stats)], cwd=ROOT, stdout=subprocess.DEVNULL,
+                                     stderr=self._log)
+
+    def wait_running(self, timeout: float = START_TIMEOUT_S) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if "service running" in self.log_path.read_text():
+                return
+            if self.proc.poll() is not None:
+                raise HilError(f"the service exited with {self.proc.returncode}:\n{self.log_path.read_text()}")
+            time.sleep(0.05)
+        raise HilError("the service did not start in time")
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
+        self._log.close()
+
+    def result(self) -> tuple[dict, str]:
+        stats = json.loads(self.stats.read_text()) if self.stats.exists() else {}
+        return stats, self.log_path.read_text()
+
+
+def _wait(event, proc, what: str, timeout: float = START_TIMEOUT_S) -> None:
+    deadline = time.monotonic() + timeout
+    while not event.wait(0.05):
+        if not proc.is_alive():
+            raise HilError(f"the {what} process exited with {proc.exitcode} before it was ready")
+        if time.monotonic() > deadline:
+            raise HilError(f"the {what} process was not ready in time")
+
+
+def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
+             faults: Faults | None = None, service_overrides: dict | None = None) -> PassResult:
+    """Run the closed loop once in real time; returns the PLC's log and the service's stats."""
+    faults = faults or Faults()
+    folder.mkdir(parents=True, exist_ok=True)
+    group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
+    can_port, modbus_port = free_udp_port(), free_port()
+    cfg_path = write_service_config(scenario, model_path, folder, group, can_port, modbus_port, service_overrides)
+    cfg = load_config(cfg_path)
+    robot_path = truth.robot.source
+    ctx = multiprocessing.get_context("spawn")
+    go = ctx.Value("d", 0.0)
+    sensor_ready, plc_ready, stop = ctx.Event(), ctx.Event(), ctx.Event()
+    out_file = folder / f"plc_{'comp' if compensate else 'uncomp'}.npz"
+    services = [ServiceProcess(cfg_path, folder, 0)]
+    ati = {"base_id": cfg.source.ati.base_id, "counts_per_force": cfg.source.ati.counts_per_force,
+           "counts_per_torque": cfg.source.ati.counts_per_torque}
+    bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}
+    sensor = ctx.Process(target=_sensor_entry, name="hil-sensor", args=(
+        scenario, robot_path, cfg.gravity, bus_kw, ati, go, sensor_ready, stop, faults.sensor))
+    plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
+        scenario, robot_path, str(cfg.resolve(cfg.plc.register_map)), modbus_port, compensate, str(out_file), go,
+        plc_ready, faults.plc))
+    procs = [sensor, plc]
+    try:
+        sensor.start()
+        services[0].wait_running()
+        plc.start()
+        _wait(sensor_ready, sensor, "sensor")
+        _wait(plc_ready, plc, "PLC")
+        t0 = time.monotonic() + 0.2
+        go.value = t0
+        if faults.service_restart_at is not None:
+            _sleep_until(t0 + faults.service_restart_at)
+            services[-1].stop()
+            time.sleep(faults.service_down_s)
+            services.append(ServiceProcess(cfg_path, folder, len(services)))
+            services[-1].wait_running()
+        world_len = scenario.circle.lead_s + 2 * np.pi * scenario.circle.radius_mm / scenario.circle.feed_mm_s
+        plc.join(world_len + scenario.circle.tail_s + 60.0)
+        if plc.exitcode != 0:
+            raise HilError(f"the PLC process ended with {plc.exitcode}")
+    finally:
+        stop.set()
+        for s in services:
+            s.stop()
+        for p in procs:
+            _end(p)
+    results = [s.result() for s in services]
+    with np.load(out_file) as z:
+        log = {k: z[k] for k in z.files}
+    return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate)
+
+
+def _end(p) -> None:
+    """Join a child process; terminate, then kill, one that does not end."""
+    if p.pid is None:
+        return
+    p.join(10)
+    if p.is_alive():
+        p.terminate()
+        p.join(5)
+    if p.is_alive():
+        p.kill()
+        p.join(5)
+
+
+def _sleep_until(t: float) -> None:
+    while (d := t - time.monotonic()) > 0:
+        time.sleep(min(d, 0.05))
+
+
+def _sensor_entry(scenario, robot_path, gravity, bus_kw, ati, go, ready, stop, fault) -> None:
+    sensor_main(scenario, load_robot(robot_path), gravity, bus_kw, ati, go, ready, stop, fault)
+
+
+def _plc_entry(scenario, robot_path, register_map, port, compensate, out_file, go, ready, faults) -> None:
+    plc_main(scenario, load_robot(robot_path), register_map, port, compensate, out_file, go, ready, faults)

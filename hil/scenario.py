@@ -1,0 +1,87 @@
+"""The HIL scenario file (config/hil/circle.yaml): a pydantic schema that rejects unknown keys."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from stiffness.yamlio import read_yaml, validate
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_SCENARIO = ROOT / "config" / "hil" / "circle.yaml"
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class CircleConfig(_Strict):
+    center_q_deg: list[float] = Field(min_length=6, max_length=6)
+    radius_mm: float = Field(35.0, gt=0.0, le=500.0)
+    feed_mm_s: float = Field(50.0, gt=0.0, le=1000.0)
+    direction: Literal["ccw", "cw"] = "ccw"
+    points: int = Field(720, ge=36, le=100_000)
+    lead_s: float = Field(0.4, ge=0.0, le=10.0)
+    tail_s: float = Field(0.3, ge=0.0, le=10.0)
+
+
+class MillingConfig(_Strict):
+    tool_diameter_mm: float = Field(8.0, gt=0.0)
+    teeth: int = Field(4, ge=1, le=20)
+    spindle_rpm: float = Field(6000.0, gt=0.0)
+    feed_force_N: float = Field(320.0, ge=0.0, le=2000.0)
+    normal_force_N: float = Field(450.0, ge=0.0, le=2000.0)
+    normal_toward_center: bool = True
+    axial_force_N: float = Field(150.0, ge=-2000.0, le=2000.0)
+    tooth_amplitude: float = Field(0.3, ge=0.0, le=1.0)
+    entry_overshoot: float = Field(0.4, ge=0.0, le=5.0)
+    entry_tau_s: float = Field(0.05, gt=0.0, le=5.0)
+    exit_s: float = Field(0.12, gt=0.0, le=5.0)
+    variation: float = Field(0.03, ge=0.0, le=0.5)
+    seed: int = 7
+
+
+class SensorConfig(_Strict):
+    noise_N: float = Field(1.5, ge=0.0)
+    noise_Nm: float = Field(0.05, ge=0.0)
+    seed: int = 11
+    rate_hz: float = Field(7000.0, ge=100.0, le=100_000.0)
+    lowpass_hz: float = Field(52.0, ge=0.0, le=5000.0)
+
+
+class RobotStubConfig(_Strict):
+    structure_hz: float = Field(40.0, ge=0.0, le=1000.0)
+
+
+class PlcConfig(_Strict):
+    period_ms: float = Field(2.0, ge=1.0, le=4.0)
+    service_timeout_ms: float = Field(100.0, gt=0.0)
+    max_rate_deg_s: float = Field(2.0, gt=0.0, le=100.0)
+
+
+class Scenario(_Strict):
+    truth: str
+    model: str
+    service: str = "service.yaml"
+    circle: CircleConfig
+    milling: MillingConfig = Field(default_factory=MillingConfig)
+    sensor: SensorConfig = Field(default_factory=SensorConfig)
+    robot: RobotStubConfig = Field(default_factory=RobotStubConfig)
+    plc: PlcConfig = Field(default_factory=PlcConfig)
+
+    path: Path = Field(default=Path("<scenario>"), exclude=True)
+
+    def resolve(self, relative: str | Path) -> Path:
+        p = Path(relative)
+        return p if p.is_absolute() else self.path.parent / p
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Read and validate a scenario; ConfigError names the file, the key, the value and the range."""
+    path = Path(path) if path is not None else DEFAULT_SCENARIO
+    data = read_yaml(path)
+    sc = validate(Scenario, data, str(path))
+    sc.path = path
+    return sc

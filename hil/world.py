@@ -1,0 +1,61 @@
+"""What the virtual devices share: the path, the process force and the payload (the physical world).
+
+Each device process builds its own `World` from the same scenario, so no state crosses processes
+except through the real protocols (CAN to the service, Modbus between the service and the PLC).
+Time ``t`` is in s since the cut started; before 0 the tool waits at the start point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.gravity import GravityCompensator
+from stiffness.robot import Robot
+
+from .milling import MillingForce
+from .path import CirclePath
+from .scenario import Scenario
+
+
+class World:
+    """The scenario's path, process force and payload for one robot.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    robot : Robot
+    gravity_section : the service config's ``gravity`` section (payload and bias the sensor reports)
+    """
+
+    def __init__(self, scenario: Scenario, robot: Robot, gravity_section=None):
+        self.robot = robot
+        self.path = CirclePath(robot, scenario.circle)
+        self.milling = MillingForce(scenario.milling, scenario.circle.feed_mm_s, self.path.duration)
+        self.axis_out = -self.path.R_tool[:, 2]
+        self.gravity = GravityCompensator.from_config(gravity_section) if gravity_section is not None else None
+        self.t_start = -self.path.lead_s
+        self.t_end = self.milling.end_s + self.path.tail_s
+        F = robot.frames(np.radians(scenario.circle.center_q_deg)[None])
+        T_s = robot.sensor_pose(F)[0]
+        self._R_s = T_s[:3, :3]
+        self._lever = F[0, 7, :3, 3] - T_s[:3, 3]           # sensor origin -> TCP, base axes
+        self._payload = (np.array(self.gravity.payload_wrench(self._R_s)) + self.gravity.bias
+                         if self.gravity is not None else np.zeros(6))
+
+    def force(self, t: np.ndarray) -> np.ndarray:
+        """Process force on the cutter (N, base axes), (N, 3) for times ``t``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        phi = self.path.angle(t)
+        return self.milling.force(t, self.path.tangent(phi), self.path.outward(phi),
+                                  np.broadcast_to(self.axis_out, (len(t), 3)))
+
+    def sensor_wrench(self, t: np.ndarray) -> np.ndarray:
+        """What the sensor's gauges see at times ``t``: the process force at the TCP, the payload's weight
+        and the bias, in sensor axes, moment about the sensor origin, (N, 6) in N, Nm.
+
+        The tool keeps its orientation along the circle, so the sensor's axes and its lever to the TCP
+        are those at the circle's centre (the correction turns them by hundredths of a degree).
+        """
+        f = self.force(t)
+        R_s = self._R_s
+        return np.concatenate([f @ R_s, np.cross(self._lever, f) @ R_s], axis=1) + self._payload
