@@ -25,7 +25,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from pymodbus.client import ModbusTcpClient
 
+from plc_interface.register_map import RegisterMap
 from plc_interface.virtual_plc import PlcFaults
 from service.config import load_config
 from service.testing import free_port
@@ -180,6 +182,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         plc.join(world_len + scenario.circle.tail_s + 60.0)
         if plc.exitcode != 0:
             raise HilError(f"the PLC process ended with {plc.exitcode}")
+        unmapped = probe_unmapped(modbus_port, RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)))
     finally:
         stop.set()
         for s in services:
@@ -189,7 +192,28 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     results = [s.result() for s in services]
     with np.load(out_file) as z:
         log = {k: z[k] for k in z.files}
-    return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate)
+    return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate,
+                      {"unmapped_nonzero": unmapped})
+
+
+def probe_unmapped(port: int, rmap: RegisterMap) -> list[str]:
+    """Read both blocks whole from the running service; name every nonzero word that no register of
+    the map covers (what a write outside the map, or a stray publish, would leave)."""
+    mapped = {(r.table, a) for r in rmap.registers for a in range(r.address, r.address + r.count)}
+    found = []
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=2.0, retries=1) as c:
+        if not c.connect():
+            raise HilError(f"cannot reach the service at 127.0.0.1:{port} to probe the registers")
+        for b in rmap.blocks.values():
+            read = c.read_input_registers if b.table == "input_registers" else c.read_holding_registers
+            for start in range(b.start, b.start + b.size, 125):
+                n = min(125, b.start + b.size - start)
+                r = read(start, count=n)
+                if r.isError():
+                    raise HilError(f"the service refused a read of {b.table} {start:#06x}+{n}: {r}")
+                found += [f"{b.table} {start + k:#06x} = {v:#06x}" for k, v in enumerate(r.registers)
+                          if v and (b.table, start + k) not in mapped]
+    return found
 
 
 def _end(p) -> None:

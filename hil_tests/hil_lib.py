@@ -1,0 +1,70 @@
+"""Helpers of the HIL tests: scenarios, models written for the service, one compensated pass."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from hil.circle import evaluate_pass
+from hil.report import errors
+from hil.run import Faults, PassResult, run_pass
+from hil.scenario import ROOT, Scenario, load_scenario
+from plc_interface.register_map import RegisterMap
+from stiffness.model import StiffnessModel
+
+EXAMPLES = ROOT / "examples"
+MODELS = ROOT / "config" / "models"
+RMAP = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
+OUT = RMAP.codecs["to_plc"].names
+FROM_PLC = {a for r in RMAP.registers if r.direction == "from_plc" for a in range(r.address, r.address + r.count)}
+ST_ACTIVE, ST_FAULTED = 0x2, 0x4
+
+
+def scenario(feed_mm_s: float | None = None) -> Scenario:
+    sc = load_scenario()
+    if feed_mm_s is not None:
+        sc.circle.feed_mm_s = feed_mm_s
+    return sc
+
+
+def write_model(model: StiffnessModel, path: Path) -> Path:
+    """The model as YAML with an absolute robot path (it may live anywhere)."""
+    d = model.to_dict()
+    d["robot"] = str(Path(model.robot.source).resolve())
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    return path
+
+
+def compensated(sc: Scenario, truth: Path, model: Path, folder: Path, faults: Faults | None = None,
+                compensate: bool = True) -> tuple[PassResult, dict]:
+    """One pass and its evaluation (actual TCP, radial error)."""
+    t = StiffnessModel.from_yaml(truth)
+    r = run_pass(sc, t, model, compensate, folder, faults)
+    return r, evaluate_pass(sc, t, r)[1]
+
+
+def mean_error(ev: dict, t_from: float = -np.inf, t_to: float = np.inf) -> float:
+    m = ev["cut"] & (ev["t"] >= t_from) & (ev["t"] < t_to)
+    return float(np.abs(ev["err_mm"][m]).mean()) if m.any() else float("nan")
+
+
+def value(r: PassResult, name: str) -> np.ndarray:
+    """A to_plc value per PLC cycle as the PLC read it (NaN where the read failed)."""
+    return r.log["to_plc"][:, OUT.index(name)]
+
+
+def corrections(r: PassResult) -> np.ndarray:
+    return r.log["to_plc"][:, [OUT.index(f"correction_q{i}") for i in range(1, 7)]]
+
+
+def nothing_outside_the_map(r: PassResult) -> list[str]:
+    """Problems: the PLC wrote outside its registers, a word outside the map is nonzero, a write was refused."""
+    problems = [f"PLC wrote {a:#06x}" for a in r.log["written"] if int(a) not in FROM_PLC]
+    problems += r.extra["unmapped_nonzero"]
+    problems += [line for line in r.service_log.splitlines() if "refused a write" in line]
+    return problems
+
+
+__all__ = ["EXAMPLES", "MODELS", "ROOT", "Faults", "errors"]
