@@ -1,0 +1,114 @@
+"""Fault injection in the closed loop: each fault ends in the documented safe state (docs/hil.md), and
+nothing is written outside the register map. Every test checks both.
+
+Safe state of the service (docs/register_map.md): the fault bit latched, status faulted and not
+active, the correction ramped to zero (limits.fault_ramp_s) and held there. Safe state of the PLC
+(plc_interface/virtual_plc.py): with no fresh service heartbeat it applies no correction, so the
+robot follows its references; once the service answers again it resets the faults the loss caused
+and the compensation resumes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hil_lib import (
+    EXAMPLES,
+    ST_ACTIVE,
+    ST_FAULTED,
+    Faults,
+    compensated,
+    corrections,
+    mean_error,
+    nothing_outside_the_map,
+    scenario,
+    value,
+)
+
+from plc_interface.virtual_plc import PlcFaults
+from service.faults import FAULT_BITS
+
+TRUTH = EXAMPLES / "truth_reference.yaml"
+T_FAULT = 1.5                       # s after the cut started
+FEED = 30.0                         # mm/s: a 7.3 s circle leaves room for the fault and the recovery
+
+
+def at(r, t_from, t_to=np.inf):
+    t = r.log["t"]
+    return (t >= t_from) & (t < t_to)
+
+
+def assert_working_before_the_fault(r):
+    m = at(r, 0.3, T_FAULT) & r.log["link"]
+    assert m.sum() > 50
+    assert (value(r, "fault_word")[m] == 0).all()
+    assert ((value(r, "status_word")[m].astype(int) & ST_ACTIVE) != 0).all()
+
+
+def assert_service_safe(r, fault: str, t_from: float):
+    """From t_from on: fault latched, faulted, not active, zero correction, robot on its references."""
+    m = at(r, t_from) & r.log["link"]
+    assert m.sum() > 50
+    fw = value(r, "fault_word")[m].astype(int)
+    st = value(r, "status_word")[m].astype(int)
+    assert (fw & (1 << FAULT_BITS[fault]) != 0).all(), np.unique(fw)
+    assert (st & ST_FAULTED != 0).all() and (st & ST_ACTIVE == 0).all(), np.unique(st)
+    assert np.abs(corrections(r)[m]).max() == 0.0
+    assert np.abs(r.log["q_cmd"][m] - r.log["q_ref"][m]).max() < 1e-9
+
+
+def run(tmp_path, faults):
+    r, ev = compensated(scenario(FEED), TRUTH, TRUTH, tmp_path, faults)
+    assert nothing_outside_the_map(r) == []
+    return r, ev
+
+
+@pytest.mark.parametrize("kind, fault", [("stop", "sensor_timeout"), ("babble", "can_frame")])
+def test_sensor_stops_or_babbles_garbage(tmp_path, kind, fault):
+    r, _ = run(tmp_path, Faults(sensor=(kind, T_FAULT)))
+    assert_working_before_the_fault(r)
+    # timeout 100 ms (babble: the next cycle) + ramp 200 ms + the PLC's read, with margin for a loaded host
+    assert_service_safe(r, fault, T_FAULT + 0.6)
+
+
+def test_plc_heartbeat_stops(tmp_path):
+    r, _ = run(tmp_path, Faults(plc=PlcFaults(heartbeat_stop_at=T_FAULT)))
+    assert_working_before_the_fault(r)
+    assert_service_safe(r, "plc_heartbeat", T_FAULT + 1.0)     # timeout 500 ms + ramp 200 ms + margin
+
+
+def assert_recovers(r, ev, lost_from: float, lost_to: float):
+    """No correction while the link is lost; active again after, with the path error back down."""
+    lost = at(r, lost_from, lost_to)
+    assert lost.sum() > 20
+    assert np.abs(r.log["applied"][lost]).max() == 0.0
+    assert np.abs(r.log["q_cmd"][lost] - r.log["q_ref"][lost]).max() < 1e-9
+    st = np.nan_to_num(value(r, "status_word")).astype(int)
+    back = np.flatnonzero(at(r, lost_to) & r.log["link"] & (st & ST_ACTIVE != 0) & (value(r, "fault_word") == 0))
+    assert len(back), "the compensation never resumed"
+    t_back = r.log["t"][back[0]]
+    resumed = at(r, t_back + 0.5, ev["t"][ev["cut"]].max())
+    assert resumed.sum() > 100, f"resumed only at t = {t_back:.2f} s"
+    assert r.log["link"][resumed].all()
+    assert (value(r, "fault_word")[resumed] == 0).all()
+    assert mean_error(ev, t_back + 0.5) < 0.3 * mean_error(ev, lost_from, lost_to)
+
+
+def test_modbus_client_drops_and_reconnects(tmp_path):
+    drop = 1.0                       # longer than the service's heartbeat timeout: it trips, then is reset
+    r, ev = run(tmp_path, Faults(plc=PlcFaults(drop_at=T_FAULT, drop_for_s=drop)))
+    assert_working_before_the_fault(r)
+    assert not r.log["link"][at(r, T_FAULT, T_FAULT + drop)].any()
+    assert "fault plc_heartbeat" in r.service_log and "faults reset by the PLC" in r.service_log
+    assert_recovers(r, ev, T_FAULT + 0.15, T_FAULT + drop)
+
+
+def test_service_restarted_mid_run(tmp_path):
+    r, ev = run(tmp_path, Faults(service_restart_at=T_FAULT, service_down_s=0.3))
+    assert_working_before_the_fault(r)
+    assert len(r.stats) == 2 and all(s["status"] == "stopped" for s in r.stats)
+    assert r.service_log.count("service running") == 2
+    relink = r.log["t"][at(r, T_FAULT + 0.15) & r.log["link"]]
+    assert len(relink), "the PLC never saw the new service"
+    assert relink[0] > T_FAULT + 0.3                         # it was down at least that long
+    assert_recovers(r, ev, T_FAULT + 0.15, relink[0])
