@@ -30,6 +30,7 @@ from pymodbus.client import ModbusTcpClient
 from plc_interface.register_map import RegisterMap
 from plc_interface.virtual_plc import PlcFaults
 from service.config import load_config
+from service.errors import ServiceError
 from service.testing import free_port
 from stiffness.model import StiffnessModel
 from stiffness.robot import load_robot
@@ -41,8 +42,9 @@ from .sensor import sensor_main
 START_TIMEOUT_S = 90.0
 
 
-class HilError(RuntimeError):
-    """A HIL pass could not run (a process did not start or died)."""
+class HilError(ServiceError):
+    """A HIL pass could not run: a device process did not start, died, or the service could not be
+    reached (the CLI reports it in one line with exit code 2)."""
 
 
 @dataclass
