@@ -13,29 +13,33 @@ import sys
 
 from stiffness.errors import StiffnessError
 
-COMMANDS = [
-    "tools.fit_cmd",
-    "tools.stiffness_cmd",
-    "tools.run_cmd",
-    "tools.registers_cmd",
-    "tools.record_cmd",
-    "tools.payload_cmd",
-    "tools.simulate_cmd",
-    "tools.compare_cmd",
-    "tools.diagnose_cmd",
-    "tools.model_cmd",
-    "tools.hil_cmd",
-]
+# subcommand -> the module that registers it. Only the module of the command being run is
+# imported (the service's, the plots' and the protocols' imports cost a second); help imports all.
+COMMANDS = {
+    "fit": "tools.fit_cmd",
+    "kcart": "tools.stiffness_cmd",
+    "run": "tools.run_cmd",
+    "registers": "tools.registers_cmd",
+    "record": "tools.record_cmd",
+    "payload": "tools.payload_cmd",
+    "simulate": "tools.simulate_cmd",
+    "compare": "tools.compare_cmd",
+    "diagnose": "tools.diagnose_cmd",
+    "model": "tools.model_cmd",
+    "hil": "tools.hil_cmd",
+}
 
 EXIT_USER_ERROR = 2
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser with every subcommand, or only ``command``'s when it names one."""
     parser = argparse.ArgumentParser(
         prog="stiffcomp",
         description="Stiffness modelling and real-time deformation compensation for industrial robots.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMANDS:
+    modules = [COMMANDS[command]] if command in COMMANDS else dict.fromkeys(COMMANDS.values())
+    for name in modules:
         importlib.import_module(name).register(sub)
     return parser
 
@@ -52,7 +56,8 @@ def user_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv[0] if argv else None).parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except user_errors() as e:
