@@ -35,7 +35,7 @@ REQUIRED = {
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class RegisterEntry(_Strict):
@@ -156,6 +156,11 @@ class RegisterMap:
         if cfg.from_plc.table != "holding_registers":
             raise RegisterMapError(f"{source}: from_plc.table = {cfg.from_plc.table!r}: the PLC can write only "
                                    "holding_registers")
+        a, b = cfg.to_plc, cfg.from_plc
+        if a.table == b.table and a.start < b.start + b.size and b.start < a.start + a.size:
+            raise RegisterMapError(
+                f"{source}: to_plc [{a.start:#06x}, {a.start + a.size:#06x}) and from_plc [{b.start:#06x}, "
+                f"{b.start + b.size:#06x}) overlap in {a.table}: the PLC's writes would land in the service's block")
         self.by_name = {r.name: r for r in self.registers}
         self.codecs = {d: BlockCodec([r for r in self.registers if r.direction == d], b.start, b.size)
                        for d, b in self.blocks.items()}

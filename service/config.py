@@ -25,7 +25,8 @@ DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.ya
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # inf and NaN are refused everywhere: an infinite limit would silently disable it
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _six_or_one(v: float | list[float]) -> list[float]:
