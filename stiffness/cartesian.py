@@ -22,7 +22,9 @@ def tcp_compliance(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
     """The 6x6 compliance C (dX = C W) at the TCP for joint angles ``q_deg`` (deg).
 
     Evaluated by probing the model with a unit force or moment along each base axis, so it holds
-    for any model that is linear in the load (for nonlinear effects it is the secant at 1 N).
+    for any model that is linear in the load (for nonlinear effects it is the secant at 1 N). Each
+    probe is a reading of its own at time 0: no loading history or elapsed time (hysteresis,
+    drift) enters.
     """
     q_deg = np.asarray(q_deg, dtype=float).reshape(6)
     robot = model.robot
@@ -31,7 +33,7 @@ def tcp_compliance(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
     T_tcp_base_axes = transform(np.eye(3), F[7, :3, 3])
     W_tcp = np.eye(6) * UNIT
     W_sensor = transport_wrench(W_tcp, T_tcp_base_axes[None], T_sensor[None])
-    data = Dataset(np.arange(6.0), np.array(["probe"] * 6), np.tile(q_deg, (6, 1)), W_sensor,
+    data = Dataset(np.zeros(6), np.array([f"probe{k}" for k in range(6)]), np.tile(q_deg, (6, 1)), W_sensor,
                    np.full(6, TCP), np.zeros((6, 6)))
     dX = model.predict(data)
     dX[:, :3] /= 1000.0
@@ -39,9 +41,21 @@ def tcp_compliance(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
     return dX.T / UNIT
 
 
+MAX_CONDITION = 1e10
+
+
 def tcp_stiffness(model: StiffnessModel, q_deg: np.ndarray) -> np.ndarray:
-    """The Cartesian stiffness K = C^-1 at the TCP (N/m, N/rad, Nm/m, Nm/rad blocks)."""
-    return np.linalg.inv(tcp_compliance(model, q_deg))
+    """The Cartesian stiffness K = C^-1 at the TCP (N/m, N/rad, Nm/m, Nm/rad blocks).
+
+    Raises ValueError where C is singular (a direction the model's springs cannot deflect, e.g. at
+    a wrist singularity): K is infinite there.
+    """
+    C = tcp_compliance(model, q_deg)
+    scale = np.r_[np.ones(3), np.full(3, 1e-3)]       # compare m/N with rad/Nm over a 1 m lever
+    if np.linalg.cond(C * scale[:, None] / scale[None, :]) > MAX_CONDITION:
+        raise ValueError(f"the compliance at q = {np.round(q_deg, 3).tolist()} deg is singular: the model "
+                         "cannot deflect the TCP in some direction, so K is unbounded there")
+    return np.linalg.inv(C)
 
 
 def tcp_wrench_and_deflection(data: Dataset, model_robot) -> tuple[np.ndarray, np.ndarray]:
@@ -58,10 +72,13 @@ def tcp_wrench_and_deflection(data: Dataset, model_robot) -> tuple[np.ndarray, n
 def identify_cartesian(W: np.ndarray, dX: np.ndarray) -> np.ndarray:
     """Eq. 15: K^T = (sum dX dX^T)^-1 (sum dX W^T), the least-squares K with W = K dX.
 
-    Needs readings that excite all six directions of dX; raises ValueError if they do not.
+    Needs loads along all six directions: a wrench that never varies in some direction leaves K
+    unidentified there (noise alone still makes dX full rank), so raises ValueError.
     """
+    Wn = W / np.maximum(np.sqrt(np.mean(W**2, axis=0)), 1e-300)
+    s = np.linalg.svd(Wn, compute_uv=False)
+    if len(W) < 6 or s[-1] < 1e-3 * s[0]:
+        raise ValueError("the wrenches do not span six directions (force and moment at the TCP): K cannot "
+                         "be identified; load the TCP along more axes")
     M = dX.T @ dX
-    if np.linalg.matrix_rank(M) < 6:
-        raise ValueError("the deflections do not span six directions: K cannot be identified "
-                         "(load the TCP along more axes)")
     return np.linalg.solve(M, dX.T @ W).T

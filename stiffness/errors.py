@@ -2,7 +2,8 @@
 
 StiffnessError
 ├── ConfigError       a robot or model YAML is malformed: names the file, key, value and allowed range
-└── DataError         a measurement file is malformed: names the file, line and column
+├── DataError         a measurement file is malformed: names the file, line and column
+└── OutputError       a result cannot be written where it was asked to go
 """
 
 
@@ -29,3 +30,7 @@ class DataError(StiffnessError):
             if more:
                 message += f"\n  ... and {more} more"
         super().__init__(message)
+
+
+class OutputError(StiffnessError):
+    """Raised when an output file or report folder cannot be written (names the path and the reason)."""

@@ -13,6 +13,7 @@ from .robot import BODIES
 
 LOAD_BINS = 4
 MIN_PURE_ERROR_DOF = 200
+MIN_NOISE_MM, MIN_NOISE_DEG = 1e-6, 1e-8   # below these the repeats are noise-free, not measured
 
 
 def normalised_rms(resid: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -39,18 +40,19 @@ def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
                                                        "config": cfg_scores, "load_range": load_scores}}
 
 
-def repeat_groups(ctx: Context, tolerance: float = 0.05) -> np.ndarray:
-    """Group readings that repeat one load state: consecutive in time within a configuration, with
-    forces closer than ``tolerance`` of the campaign's largest force. Returns a group id per reading."""
+def repeat_groups(ctx: Context, tolerance: float = 0.01) -> np.ndarray:
+    """Group readings that repeat one load state: consecutive in time within a configuration, with a
+    force within ``tolerance`` of the campaign's largest force *of the group's first reading* (so a
+    slow ramp of small steps never chains into one group). Returns a group id per reading."""
     f = ctx.wrench_sensor[:, :3]
     tol = tolerance * max(np.linalg.norm(f, axis=1).max(), 1e-9)
     order = np.lexsort((ctx.time, ctx.config))
     gid = np.empty(ctx.n_readings, dtype=int)
-    g = -1
-    for k, n in enumerate(order):
-        prev = order[k - 1] if k else None
-        if prev is None or ctx.config[prev] != ctx.config[n] or np.linalg.norm(f[n] - f[prev]) > tol:
+    g, first = -1, None
+    for n in order:
+        if first is None or ctx.config[first] != ctx.config[n] or np.linalg.norm(f[n] - f[first]) > tol:
             g += 1
+            first = n
         gid[n] = g
     return gid
 
@@ -59,7 +61,8 @@ def pure_error(ctx: Context, y: np.ndarray) -> dict | None:
     """The measurement noise seen between repeated readings of one load state (model-free).
 
     Returns ``{"position_mm", "rotation_deg", "dof"}`` per component, or None when the repeats give
-    fewer than MIN_PURE_ERROR_DOF degrees of freedom (the estimate would be looser than about 5 %).
+    fewer than MIN_PURE_ERROR_DOF degrees of freedom (the estimate would be looser than about 5 %)
+    or show no scatter at all (noise-free data: there is no measured noise to judge against).
     """
     gid = repeat_groups(ctx)[ctx.row_reading]
     key = gid * len(BODIES) + ctx.body
@@ -71,6 +74,8 @@ def pure_error(ctx: Context, y: np.ndarray) -> dict | None:
     np.add.at(sums, inv, y)
     dev = y - (sums / counts[:, None])[inv]
     ss = np.sum(dev**2, axis=0) / dof
+    if ss[:3].mean() < MIN_NOISE_MM**2 or ss[3:].mean() < MIN_NOISE_DEG**2:
+        return None
     return {"position_mm": float(np.sqrt(ss[:3].mean())), "rotation_deg": float(np.sqrt(ss[3:].mean())),
             "dof": dof}
 
@@ -93,8 +98,8 @@ def axial_residual(ctx: Context, resid: np.ndarray, sigma: np.ndarray, joint: in
 def patterns(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> list[dict]:
     """How much of the residual simple regressors explain (R^2 each), strongest first.
 
-    The probes are physical, not effects: time within a configuration, each joint torque's sign,
-    square and magnitude, and the sensor force along each axis. They point a person at a pattern
+    The probes are physical, not effects: time within a configuration, each joint torque's sign and
+    square, and the sensor force along each axis. They point a person at a pattern
     when no library effect explains it.
     """
     rw = (resid / sigma)

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import json
 import sys
-from typing import Any
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
+from stiffness.errors import OutputError
 from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
 
@@ -19,6 +22,32 @@ def load(model_path: str, data_path: str | None = None) -> tuple[StiffnessModel,
         print(f"note: {data_path}: column(s) {', '.join(data.ignored_columns)} are not part of the "
               "format and were not used", file=sys.stderr)
     return model, data
+
+
+T = TypeVar("T")
+
+
+def write_output(path: str | Path, write: Callable[[Path], T]) -> T:
+    """Run ``write(path)`` after creating the parent folder; OS errors become an OutputError naming the path."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return write(path)
+    except OSError as e:
+        raise OutputError(f"{path}: cannot write: {e.strerror or e}") from e
+
+
+def relative_robot(model_path: str, out_path: str, ref: str | None) -> str | None:
+    """The robot reference of a model, rewritten to stay valid from the output file's folder."""
+    if ref is None:
+        return None
+    import os
+
+    robot = (Path(model_path).parent / ref).resolve()
+    try:
+        return os.path.relpath(robot, Path(out_path).resolve().parent)
+    except ValueError:       # another drive (Windows): keep it absolute
+        return str(robot)
 
 
 def to_jsonable(x: Any) -> Any:

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report, to_dict
 
-from .common import load, print_json
+from .common import load, print_json, write_output
 
 
 def register(sub) -> None:
@@ -32,7 +33,8 @@ def run(args) -> int:
     if tty:
         print("\r\033[K", end="", file=sys.stderr)
     if args.report:
-        path = build_report(d, args.model, args.data).write(args.report)
+        report = build_report(d, args.model, args.data)
+        path = write_output(Path(args.report) / "index.html", lambda p: report.write(p.parent))
         print(f"report: {path}", file=sys.stderr)
     if args.json:
         print_json(to_dict(d, args.top))

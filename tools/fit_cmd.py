@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.identify import FitResult, fit
 
-from .common import load, print_json
+from .common import load, print_json, relative_robot, write_output
 
 
 def register(sub) -> None:
@@ -57,8 +56,8 @@ def run(args) -> int:
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
                   f"{result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg")
-        result.model.robot_ref = _relative_robot(args.model, args.output, model.robot_ref)
-        result.model.to_yaml(args.output, header)
+        result.model.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
+        write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.json:
         print_json(summary(result))
     else:
@@ -68,19 +67,6 @@ def run(args) -> int:
     if not result.converged:
         print(f"warning: the fit did not converge: {result.message}", file=sys.stderr)
     return 0
-
-
-def _relative_robot(model_path: str, out_path: str, ref: str | None) -> str | None:
-    """Keep the robot reference valid from the output file's folder."""
-    if ref is None:
-        return None
-    robot = (Path(model_path).parent / ref).resolve()
-    out_dir = Path(out_path).resolve().parent
-    try:
-        import os
-        return os.path.relpath(robot, out_dir)
-    except ValueError:
-        return str(robot)
 
 
 def print_text(result: FitResult, args) -> None:

@@ -6,7 +6,7 @@ from stiffness.edit import add_effect
 from stiffness.effects import EFFECTS
 from stiffness.model import StiffnessModel
 
-from .fit_cmd import _relative_robot
+from .common import relative_robot, write_output
 
 
 def register(sub) -> None:
@@ -25,9 +25,10 @@ def register(sub) -> None:
 def run_add(args) -> int:
     model = StiffnessModel.from_yaml(args.model)
     new = add_effect(model, args.effect, args.joint)
-    new.robot_ref = _relative_robot(args.model, args.output, model.robot_ref)
-    new.to_yaml(args.output, f"# {args.model} with {args.effect} added"
-                + (f" at {args.joint}" if args.joint else "") + "; fit it with `stiffcomp fit`")
+    new.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
+    header = (f"# {args.model} with {args.effect} added" + (f" at {args.joint}" if args.joint else "")
+              + "; fit it with `stiffcomp fit`")
+    write_output(args.output, lambda p: new.to_yaml(p, header))
     print(f"written: {args.output} ({args.effect} added; its parameters start at their defaults)")
     return 0
 

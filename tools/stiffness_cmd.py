@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
+from stiffness.errors import ConfigError
 
 from .common import load, print_json
 
@@ -22,7 +23,10 @@ def run(args) -> int:
     model, data = load(args.model, args.data)
     out = {}
     if args.q is not None:
-        out["model"] = {"q_deg": args.q, "K": tcp_stiffness(model, np.array(args.q))}
+        try:
+            out["model"] = {"q_deg": args.q, "K": tcp_stiffness(model, np.array(args.q))}
+        except ValueError as e:
+            raise ConfigError(f"--q: {e}") from e
     if data is not None:
         out["identified"] = []
         for cfg in data.configs:
@@ -35,7 +39,7 @@ def run(args) -> int:
                 entry["error"] = str(e)
             out["identified"].append(entry)
     if not out:
-        raise SystemExit("stiffcomp kcart: give --q Q1..Q6, --data DATA, or both")
+        raise ConfigError("give --q Q1..Q6 (deg), --data DATA, or both")
     if args.json:
         print_json(out)
     else:
