@@ -95,13 +95,13 @@ class Compensator:
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
         faults = self.faults
-        for e in errors:
-            faults.trip_error(e)
         rising = command & ~self.prev_command
         self.prev_command = command
         if rising & CMD_RESET:
             faults.reset()
             self.overruns = 0
+        for e in errors:              # after the reset: a reset clears only faults whose cause is gone
+            faults.trip_error(e)
         enabled = bool(command & CMD_ENABLE) or self.enable_on_start
         self._supervise_plc(t, plc_heartbeat, bool(rising & CMD_ENABLE), bool(command & CMD_ENABLE))
         self._supervise_overrun(overrun)

@@ -156,3 +156,19 @@ def test_correction_matches_the_prediction_once_settled(tmp_path):
     assert np.abs(comp.dq_deg).max() <= cfg.limits.max_correction_deg[0]
     # the wrench was seen in sensor axes and reported in base axes with the same magnitude
     assert np.isclose(np.linalg.norm(comp.wrench_base[:3]), np.linalg.norm(LOAD[:3]), rtol=1e-3)
+
+
+def test_reset_pulses_while_the_sensor_is_silent_never_go_active(tmp_path):
+    """A reset clears only faults whose cause is gone: the cycle carrying the edge stays safe."""
+    _, comp, src = build(tmp_path, samples=INJECT_AT)
+    drv = Driver(comp, src)
+    drv.run(N_OK)
+    drv.run(N_FAULT)                                      # the log has ended: sensor_timeout, ramped to zero
+    assert comp.faults.word & (1 << FAULT_BITS["sensor_timeout"])
+    assert np.all(np.array(comp.correction) == 0.0)
+    for _ in range(20):                                   # a PLC pulsing reset
+        out = drv.run(1, command=CMD_ENABLE | CMD_RESET)
+        assert comp.faults.word & (1 << FAULT_BITS["sensor_timeout"])
+        assert not comp.status_word & ST_ACTIVE and np.all(out == 0.0)
+        out = drv.run(2)
+        assert comp.faults.word and not comp.status_word & ST_ACTIVE and np.all(out == 0.0)
