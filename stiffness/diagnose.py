@@ -42,6 +42,7 @@ from .effects.joint_spring import Joint6Dof, JointSpring
 from .effects.link_bending import LinkBending
 from .effects.nonlinear_stiffness import NonlinearStiffness
 from .effects.sensor_misalignment import SensorMisalignment
+from .errors import DataError
 from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
@@ -213,6 +214,10 @@ def folds_by_configuration(ctx: Context) -> np.ndarray:
 def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
     """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks."""
     say = progress or (lambda msg: None)
+    need = 2 * (len(model.theta) + 6)          # the model and the largest candidate, twice over
+    if 6 * len(data) < need:
+        raise DataError(f"{data.source}: too few rows to diagnose ({len(data)} rows, {6 * len(data)} residuals); "
+                        f"a model of {len(model.theta)} parameters and its candidates need at least {need}")
     say("fitting the model")
     ctx = model.context(data)
     result = fit(model, ctx)

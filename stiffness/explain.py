@@ -57,8 +57,9 @@ def describe(c, model, ctx, result) -> str:
     pct = 100 * c.cv_improvement
     passed = [k.replace("_", " ") for k, ok in c.criteria.items() if ok]
     verdict = "Missing" if c.named else ("Partial" if c.significant else "Not supported")
+    folds = "by configuration" if len(ctx.config_labels) >= 2 else "over blocks of time (one configuration)"
     return (f"{verdict}: {c.name}{where}, {size_text(c, model, ctx)}. It explains {pct:.0f} % of the "
-            f"remaining error under cross-validation by configuration (RMS {result.rms_position_mm:.4f} -> "
+            f"remaining error under cross-validation {folds} (RMS {result.rms_position_mm:.4f} -> "
             f"{c.rms_position_mm_after:.4f} mm, {result.rms_rotation_deg:.5f} -> "
             f"{c.rms_rotation_deg_after:.5f} deg); criteria passed: {', '.join(passed) or 'none'}.")
 

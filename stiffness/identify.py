@@ -128,7 +128,8 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     Parameters
     ----------
     rounds : int
-        Fits with the noise re-estimated from the residuals in between (1 keeps ``sigma``).
+        Fits, with the noise re-estimated from the residuals after each (the weights of the next
+        round and of the standard errors).
     max_nfev : int
         Evaluations allowed to the nonlinear solver (only used when the model has nonlinear terms).
     sigma : (6,) array, optional

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import yaml
+from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign, CampaignSpec
 
-ROOT = Path(__file__).resolve().parents[2]
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
-MODELS = ROOT / "config" / "models"
 
 
 def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:
@@ -26,15 +23,16 @@ def truth_with(hidden: list[dict], axial_except: int | None = None) -> Stiffness
     return StiffnessModel.from_dict(d, "truth", TRUTH.parent)
 
 
-def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2):
+def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2, step_N: float = 300,
+             noise: bool = True):
     spec = CampaignSpec.model_validate({
         "name": f"hidden_{seed}", "truth": "-", "seed": seed,
         "configurations": [],
         "random_configurations": {"count": configs, "margin_deg": 25.0},
-        "loads": {"axes": ["x", "y", "z"], "max_N": 1200, "step_N": 300, "point_mm": [100, 0, 250]},
+        "loads": {"axes": ["x", "y", "z"], "max_N": 1200, "step_N": step_N, "point_mm": [100, 0, 250]},
         "readings": {"repeats": repeats, "interval_s": 4, "settle_s": 8, "move_s": 30},
     })
-    return Campaign(spec, truth, f"<hidden effect campaign seed {seed}>").run()
+    return Campaign(spec, truth, f"<hidden effect campaign seed {seed}>").run(noise)
 
 
 def start_model(name: str = "kr125_6dof") -> StiffnessModel:

@@ -44,3 +44,33 @@ def test_eq15_identifies_k_from_tcp_data(robot, model6):
     np.testing.assert_allclose(W_back, W, atol=1e-9)
     K = identify_cartesian(W_back, dX)
     np.testing.assert_allclose(K, tcp_stiffness(model6, Q), rtol=1e-3, atol=1e-3 * np.abs(K).max())
+
+
+def test_history_and_time_do_not_enter_k(robot, model6):
+    """The probes are independent readings at time 0: hysteresis and drift leave C unchanged."""
+    from stiffness.edit import add_effect
+    m = add_effect(add_effect(model6, "hysteresis", 2, {"offset_deg": 0.005}), "drift", None, {"x_mm_per_min": 0.1})
+    np.testing.assert_allclose(tcp_compliance(m, Q), tcp_compliance(model6, Q), rtol=1e-9, atol=1e-15)
+
+
+def test_eq15_refuses_wrenches_that_do_not_span_six_directions(robot, model6):
+    """Forces at one load point give moments r x F in a plane: K is not identifiable from them."""
+    rng = np.random.default_rng(2)
+    F = rng.normal(size=(40, 3)) * 500
+    W = np.c_[F, np.cross([0.1, 0.0, 0.0], F)]
+    data = tcp_dataset(robot, W)
+    data = with_deflection(data, model6.predict(data))
+    W_back, dX = tcp_wrench_and_deflection(data, robot)
+    import pytest
+    with pytest.raises(ValueError, match="do not span six directions"):
+        identify_cartesian(W_back, dX)
+
+
+def test_singular_compliance_is_refused():
+    import pytest
+    from stiffcomp_testlib import MODELS
+
+    from stiffness.model import StiffnessModel
+    axial = StiffnessModel.from_yaml(MODELS / "kr125_axial.yaml")
+    with pytest.raises(ValueError, match="singular"):
+        tcp_stiffness(axial, np.array([10.0, -75.0, 90.0, 0.0, 0.0, 0.0]))   # q5 = 0: a wrist singularity

@@ -70,3 +70,13 @@ def test_bad_data_file_exits_2(tmp_path):
     bad.write_text("time_s,config\n1,R1\n")
     r = stiffcomp("fit", MODELS / "kr125_6dof.yaml", bad)
     assert r.returncode == 2 and "missing column" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_outputs_go_into_new_folders_and_unwritable_ones_exit_2(tmp_path):
+    out = tmp_path / "new" / "folder" / "fitted.yaml"
+    r = stiffcomp("fit", MODELS / "kr125_axial.yaml", DATA / "reference_campaign.csv", "-o", out)
+    assert r.returncode == 0 and out.exists()
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    r = stiffcomp("model", "add", out, "backlash", "--joint", "3", "-o", blocker / "m.yaml")
+    assert r.returncode == 2 and "cannot write" in r.stderr and "Traceback" not in r.stderr

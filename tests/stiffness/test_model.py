@@ -58,7 +58,7 @@ def test_a_spring_moves_only_the_bodies_beyond_it(robot, model6):
     d = m.predict(data, theta)
     before = data.body < 4                          # A1..A4 do not move
     assert np.abs(d[before]).max() == 0.0
-    assert np.abs(d[~before & (data.body >= 4)]).min(axis=1).max() >= 0  # A5.. move
+    assert (np.abs(d[~before]).max(axis=1) > 0).all()  # A5, A6 and the TCP move in every reading
     assert np.abs(d[data.body == 6]).max() > 1e-3
 
 

@@ -8,7 +8,7 @@ from stiffness.measurements import Dataset
 
 
 def ramp_context(robot, levels, repeats=2):
-    """One configuration, the load ramped through ``levels`` (N along base z at the flange)."""
+    """One configuration, the load ramped through ``levels`` (N along the sensor's x axis)."""
     f = np.repeat(levels, repeats).astype(float)
     n = len(f)
     W = np.zeros((n, 6))

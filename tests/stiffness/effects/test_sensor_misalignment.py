@@ -17,6 +17,16 @@ def test_rotates_force_and_moment(robot):
     np.testing.assert_allclose(SensorMisalignment().wrench(ctx, np.zeros(3), ctx.wrench_sensor), ctx.wrench_sensor)
 
 
+def test_a_known_rotation_turns_the_axes_the_right_way(robot):
+    """phi = +90 deg about z takes a measured force along x to the assumed sensor y axis."""
+    ctx = context(robot, n=2)
+    w = np.zeros((2, 6))
+    w[:, 0], w[:, 4] = 100.0, 5.0            # fx and my
+    out = SensorMisalignment().wrench(ctx, np.radians([0.0, 0.0, 90.0]), w)
+    np.testing.assert_allclose(out[:, :3], [[0.0, 100.0, 0.0]] * 2, atol=1e-12)
+    np.testing.assert_allclose(out[:, 3:], [[-5.0, 0.0, 0.0]] * 2, atol=1e-12)
+
+
 def test_prediction_equals_the_model_fed_the_rotated_wrench(robot):
     from stiffcomp_testlib import random_dataset
     data = random_dataset(robot, 20, 3)
