@@ -54,12 +54,14 @@ class LinkBending(Effect):
         Ft, Fr = ctx.F[:, tip], ctx.F[:, self.joint - 1]
         axis_base = Ft[:, :3, 3] - Fr[:, :3, 3]
         L = np.linalg.norm(axis_base, axis=1)
+        B = self.zeros(ctx, 1)
+        if L.max(initial=0.0) < 1e-9:
+            return B                      # a link of no length does not bend
         u = np.einsum("rji,rj->ri", Ft[:, :3, :3], axis_base / L[:, None])   # in tip axes
         f, m = W[:, tip, :3], W[:, tip, 3:]
         f_perp = f - np.sum(f * u, axis=1)[:, None] * u
         m_perp = m - np.sum(m * u, axis=1)[:, None] * u
         t = (L**3 / 3)[:, None] * f_perp + (L**2 / 2)[:, None] * np.cross(m_perp, u)
         r = (L**2 / 2)[:, None] * np.cross(u, f_perp) + L[:, None] * m_perp
-        B = self.zeros(ctx, 1)
         B[:, 0, 5 + tip] = np.concatenate([t, r], axis=1)
         return B

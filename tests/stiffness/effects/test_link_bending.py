@@ -43,3 +43,21 @@ def test_link3_bends_as_the_forearm(robot):
     tip, L, _ = tip_quantities(ctx, LinkBending(3))
     assert tip == 4
     np.testing.assert_allclose(L, np.hypot(0.045, 1.0))
+
+
+def test_a_link_of_no_length_does_not_bend(tmp_path):
+    """A robot whose link 5 has neither a nor d (and link 6 none either): zero twist, no NaN."""
+    import yaml
+    from stiffcomp_testlib import ROOT, random_dataset
+
+    from stiffness.context import Context
+    from stiffness.robot import Robot
+
+    d = yaml.safe_load((ROOT / "config/robots/kr125.yaml").read_text())
+    d["dh"]["d_mm"][5] = 0.0
+    (tmp_path / "r.yaml").write_text(yaml.safe_dump(d))
+    robot = Robot.from_yaml(tmp_path / "r.yaml")
+    ctx = Context(robot, random_dataset(robot, 5, 0))
+    e = LinkBending(5, 1e-7)
+    tw = e.twists(ctx, e.theta, ctx.frame_wrench)
+    assert np.isfinite(tw).all() and np.abs(tw).max() == 0.0
