@@ -45,16 +45,27 @@ def assert_working_before_the_fault(r):
     assert ((value(r, "status_word")[m].astype(int) & ST_ACTIVE) != 0).all()
 
 
-def assert_service_safe(r, fault: str, t_from: float):
-    """From t_from on: fault latched, faulted, not active, zero correction, robot on its references."""
-    m = at(r, t_from) & r.log["link"]
+def assert_service_safe(r, fault: str):
+    """From the cycle the fault is first seen: latched, faulted, not active; the correction ramps to zero
+    without growing and stays there; the robot ends on its references. No deadline: a loaded host may
+    delay the trip, never the order of the states."""
+    t, link = r.log["t"], r.log["link"]
+    bit = 1 << FAULT_BITS[fault]
+    fw = np.nan_to_num(value(r, "fault_word")).astype(int)
+    tripped = np.flatnonzero((t >= T_FAULT) & link & (fw & bit != 0))
+    assert len(tripped), "the fault never tripped"
+    m = (t >= t[tripped[0]]) & link
     assert m.sum() > 50
-    fw = value(r, "fault_word")[m].astype(int)
-    st = value(r, "status_word")[m].astype(int)
-    assert (fw & (1 << FAULT_BITS[fault]) != 0).all(), np.unique(fw)
+    fw, st = fw[m], value(r, "status_word")[m].astype(int)
+    assert (fw & bit != 0).all(), np.unique(fw)
     assert (st & ST_FAULTED != 0).all() and (st & ST_ACTIVE == 0).all(), np.unique(st)
-    assert np.abs(corrections(r)[m]).max() == 0.0
-    assert np.abs(r.log["q_cmd"][m] - r.log["q_ref"][m]).max() < 1e-9
+    c = np.abs(corrections(r)[m])
+    assert np.all(np.diff(c, axis=0) <= 1e-7), "the correction grew after the fault"
+    zero = np.flatnonzero((c == 0.0).all(axis=1))
+    assert len(zero), "the correction never reached zero"
+    assert (c[zero[0]:] == 0.0).all()
+    assert len(c) - zero[0] > 20                             # held at zero, not just touched
+    assert np.abs(r.log["q_cmd"][m][-20:] - r.log["q_ref"][m][-20:]).max() < 1e-9
 
 
 def run(tmp_path, faults):
@@ -67,14 +78,13 @@ def run(tmp_path, faults):
 def test_sensor_stops_or_babbles_garbage(tmp_path, kind, fault):
     r, _ = run(tmp_path, Faults(sensor=(kind, T_FAULT)))
     assert_working_before_the_fault(r)
-    # timeout 100 ms (babble: the next cycle) + ramp 200 ms + the PLC's read, with margin for a loaded host
-    assert_service_safe(r, fault, T_FAULT + 0.6)
+    assert_service_safe(r, fault)
 
 
 def test_plc_heartbeat_stops(tmp_path):
     r, _ = run(tmp_path, Faults(plc=PlcFaults(heartbeat_stop_at=T_FAULT)))
     assert_working_before_the_fault(r)
-    assert_service_safe(r, "plc_heartbeat", T_FAULT + 1.0)     # timeout 500 ms + ramp 200 ms + margin
+    assert_service_safe(r, "plc_heartbeat")
 
 
 def assert_recovers(r, ev, lost_from: float, lost_to: float):
@@ -108,7 +118,13 @@ def test_service_restarted_mid_run(tmp_path):
     assert_working_before_the_fault(r)
     assert len(r.stats) == 2 and all(s["status"] == "stopped" for s in r.stats)
     assert r.service_log.count("service running") == 2
-    relink = r.log["t"][at(r, T_FAULT + 0.15) & r.log["link"]]
+    t, link = r.log["t"], r.log["link"]
+    lost = np.flatnonzero((t >= T_FAULT) & ~link)
+    assert len(lost), "the PLC never lost the stopped service"
+    t_lost = t[lost[0]]
+    # the old service ramped its correction to zero before it stopped: the last value the PLC read is 0
+    before = np.flatnonzero((t >= T_FAULT) & (t < t_lost) & link)
+    assert len(before) and np.all(corrections(r)[before[-1]] == 0.0)
+    relink = t[(t > t_lost) & link]
     assert len(relink), "the PLC never saw the new service"
-    assert relink[0] > T_FAULT + 0.3                         # it was down at least that long
-    assert_recovers(r, ev, T_FAULT + 0.15, relink[0])
+    assert_recovers(r, ev, t_lost, relink[0])

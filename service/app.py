@@ -11,6 +11,7 @@ import json
 import logging
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -148,8 +149,9 @@ class Service:
                  self.cfg.plc.role if self.plc is None else f"{self.cfg.plc.role} {self.cfg.plc.host}:{self.cfg.plc.port}")
 
     def stop(self) -> None:
-        """Stop the cycle, publish the stopped state with zero correction, then stop the PLC side."""
+        """Ramp the correction to zero, stop the cycle, publish the stopped state, then stop the PLC side."""
         if self.task is not None:
+            self._ramp_down()
             self.task.stop()
             sys.setswitchinterval(self._switch_interval)
         for k in self._corr:
@@ -164,6 +166,22 @@ class Service:
             self.image.close()
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
+
+    def _ramp_down(self) -> None:
+        """Keep cycling in the safe state until the correction is zero (it never jumps, even on stop).
+
+        Bounded by ``limits.fault_ramp_s`` plus a few periods; a cycle that died cannot ramp (the PLC
+        supervises status bit 6 and the heartbeat for that case, see docs/register_map.md).
+        """
+        comp, task = self.compensator, self.task
+        comp.stopping = True
+        deadline = time.monotonic() + self.cfg.limits.fault_ramp_s + max(20 * self.period, 0.1)
+        while task.running and any(v != 0.0 for v in comp.correction):
+            if time.monotonic() > deadline:
+                log.warning("the correction did not reach zero within fault_ramp_s on stop: %s deg",
+                            np.array2string(np.array(comp.correction), precision=4))
+                break
+            time.sleep(self.period)
 
     def log_stats(self) -> None:
         s = self.info.stats()

@@ -78,6 +78,7 @@ class Compensator:
         self._q_last: list[float] | None = None
         self.status_word = 0
         self.tares = 0
+        self.stopping = False                 # set by the service on stop: safe until the task ends
 
     @classmethod
     def from_config(cls, cfg, model: StiffnessModel) -> Compensator:
@@ -131,7 +132,7 @@ class Compensator:
         if not math.isfinite(sum(dq_deg)):          # NaN and inf propagate through the sum
             faults.trip("value_invalid", "the predicted correction is not finite")
             dq_deg = [0.0] * 6
-        safe = faults.word != 0 or not enabled or not self.have_sample
+        safe = faults.word != 0 or not enabled or not self.have_sample or self.stopping
         self.correction = self.limiter.update(dt, dq_deg, safe)
         self.status_word = (ST_RUNNING | (0 if safe else ST_ACTIVE) | (ST_FAULTED if faults.word else 0)
                             | (ST_RAMPING if self.limiter.ramping else 0)

@@ -81,3 +81,42 @@ def test_stop_publishes_the_stopped_state(tmp_path):
     out = s.image.outputs()
     assert out["status_word"] & ST_STOPPED and out["task_state"] == 2
     assert out["cycle_count"] >= 20
+
+
+def test_stop_ramps_the_correction_to_zero_without_a_jump(tmp_path):
+    load = np.array([400.0, -300.0, 600.0, 20.0, 15.0, -10.0])
+    ramp_s = 0.05
+    cfg = load_config(write_config(tmp_path, {
+        "source": {"type": "can", "can": {"interface": "virtual", "channel": "svc_stop"}},
+        "plc": {"role": "none", "enable_on_start": True},
+        "gravity": {"tool": {"mass_kg": 0.0}, "bias": [0.0] * 6},
+        "limits": {"max_rate_deg_s": 50.0, "fault_ramp_s": ramp_s},
+        "faults": {"overrun_trip_count": 1000, "sensor_timeout_ms": 200}}))
+    with VirtualAtiSensor(can.Bus(interface="virtual", channel="svc_stop"), AtiProtocol(), lambda t: load):
+        s = Service(cfg)
+        record, work = [], s.work
+
+        def recording_work(t, exceeded):
+            work(t, exceeded)
+            record.append((t, [s._out[k] for k in s._corr]))
+
+        s.work = recording_work
+        s.start()
+        try:
+            comp = s.compensator
+            assert wait_for(lambda: comp.status_word & 0x2 and abs(comp.correction[0]) > 1e-4
+                            and np.allclose(comp.correction, comp.dq_deg, atol=1e-9))
+        finally:
+            n0 = len(record)
+            s.stop()
+    out = s.image.outputs()
+    final = [out[f"correction_q{i}"] for i in range(1, 7)]
+    assert out["status_word"] & ST_STOPPED and final == [0.0] * 6
+    t = np.array([r[0] for r in record[n0 - 1:]])
+    corr = np.array([r[1] for r in record[n0 - 1:]])
+    start = np.abs(corr[0])
+    assert start.max() > 1e-4
+    # every step of the stop is within the ramp's rate, and the last value the cycle published is zero
+    steps = np.abs(np.diff(corr, axis=0))
+    assert np.all(steps <= start / ramp_s * np.diff(t)[:, None] + 1e-9)
+    assert np.all(corr[-1] == 0.0)
