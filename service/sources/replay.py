@@ -51,11 +51,23 @@ class ReplaySource(FtSource):
         As returned by `read_log`.
     pacing : "realtime" or "fast"
     loop : bool
+    name : str
+        The log's file name, for error messages.
+
+    Raises
+    ------
+    SourceError
+        The log holds no sample frame for the configured sensor (``source.ati.base_id``): it could
+        never deliver a sample.
     """
 
     def __init__(self, frames: list[tuple[float, int, bytes, bool]], pacing: str = "realtime", loop: bool = True,
-                 **kw):
+                 name: str = "replay log", **kw):
         super().__init__(**kw)
+        self.sample_id = self.protocol.id_2
+        if not any(arb == self.sample_id and not err for _, arb, _, err in frames):
+            raise SourceError(f"{name}: the CAN log holds no sample frame with id {self.sample_id:#05x} "
+                              f"(source.ati.base_id = {self.protocol.base_id:#05x}); is base_id right?")
         self.frames = frames
         self.fast = pacing == "fast"
         self.loop = loop
@@ -64,18 +76,19 @@ class ReplaySource(FtSource):
         self.k = 0
         self.offset = 0.0
         self.exhausted = False
-        self.sample_id = self.protocol.id_2
 
     @classmethod
     def from_config(cls, cfg) -> ReplaySource:
         r = cfg.source.replay
-        return cls(read_log(cfg.resolve(r.file)), r.pacing, r.loop, **cls.common_args(cfg))
+        path = cfg.resolve(r.file)
+        return cls(read_log(path), r.pacing, r.loop, name=str(path), **cls.common_args(cfg))
 
     def _frames(self, t: float) -> Iterable[Frame]:
         out: list[Frame] = []
         frames, n = self.frames, len(self.frames)
         rel = t - (self.t_open or 0.0)
-        while not self.exhausted:
+        # at most one pass over the log per poll: a looped log that yields no sample must not hang the cycle
+        while not self.exhausted and len(out) < n:
             ts, arb, data, err = frames[self.k]
             if not self.fast and ts + self.offset > rel:
                 break

@@ -172,3 +172,29 @@ def test_error_frames_in_a_log_are_can_frame_errors(tmp_path):
     reading, errors = src.poll(0.05)
     assert reading is not None
     assert any(isinstance(e, CanFrameError) and "error frame" in str(e) for e in errors)
+
+
+def test_replay_refuses_a_log_without_samples_for_the_base_id(tmp_path):
+    ramp_log(tmp_path / "r.blf", 5)                   # written for base id 0x020
+    from service.config import load_config
+    from service.sources import make_source
+
+    cfg = load_config(write_config(tmp_path, {"source": {"replay": {"file": str(tmp_path / "r.blf"),
+                                                                    "pacing": "fast", "loop": True},
+                                                         "ati": {"base_id": 0x030}}}))
+    with pytest.raises(SourceError, match=r"r\.blf.*0x036.*base_id"):
+        make_source(cfg)
+
+
+def test_replay_fast_loop_poll_returns_after_one_pass_without_a_sample(tmp_path):
+    """Frames of the sensor's first half only: a looped fast replay must still return from poll."""
+    p = AtiProtocol()
+    frames = [(k * 1e-3, p.id_1, p.encode([1.0] * 6, 0, k)[0][1], False) for k in range(7)]
+    src = ReplaySource(frames + [(0.01, p.id_2, p.encode([1.0] * 6, 0, 7)[1][1], False)], pacing="fast",
+                       loop=True, protocol=p, **KW)
+    src.frames = frames                               # the check passed; now the log yields no sample at all
+    src.duration = 0.007
+    reading, errors = src.poll(0.0)
+    assert reading is None and len(errors) <= len(frames)
+    reading, _ = src.poll(1e-3)
+    assert reading is None
