@@ -78,6 +78,7 @@ class Compensator:
         self._q_last: list[float] | None = None
         self.status_word = 0
         self.tares = 0
+        self._tare_pending = False            # a tare edge waits for the next sample
         self.stopping = False                 # set by the service on stop: safe until the task ends
 
     @classmethod
@@ -113,13 +114,16 @@ class Compensator:
             self._q_last = list(q_deg)
         pred = self.predictor
         R_s = pred.R_s
+        if rising & CMD_TARE:
+            self._tare_pending = True
         if reading is not None:
             x = self.spikes.update(reading.wrench)
             if not self.have_sample:
                 self.filter.state = self.filter.steady_state(x)
                 self.have_sample = True
             filtered = self.filter.update(x)
-            if rising & CMD_TARE:
+            if self._tare_pending:
+                self._tare_pending = False
                 self.gravity.tare(filtered, R_s)
                 self.tares += 1
                 log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
