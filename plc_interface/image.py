@@ -3,7 +3,8 @@
 The cycle writes the whole ``to_plc`` block and reads the whole ``from_plc`` block once per cycle,
 each under the lock, so a client never sees half of a 32-bit value from one cycle and half from the
 next. Modbus access checks every address: reads must fall inside a block, writes inside the PLC's
-registers (``from_plc``); anything else is refused with ILLEGAL_ADDRESS (0x02) and changes nothing.
+registers (``from_plc``), covering every register they touch whole (no half of a 32-bit value);
+anything else is refused with ILLEGAL_ADDRESS (0x02) and changes nothing.
 """
 
 from __future__ import annotations
@@ -29,6 +30,10 @@ class RegisterImage:
         for table, start, words in self.blocks.values():
             self.by_table.setdefault(table, []).append((start, words))
         self.writable = rmap.writable
+        # the second and later words of every multi-word PLC register: a write may neither start nor
+        # end (exclusive end) there, or the cycle would read a value torn between two writes
+        self.inner = {a for r in rmap.registers if r.direction == "from_plc"
+                      for a in range(r.address + 1, r.address + r.count)}
         self.out_codec = rmap.codecs["to_plc"]
         self.in_codec = rmap.codecs["from_plc"]
         self.refused_writes = 0
@@ -71,8 +76,11 @@ class RegisterImage:
         return None
 
     def write(self, table: str, address: int, values: list[int]) -> bool:
-        """Write the PLC's registers; False (and no change) if any word is not the PLC's to write."""
-        if table != "holding_registers" or any(a not in self.writable for a in range(address, address + len(values))):
+        """Write the PLC's registers; False (and no change) if any word is not the PLC's to write, or the
+        write starts or ends inside a multi-word register."""
+        end = address + len(values)
+        if (table != "holding_registers" or any(a not in self.writable for a in range(address, end))
+                or address in self.inner or end in self.inner):
             self.refused_writes += 1
             return False
         for start, words in self.by_table[table]:

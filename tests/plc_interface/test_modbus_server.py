@@ -76,6 +76,24 @@ def test_writes_outside_plc_registers_get_0x02_and_change_nothing(served, addres
     assert image.refused_writes == refused
 
 
+@pytest.mark.parametrize("address, values, fc6", [
+    (BASE + 2, [0x1234], True),        # FC6 to the first word of the float32 q1
+    (BASE + 3, [0x1234], True),        # FC6 to its second word
+    (BASE + 1, [7, 0x1234], False),    # heartbeat and half of q1: ends inside it
+    (BASE + 3, [0x1234, 1, 2], False), # starts inside q1, covers q2 whole
+])
+def test_writes_covering_half_a_32_bit_register_get_0x02_and_change_nothing(served, address, values, fc6):
+    image, client = served
+    words = [0x1, 42] + list(struct.unpack("<HH", struct.pack("<f", 12.5))) * 6
+    assert not client.write_registers(BASE, words).isError()
+    before = client.read_holding_registers(BASE, count=16).registers
+    r = client.write_register(address, values[0]) if fc6 else client.write_registers(address, values)
+    assert r.isError() and r.exception_code == 0x02
+    assert client.read_holding_registers(BASE, count=16).registers == before
+    assert dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))["q1"] == 12.5
+    assert image.refused_writes == 1
+
+
 def test_reads_outside_the_map_get_0x02(served):
     _image, client = served
     r = client.read_input_registers(0x0000, count=4)
