@@ -46,16 +46,23 @@ class ModbusServerProcess:
         ctx = multiprocessing.get_context("spawn")
         self.host, self.port = host, port
         self._stop = ctx.Event()
-        self._ready, child_end = ctx.Pipe(duplex=False)
-        self._proc = ctx.Process(target=_serve, args=(image, host, port, avoid_cpu, self._stop, child_end),
+        self._ready, self._child_end = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_serve, args=(image, host, port, avoid_cpu, self._stop, self._child_end),
                                  name="stiffcomp-modbus", daemon=True)
 
     def start(self, timeout: float = 30.0) -> None:
         self._proc.start()
+        # the child holds its own copy now; closing ours lets a child that dies end the wait at once (EOF)
+        self._child_end.close()
         if not self._ready.poll(timeout):
             self.stop()
             raise PlcError(f"the Modbus server process did not start on {self.host}:{self.port} in {timeout:g} s")
-        msg = self._ready.recv()
+        try:
+            msg = self._ready.recv()
+        except EOFError:
+            self.stop()
+            raise PlcError(f"the Modbus server process for {self.host}:{self.port} died while starting "
+                           f"(exit code {self._proc.exitcode})") from None
         if msg:
             self.stop()
             raise PlcError(msg)
@@ -67,6 +74,7 @@ class ModbusServerProcess:
             self._proc.terminate()
             self._proc.join(2.0)
         self._ready.close()
+        self._child_end.close()
 
     @property
     def alive(self) -> bool:

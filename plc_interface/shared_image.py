@@ -90,12 +90,12 @@ class SharedRegisterImage(RegisterImage):
         for name in ("_refused",):
             self.__dict__.pop(name, None)
         self.blocks, self.by_table = {}, {}
-        try:
-            self.shm.close()
-        except BufferError:
-            return  # a view is still alive somewhere; the OS frees the segment at exit
-        if self._owner:
+        if self._owner:         # first: a view still alive (BufferError below) must not keep the name
             try:
                 self.shm.unlink()
             except FileNotFoundError:
                 pass
+        try:
+            self.shm.close()
+        except BufferError:
+            pass  # a view is still alive somewhere; the mapping goes when it does
