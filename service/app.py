@@ -55,31 +55,38 @@ class Service:
             raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
         self.compensator = Compensator.from_config(cfg, self.model)
         self.rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
+        # the checks that can fail come first; the image (shared memory) and then the source open last
+        names = self.rmap.codecs["to_plc"].names
+        extra = [n for n in names if n not in WORK_ORDER]
+        if extra:       # the map's own check has made sure every required name is there
+            raise ServiceConfigError(f"{self.rmap.source}: to_plc register {extra[0]!r} is not a value the service "
+                                     f"produces (known: {', '.join(WORK_ORDER)})")
+        self._out_index = {n: k for k, n in enumerate(names)}
+        self._out = [0.0] * len(names)
+        self._order = [WORK_ORDER.index(n) for n in names]      # codec order -> work() order
+        in_names = self.rmap.codecs["from_plc"].names
+        self._cmd_idx, self._hb_idx = in_names.index("command_word"), in_names.index("plc_heartbeat")
+        self._q_idx = [in_names.index(f"q{i}") for i in range(1, 7)]
+        self._corr = [self._out_index[f"correction_q{i}"] for i in range(1, 7)]
+        self.period = cfg.cycle.period_ms / 1000.0
+        self.info = TaskInfo(self.period, cfg.cycle.history)
+        self.plc = None
+        self.task: CyclicTask | None = None
+        self.failed = threading.Event()
+        self.task_state = TASK_INIT
+        self._closed = False
         if cfg.plc.role == "server" and cfg.plc.server_process:
             from plc_interface.shared_image import SharedRegisterImage
             self.image = SharedRegisterImage(self.rmap)
         else:
             self.image = RegisterImage(self.rmap)
-        self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
-        self.period = cfg.cycle.period_ms / 1000.0
-        self.info = TaskInfo(self.period, cfg.cycle.history)
-        self.source = make_source(cfg)
-        self.plc = None
-        self.task: CyclicTask | None = None
-        self.failed = threading.Event()
-        self.task_state = TASK_INIT
-        names = self.image.out_codec.names
-        self._out_index = {n: k for k, n in enumerate(names)}
-        self._out = [0.0] * len(names)
-        extra = [n for n in names if n not in WORK_ORDER]
-        if extra:       # the map's own check has made sure every required name is there
-            raise ServiceConfigError(f"{self.rmap.source}: to_plc register {extra[0]!r} is not a value the service "
-                                     f"produces (known: {', '.join(WORK_ORDER)})")
-        self._order = [WORK_ORDER.index(n) for n in names]      # codec order -> work() order
-        in_names = self.image.in_codec.names
-        self._cmd_idx, self._hb_idx = in_names.index("command_word"), in_names.index("plc_heartbeat")
-        self._q_idx = [in_names.index(f"q{i}") for i in range(1, 7)]
-        self._corr = [self._out_index[f"correction_q{i}"] for i in range(1, 7)]
+        try:
+            self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
+            self.source = make_source(cfg)
+        except BaseException:
+            if hasattr(self.image, "close"):
+                self.image.close()
+            raise
         self._set("cycle_time_us", self.period * 1e6)
 
     def _set(self, name: str, value: float) -> None:
@@ -134,7 +141,8 @@ class Service:
             if self.plc is not None:
                 self.plc.start()
         except BaseException:
-            self.source.close()
+            self.plc = None         # it cleaned up after itself
+            self.stop()             # frees the image and the source
             raise
         # The Modbus thread shares the interpreter lock: a short switch interval bounds how long the
         # cycle waits for it after waking up, and stays longer than the cycle's work (so the work
@@ -149,7 +157,12 @@ class Service:
                  self.cfg.plc.role if self.plc is None else f"{self.cfg.plc.role} {self.cfg.plc.host}:{self.cfg.plc.port}")
 
     def stop(self) -> None:
-        """Ramp the correction to zero, stop the cycle, publish the stopped state, then stop the PLC side."""
+        """Ramp the correction to zero, stop the cycle, publish the stopped state, then stop the PLC side.
+
+        Safe to call more than once, and after a failed `start`."""
+        if self._closed:
+            return
+        self._closed = True
         if self.task is not None:
             self._ramp_down()
             self.task.stop()

@@ -63,13 +63,25 @@ def run(args) -> int:
     c = cfg.source.can
     interface, channel = args.interface or c.interface, args.channel or c.channel
     protocol = AtiProtocol.from_config(cfg.source.ati)
-    sensor = None
-    if args.virtual_sensor:
-        sensor = VirtualAtiSensor(open_bus(interface, channel, c.bitrate, **c.options), protocol,
-                                  lambda t: milling_wrench(np.array([t]), seed=int(t * 1000), spikes=False)[0]).start()
-    bus = open_bus(interface, channel, c.bitrate, **c.options)
-    logger = LockedLogger(args.out)
-    notifier = can.Notifier(bus, [logger])
+    try:
+        logger = LockedLogger(args.out)       # first: a bad path opens nothing else
+    except OSError as e:
+        raise ServiceConfigError(f"record: {args.out}: cannot write the log: {e.strerror or e}") from e
+    sensor = bus = None
+    try:
+        if args.virtual_sensor:
+            sensor = VirtualAtiSensor(open_bus(interface, channel, c.bitrate, **c.options), protocol,
+                                      lambda t: milling_wrench(np.array([t]), seed=int(t * 1000),
+                                                               spikes=False)[0]).start()
+        bus = open_bus(interface, channel, c.bitrate, **c.options)
+        notifier = can.Notifier(bus, [logger])
+    except BaseException:
+        logger.stop()
+        if bus is not None:
+            bus.shutdown()
+        if sensor is not None:
+            sensor.stop()
+        raise
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     arb, data = protocol.request_short_data()

@@ -31,8 +31,8 @@ def run(args) -> int:
     service = Service(cfg)              # everything validated and opened, nothing started yet
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
-    service.start()
     try:
+        service.start()                 # inside: a port in use still frees the image and the handlers
         t_end = None if args.duration is None else time.monotonic() + args.duration
         interval = cfg.cycle.stats_log_interval_s or None
         next_log = time.monotonic() + (interval or 0)
