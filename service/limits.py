@@ -19,10 +19,14 @@ class CorrectionLimiter:
     max_rate_deg_s : (6,) largest rate of change per joint, deg/s
     ramp_s : float
         Time to ramp to zero on entering the safe state, s.
+    max_dt_s : float
+        Longest step taken into account, s (two cycle periods in the service): after a stall the
+        output moves as after a normal cycle or two, not ``rate * stall``.
     """
 
-    def __init__(self, max_deg, max_rate_deg_s, ramp_s: float):
+    def __init__(self, max_deg, max_rate_deg_s, ramp_s: float, max_dt_s: float = float("inf")):
         self.max = [float(v) for v in max_deg]
+        self.max_dt = float(max_dt_s)
         self.rate = [float(v) for v in max_rate_deg_s]
         self.ramp_s = float(ramp_s)
         self.out = [0.0] * 6
@@ -30,8 +34,9 @@ class CorrectionLimiter:
         self._ramp_rate = [0.0] * 6
 
     @classmethod
-    def from_config(cls, section) -> CorrectionLimiter:
-        return cls(section.max_correction_deg, section.max_rate_deg_s, section.fault_ramp_s)
+    def from_config(cls, section, period_s: float) -> CorrectionLimiter:
+        """From the ``limits`` section; steps are capped at two periods of ``period_s`` (s)."""
+        return cls(section.max_correction_deg, section.max_rate_deg_s, section.fault_ramp_s, 2.0 * period_s)
 
     def update(self, dt: float, target_deg, safe: bool) -> list[float]:
         """The output after one step of ``dt`` seconds toward ``target_deg`` (ignored when ``safe``)."""
@@ -43,6 +48,7 @@ class CorrectionLimiter:
             target = [min(max(v, -m), m) for v, m in zip(target_deg, self.max)]
             rate = self.rate
         self.safe = safe
+        dt = min(dt, self.max_dt)
         out = []
         for o, tg, r in zip(self.out, target, rate):
             step = r * dt

@@ -86,7 +86,7 @@ class Compensator:
         period = cfg.cycle.period_ms / 1000.0
         return cls(FastPredictor.from_config(cfg.model, model), SosLowPass.from_config(cfg.filter, period),
                    SpikeRejector.from_config(cfg.filter.spike), GravityCompensator.from_config(cfg.gravity),
-                   CorrectionLimiter.from_config(cfg.limits), model.robot.limits_deg,
+                   CorrectionLimiter.from_config(cfg.limits, period), model.robot.limits_deg,
                    cfg.faults.plc_heartbeat_timeout_ms / 1000.0, cfg.faults.overrun_trip_count,
                    cfg.plc.enable_on_start)
 

@@ -43,3 +43,13 @@ def test_resume_after_safe_is_rate_limited():
     lim.update(DT, [0.0] * 6, safe=True)
     out = lim.update(DT, [0.5] * 6, safe=False)
     assert np.allclose(out, 5.0 * DT)
+
+
+def test_a_stall_moves_the_output_by_at_most_two_periods_of_rate():
+    lim = CorrectionLimiter([1.0] * 6, [2.0] * 6, 0.2, max_dt_s=2 * DT)
+    lim.update(DT, [0.0] * 6, safe=False)
+    out = np.array(lim.update(0.5, [1.0] * 6, safe=False))          # the cycle stalled for 500 ms
+    np.testing.assert_allclose(out, 2.0 * 2 * DT)
+    start = out.copy()
+    out = np.array(lim.update(0.5, [0.0] * 6, safe=True))           # and on the ramp to zero
+    assert np.all(start - out <= start / 0.2 * 2 * DT + 1e-12)
