@@ -187,7 +187,8 @@ class FastPredictor:
                 e = np.concatenate([p_target - Tk.translation, pin.log3(R_target @ Tk.rotation.T)])
                 Jk = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
                 dq = dq + self._pinv_apply(Jk, e)
-            self.kinematics(q_rad)               # leave the frames of q for the caller
+            # pd now holds the frames of q + δq; nothing reads pd between cycles (kinematics() keeps
+            # its own copies of J, the adjoints and the poses), so there is nothing to restore
         return dq
 
     def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:

@@ -115,3 +115,20 @@ def test_axial_effects_agree_with_the_model():
         d0 = springs_only.deflection(springs_only.wrench_base(w[k].tolist()))
         differs += not np.allclose(d0, dX, rtol=1e-6)
     assert differs == 30                       # the axial effects do contribute
+
+
+def test_refinement_leaves_what_kinematics_computed_untouched():
+    """The cycle calls kinematics() only when q changes: correction() must not disturb its results."""
+    model = StiffnessModel.from_yaml(MODELS / "kr125_6dof.yaml")
+    q, w = random_cases(model.robot, 3, seed=11)
+    fp = FastPredictor(model, damping=1e-6, refinement_iterations=3)
+    qr = np.radians(q[0])
+    fp.kinematics(qr)
+    before = [np.array(x, copy=True) for x in (fp.J, fp.J_pinv, fp.Ad, fp.R_s, fp.p_s, fp.T_tcp, fp.p_tcp)]
+    dX = fp.deflection(fp.wrench_base(w[0].tolist()))
+    dq1 = fp.correction(qr, dX)
+    after = [np.array(x) for x in (fp.J, fp.J_pinv, fp.Ad, fp.R_s, fp.p_s, fp.T_tcp, fp.p_tcp)]
+    for b, a in zip(before, after):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(fp.deflection(fp.wrench_base(w[0].tolist())), dX)
+    np.testing.assert_array_equal(fp.correction(qr, dX), dq1)
