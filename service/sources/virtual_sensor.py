@@ -91,9 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base-id", type=lambda s: int(s, 0), default=0x020)
     ap.add_argument("--load", default="0,0,0,0,0,0", help="Fx,Fy,Fz,Tx,Ty,Tz in N and Nm")
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--port", type=int, default=None, help="UDP port (udp_multicast; default: python-can's)")
     args = ap.parse_args(argv)
     load = np.array([float(v) for v in args.load.split(",")])
-    sensor = VirtualAtiSensor(can.Bus(interface=args.interface, channel=args.channel),
+    sensor = VirtualAtiSensor(can.Bus(interface=args.interface, channel=args.channel,
+                                      **({} if args.port is None else {"port": args.port})),
                               AtiProtocol(base_id=args.base_id), lambda t: load).start()
     print("ready", flush=True)
     try:

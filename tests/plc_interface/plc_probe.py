@@ -41,6 +41,7 @@ def main() -> int:
         r1 = c.read_input_registers(BASE, count=32)
         t1 = time.monotonic()
         out["cycles"] = [u32(r0.registers[4:6]), u32(r1.registers[4:6])]
+        out["exceed"] = [u32(r0.registers[6:8]), u32(r1.registers[6:8])]
         out["elapsed_s"] = t1 - t0
         # enable with a running heartbeat, at pose q
         words = [0x1, 0]

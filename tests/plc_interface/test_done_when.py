@@ -47,10 +47,12 @@ def test_client_in_another_process(service):
                        check=False, capture_output=True, text=True, timeout=60)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
-    # the cycle count rises at 1000/s (each missed deadline is counted in exceed_count instead)
-    c0, c1 = out["cycles"]
-    rate = (c1 - c0) / out["elapsed_s"]
-    assert 600 < rate < 1100, rate
+    # the cycle runs on 1 ms deadlines: never faster than 1000/s, and every deadline is either run
+    # (cycle_count) or skipped and counted (exceed_count, which also counts the overrunning cycles,
+    # so the sum only bounds from above). A loaded CI host skips deadlines; it cannot add cycles.
+    (c0, c1), (e0, e1), elapsed = out["cycles"], out["exceed"], out["elapsed_s"]
+    assert (c1 - c0) / elapsed < 1100, (c1 - c0) / elapsed
+    assert (c1 - c0 + e1 - e0) / elapsed > 500, (c1 - c0, e1 - e0, elapsed)
     # the corrections: active, no fault, and equal to the model's δq for the wrench on the registers
     assert out["fault_word"] == 0
     assert out["status_word"] & 0x2

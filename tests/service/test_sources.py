@@ -125,18 +125,24 @@ def test_tare_command_zeroes_the_wrench(tmp_path):
 
 def test_can_source_between_processes_over_udp_multicast():
     """The virtual sensor in its own process, the source here: real CAN frames over udp_multicast."""
+    import random
+    import socket
     import subprocess
     import sys
 
     pytest.importorskip("msgpack")
-    channel = "239.74.163.7"
+    # a group and port of its own (as hil/run.py does), so parallel runs never hear each other
+    channel = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
     load = [250.0, -60.0, 410.0, 7.5, -3.0, 2.25]
     proc = subprocess.Popen([sys.executable, "-m", "service.sources.virtual_sensor", "--interface", "udp_multicast",
-                             "--channel", channel, "--load", ",".join(map(str, load)), "--seconds", "20"],
+                             "--channel", channel, "--port", str(port), "--load", ",".join(map(str, load)), "--seconds", "20"],
                             stdout=subprocess.PIPE, text=True)
     try:
         assert proc.stdout.readline().strip() == "ready"
-        src = CanSource(can.Bus(interface="udp_multicast", channel=channel), protocol=AtiProtocol(), **KW)
+        src = CanSource(can.Bus(interface="udp_multicast", channel=channel, port=port), protocol=AtiProtocol(), **KW)
         try:
             reading = None
             for k in range(2000):
