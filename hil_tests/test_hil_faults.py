@@ -29,6 +29,7 @@ from plc_interface.virtual_plc import PlcFaults
 from service.faults import FAULT_BITS
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
+ST_RAMPING = 0x8                    # status_word bit 3 (docs/register_map.md)
 T_FAULT = 1.5                       # s after the cut started
 FEED = 30.0                         # mm/s: a 7.3 s circle leaves room for the fault and the recovery
 
@@ -122,9 +123,12 @@ def test_service_restarted_mid_run(tmp_path):
     lost = np.flatnonzero((t >= T_FAULT) & ~link)
     assert len(lost), "the PLC never lost the stopped service"
     t_lost = t[lost[0]]
-    # the old service ramped its correction to zero before it stopped: the last value the PLC read is 0
-    before = np.flatnonzero((t >= T_FAULT) & (t < t_lost) & link)
-    assert len(before) and np.all(corrections(r)[before[-1]] == 0.0)
+    # on SIGTERM the old service ramped its correction down (status bit 3) instead of dropping it
+    st = np.nan_to_num(value(r, "status_word")).astype(int)
+    ramping = np.flatnonzero((t >= T_FAULT) & (t < t_lost) & link & (st & ST_RAMPING != 0))
+    assert len(ramping), "the stopping service never ramped"
+    stopping = np.flatnonzero((t >= t[ramping[0]]) & (t < t_lost) & link)
+    assert np.all(np.diff(np.abs(corrections(r)[stopping]), axis=0) <= 1e-7), "the correction grew while stopping"
     relink = t[(t > t_lost) & link]
     assert len(relink), "the PLC never saw the new service"
     assert_recovers(r, ev, t_lost, relink[0])

@@ -183,14 +183,18 @@ class Service:
     def _ramp_down(self) -> None:
         """Keep cycling in the safe state until the correction is zero (it never jumps, even on stop).
 
-        Bounded by ``limits.fault_ramp_s`` plus a few periods; a cycle that died cannot ramp (the PLC
+        Bounded by ``limits.fault_ramp_s`` plus a few periods (in cycles); a cycle that died cannot ramp (the PLC
         supervises status bit 6 and the heartbeat for that case, see docs/register_map.md).
         """
-        comp, task = self.compensator, self.task
+        comp, task, info = self.compensator, self.task, self.info
         comp.stopping = True
-        deadline = time.monotonic() + self.cfg.limits.fault_ramp_s + max(20 * self.period, 0.1)
+        ramp_s = self.cfg.limits.fault_ramp_s
+        # the ramp ends after about ramp_s / period cycles (a cycle's step counts at most two periods,
+        # see CorrectionLimiter); the caps allow twice that, and a loaded host that skips deadlines
+        last_cycle = info.cycle_count + 2 * int(ramp_s / self.period) + 10
+        deadline = time.monotonic() + 5 * ramp_s + 1.0
         while task.running and any(v != 0.0 for v in comp.correction):
-            if time.monotonic() > deadline:
+            if info.cycle_count > last_cycle or time.monotonic() > deadline:
                 log.warning("the correction did not reach zero within fault_ramp_s on stop: %s deg",
                             np.array2string(np.array(comp.correction), precision=4))
                 break
