@@ -4,13 +4,9 @@ Imported by name (``from stiffcomp_testlib import ...``); conftest files only ho
 
 from __future__ import annotations
 
-import multiprocessing
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from stiffness.measurements import Dataset
 from stiffness.robot import Robot
@@ -43,18 +39,3 @@ def with_deflection(data: Dataset, deflection: np.ndarray) -> Dataset:
     out.deflection = np.asarray(deflection, dtype=float)
     return out
 
-
-@pytest.fixture(autouse=True)
-def no_leaks():
-    """Every test leaves no thread, socket or child process behind (import into a conftest to use)."""
-    from service.testing import leaked_threads, sockets_open
-
-    threads = set(threading.enumerate())
-    socks = sockets_open()
-    yield
-    assert leaked_threads(threads) == []
-    deadline = time.monotonic() + 2.0
-    while sockets_open() - socks and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert sockets_open() - socks == set()
-    assert multiprocessing.active_children() == []

@@ -1,3 +1,9 @@
-"""Fixtures of the service tests: every test leaves no thread, socket or child process behind."""
+"""Fixtures of the service tests: every test leaves no thread, socket or process behind."""
 
-from stiffcomp_testlib import no_leaks  # noqa: F401  (an autouse fixture)
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def _leak_check(no_leaks):
+    """The root conftest's leak check, around every test here."""
+    yield
