@@ -31,6 +31,7 @@ from service.testing import free_port
 from .plc_process import plc_main
 from .run import ServiceProcess, _end, _wait, free_udp_port, write_service_config
 from .scenario import Scenario
+from .sensor import serve_until
 
 CODES = 500
 OFFSET_N = 10.0
@@ -60,13 +61,9 @@ class CountingSensor(VirtualAtiSensor):
 
 def _sensor_entry(bus_kw: dict, ati: dict, out_file: str, ready, stop) -> None:
     sensor = CountingSensor(can.Bus(**bus_kw), AtiProtocol(**ati))
-    sensor.start()
-    ready.set()
     try:
-        while not stop.wait(0.05):
-            pass
+        serve_until(sensor, ready, stop)
     finally:
-        sensor.stop()
         np.savez(out_file, k=sensor.sent_k[:sensor.n], t=sensor.sent_t[:sensor.n])
 
 

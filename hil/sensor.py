@@ -24,6 +24,17 @@ from service.sources.virtual_sensor import VirtualAtiSensor
 from .world import World
 
 
+def serve_until(sensor: VirtualAtiSensor, ready, stop) -> None:
+    """A process entry's life: start the sensor, say ready, answer until ``stop`` is set, stop it."""
+    sensor.start()
+    ready.set()
+    try:
+        while not stop.wait(0.05):
+            pass
+    finally:
+        sensor.stop()
+
+
 class HilSensor(VirtualAtiSensor):
     """The virtual ATI sensor, answering with the world's wrench.
 
@@ -88,11 +99,5 @@ def sensor_main(scenario, robot, gravity, bus_kw: dict, ati: dict, go_value, rea
     sensor = HilSensor(bus, AtiProtocol(**ati), world, go,
                        [scenario.sensor.noise_N] * 3 + [scenario.sensor.noise_Nm] * 3, scenario.sensor.seed, fault,
                        scenario.sensor.rate_hz, scenario.sensor.lowpass_hz)
-    sensor.start()
-    ready.set()
-    try:
-        while not stop.wait(0.05):
-            pass
-    finally:
-        sensor.stop()
+    serve_until(sensor, ready, stop)
 

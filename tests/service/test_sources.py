@@ -103,7 +103,8 @@ def test_unknown_interface_is_a_clear_error():
         open_bus("nonexistent", "x")
 
 
-def test_tare_command_zeroes_the_wrench(tmp_path):
+def _loaded_compensator(tmp_path):
+    """A compensator that has run 100 cycles on a constant, nonzero wrench from a fast replay."""
     from service.config import load_config
     from service.sources import make_source
     from stiffness.model import StiffnessModel
@@ -117,6 +118,11 @@ def test_tare_command_zeroes_the_wrench(tmp_path):
     for k in range(100):
         comp.cycle(k * 1e-3, *src.poll(k * 1e-3), CMD_ENABLE, k, q)
     assert np.abs(comp.wrench_sensor).max() > 1.0
+    return comp, src, q
+
+
+def test_tare_command_zeroes_the_wrench(tmp_path):
+    comp, src, q = _loaded_compensator(tmp_path)
     comp.cycle(0.1, *src.poll(0.1), CMD_ENABLE | CMD_TARE, 100, q)
     assert comp.tares == 1
     np.testing.assert_allclose(comp.wrench_sensor, 0.0, atol=1e-9)
@@ -207,19 +213,7 @@ def test_replay_fast_loop_poll_returns_after_one_pass_without_a_sample(tmp_path)
 
 
 def test_a_tare_edge_in_a_cycle_without_a_sample_applies_to_the_next_sample(tmp_path):
-    from service.config import load_config
-    from service.sources import make_source
-    from stiffness.model import StiffnessModel
-
-    log = tmp_path / "c.blf"
-    write_log(log, np.tile([50.0, 20.0, -30.0, 1.0, 2.0, 3.0], (300, 1)))
-    cfg = load_config(write_config(tmp_path, {"source": {"replay": {"file": str(log), "pacing": "fast"}}}))
-    comp = Compensator.from_config(cfg, StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)))
-    src = make_source(cfg)
-    q = cfg.plc.initial_q_deg
-    for k in range(100):
-        comp.cycle(k * 1e-3, *src.poll(k * 1e-3), CMD_ENABLE, k, q)
-    assert np.abs(comp.wrench_sensor).max() > 1.0
+    comp, src, q = _loaded_compensator(tmp_path)
     comp.cycle(0.1, None, [], CMD_ENABLE | CMD_TARE, 100, q)       # the edge, but no sample this cycle
     assert comp.tares == 0
     comp.cycle(0.101, *src.poll(0.101), CMD_ENABLE | CMD_TARE, 101, q)   # the bit is still high: no new edge
