@@ -162,20 +162,23 @@ class _Gram:
     """Per-fold Gram blocks of the base Jacobian and the residual, for fast nested least squares."""
 
     def __init__(self, A0: np.ndarray, r: np.ndarray, fold: np.ndarray):
-        self.fold = fold
         self.folds = np.unique(fold)
         self.norm0 = _norms(A0)
         self.A0 = A0 / self.norm0
         self.r = r
-        self.G00 = np.stack([self.A0[fold == k].T @ self.A0[fold == k] for k in self.folds])
-        self.b0 = np.stack([self.A0[fold == k].T @ r[fold == k] for k in self.folds])
-        self.rr = np.array([r[fold == k] @ r[fold == k] for k in self.folds])
+        # each fold's rows, and its slices of the base Jacobian and residual, cut once for all candidates
+        self.rows = [np.nonzero(fold == k)[0] for k in self.folds]
+        self.A0_f = [self.A0[i] for i in self.rows]
+        self.r_f = [r[i] for i in self.rows]
+        self.G00 = np.stack([a.T @ a for a in self.A0_f])
+        self.b0 = np.stack([a.T @ rk for a, rk in zip(self.A0_f, self.r_f)])
+        self.rr = np.array([rk @ rk for rk in self.r_f])
 
     def blocks(self, Xc: np.ndarray):
-        f = self.fold
-        G0c = np.stack([self.A0[f == k].T @ Xc[f == k] for k in self.folds])
-        Gcc = np.stack([Xc[f == k].T @ Xc[f == k] for k in self.folds])
-        bc = np.stack([Xc[f == k].T @ self.r[f == k] for k in self.folds])
+        X_f = [Xc[i] for i in self.rows]
+        G0c = np.stack([a.T @ x for a, x in zip(self.A0_f, X_f)])
+        Gcc = np.stack([x.T @ x for x in X_f])
+        bc = np.stack([x.T @ rk for x, rk in zip(X_f, self.r_f)])
         M = np.concatenate([np.concatenate([self.G00, G0c], 2),
                             np.concatenate([np.swapaxes(G0c, 1, 2), Gcc], 2)], 1)
         v = np.concatenate([self.b0, bc], 1)
