@@ -41,8 +41,6 @@ from stiffness.model import StiffnessModel
 
 from .errors import ModelUnsupportedError
 
-MM, DEG = 1000.0, 180.0 / np.pi
-
 
 @dataclass
 class AxialTerm:

@@ -15,9 +15,10 @@ import math
 import numpy as np
 
 from stiffness.model import StiffnessModel
+from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 
 from .ati import Reading
-from .compensation import DEG, MM, FastPredictor
+from .compensation import FastPredictor
 from .errors import SensorError
 from .faults import FaultMonitor
 from .filters import SosLowPass, SpikeRejector
@@ -29,8 +30,7 @@ log = logging.getLogger("stiffcomp.service")
 CMD_ENABLE, CMD_TARE, CMD_RESET = 0x1, 0x2, 0x4
 ST_RUNNING, ST_ACTIVE, ST_FAULTED, ST_RAMPING, ST_SENSOR_OK, ST_PLC_SEEN, ST_STOPPED = (
     0x1, 0x2, 0x4, 0x8, 0x10, 0x20, 0x40)
-_OUT_SCALE = np.array([MM, MM, MM, DEG, DEG, DEG])
-_RAD = np.pi / 180.0
+_OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
 
 
 class Compensator:
@@ -109,7 +109,7 @@ class Compensator:
         self._supervise_overrun(overrun)
         if q_deg != self._q_last and self._check_q(q_deg):
             # kinematics only when q changes (exact comparison: a cache that never approximates)
-            self.q_rad = np.array(q_deg) * _RAD
+            self.q_rad = np.array(q_deg) * DEG_TO_RAD
             self.predictor.kinematics(self.q_rad)
             self._q_last = list(q_deg)
         pred = self.predictor
@@ -132,7 +132,7 @@ class Compensator:
         dX = pred.deflection(self.wrench_base)
         dq = pred.correction(self.q_rad, dX)
         self.deflection = (dX * _OUT_SCALE).tolist()
-        self.dq_deg = dq_deg = (dq * DEG).tolist()
+        self.dq_deg = dq_deg = (dq * RAD_TO_DEG).tolist()
         if not math.isfinite(sum(dq_deg)):          # NaN and inf propagate through the sum
             faults.trip("value_invalid", "the predicted correction is not finite")
             dq_deg = [0.0] * 6

@@ -18,9 +18,9 @@ import numpy as np
 from .measurements import Dataset
 from .robot import Robot
 from .spatial import skew, transport_wrench
+from .units import M_TO_MM, RAD_TO_DEG
 
 N_SITES = 12
-MM, DEG = 1000.0, 180.0 / np.pi
 
 
 def site_frame(site: int) -> int:
@@ -95,9 +95,9 @@ class Context:
             Fs = self.F[rr, site_frame(s)]
             Rs, ps = Fs[:, :3, :3], Fs[:, :3, 3]
             g = np.zeros((N, 6, 6))
-            g[:, :3, :3] = Rs * MM
-            g[:, :3, 3:] = -skew(P_body - ps) @ Rs * MM
-            g[:, 3:, 3:] = Rs * DEG
+            g[:, :3, :3] = Rs * M_TO_MM
+            g[:, :3, 3:] = -skew(P_body - ps) @ Rs * M_TO_MM
+            g[:, 3:, 3:] = Rs * RAD_TO_DEG
             G[:, s] = g * mask[:, None, None]
         return G
 

@@ -7,8 +7,7 @@ from matplotlib.figure import Figure
 
 from .context import Context
 from .residuals import axial_residual
-
-DEG = 180.0 / np.pi
+from .units import RAD_TO_DEG
 
 
 def axial_residual_vs_torque(ctx: Context, resid: np.ndarray, sigma: np.ndarray,
@@ -21,7 +20,7 @@ def axial_residual_vs_torque(ctx: Context, resid: np.ndarray, sigma: np.ndarray,
     fig = Figure(figsize=(12, 6.5), layout="constrained")
     axes = fig.subplots(2, 3)
     for j, ax in zip(range(1, 7), axes.ravel()):
-        s = axial_residual(ctx, resid, sigma, j) * DEG
+        s = axial_residual(ctx, resid, sigma, j) * RAD_TO_DEG
         tau = ctx.frame_wrench[:, j - 1, 5]
         ax.axhline(0, color="0.6", lw=0.8)
         ax.axvline(0, color="0.6", lw=0.8)
@@ -80,8 +79,8 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
     ax = fig.subplots()
     if e.name in ("backlash", "hysteresis", "nonlinear_stiffness"):
         j = e.joint
-        s = axial_residual(ctx, resid, sigma, j) * DEG
-        fit = axial_residual(ctx, candidate.contribution, sigma, j) * DEG
+        s = axial_residual(ctx, resid, sigma, j) * RAD_TO_DEG
+        fit = axial_residual(ctx, candidate.contribution, sigma, j) * RAD_TO_DEG
         tau = ctx.frame_wrench[:, j - 1, 5]
         order = np.argsort(tau)
         if e.name == "hysteresis":

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .effects.joint_spring import JointSpring
-
-DEG = 180.0 / np.pi
+from .units import RAD_TO_DEG
 
 
 def _axial_compliance(model, joint: int) -> float | None:
@@ -21,10 +20,10 @@ def size_text(c, model, ctx) -> str:
     e, est, se = c.effect, c.estimate, c.std_error
     name = e.name
     if name == "backlash":
-        return (f"lost motion {est[0] * DEG:.4f} deg (± {se[0] * DEG:.4f}), "
+        return (f"lost motion {est[0] * RAD_TO_DEG:.4f} deg (± {se[0] * RAD_TO_DEG:.4f}), "
                 f"smoothed over ±{e.fixed_width:.0f} Nm")
     if name == "hysteresis":
-        return f"offset {est[0] * DEG:+.4f} deg (± {se[0] * DEG:.4f}) by the direction the torque last moved"
+        return f"offset {est[0] * RAD_TO_DEG:+.4f} deg (± {se[0] * RAD_TO_DEG:.4f}) by the direction the torque last moved"
     if name == "nonlinear_stiffness":
         c_ax = _axial_compliance(model, e.joint)
         if e.form == "cubic":
@@ -38,12 +37,12 @@ def size_text(c, model, ctx) -> str:
             return f"bending stiffness EI = {1 / est[0]:.3g} N m² (1/EI = {est[0]:.3g} ± {se[0]:.2g})"
         return f"1/EI = {est[0]:.3g} ± {se[0]:.2g} (not a physical, positive compliance)"
     if name == "sensor_misalignment":
-        ang = np.linalg.norm(est) * DEG
+        ang = np.linalg.norm(est) * RAD_TO_DEG
         axis = est / max(np.linalg.norm(est), 1e-300)
         return f"sensor turned by {ang:.3f} deg about ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f})"
     if name == "drift":
         v = np.linalg.norm(est[:3]) * 60e3
-        w = np.linalg.norm(est[3:]) * DEG * 60
+        w = np.linalg.norm(est[3:]) * RAD_TO_DEG * 60
         return f"drift {v:.4f} mm/min and {w:.5f} deg/min within each configuration"
     if name == "joint_6dof":
         parts = [f"{comp} {1 / val:.3g} {'N/m' if comp in 'xyz' else 'Nm/rad'}"

@@ -17,13 +17,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .context import DEG, MM, Context
+from .context import Context
 from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
 from .errors import ConfigError
 from .measurements import Dataset
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
+from .units import M_TO_MM, RAD_TO_DEG
 from .yamlio import read_yaml
 
 TOP_KEYS = {"name", "description", "robot", "noise", "effects"}
@@ -216,7 +217,7 @@ def loaded_deflection(ctx: Context, tw: np.ndarray) -> np.ndarray:
         Fp[:, s] = T if E_tip is None else T @ E_tip[:, s - 1]
     Fp[:, 7] = Fp[:, 6] @ ctx.robot.T_flange_tcp
     F = ctx.F
-    dp = (Fp[:, 1:, :3, 3] - F[:, 1:, :3, 3]) * MM                         # (R, 7, 3)
-    dr = log_so3(Fp[:, 1:, :3, :3] @ np.swapaxes(F[:, 1:, :3, :3], -1, -2)) * DEG
+    dp = (Fp[:, 1:, :3, 3] - F[:, 1:, :3, 3]) * M_TO_MM                         # (R, 7, 3)
+    dr = log_so3(Fp[:, 1:, :3, :3] @ np.swapaxes(F[:, 1:, :3, :3], -1, -2)) * RAD_TO_DEG
     per_reading = np.concatenate([dp, dr], axis=-1)                         # (R, 7, 6)
     return per_reading[ctx.row_reading, ctx.body]

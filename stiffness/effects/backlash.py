@@ -16,10 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..units import RAD_TO_DEG
 from .axial import AxialEffect
 from .base import Param, read_location, read_values
-
-DEG = np.pi / 180.0
 
 
 class Backlash(AxialEffect):
@@ -29,7 +28,7 @@ class Backlash(AxialEffect):
 
     def __init__(self, joint: int, lost_motion_rad: float = 0.0, width_Nm: float = default_width_Nm,
                  fit_width: bool = True):
-        params = [Param("lost_motion_deg", "deg", 1e-4, yaml_factor=1 / DEG)]
+        params = [Param("lost_motion_deg", "deg", 1e-4, yaml_factor=RAD_TO_DEG)]
         theta = [lost_motion_rad]
         if fit_width:
             params.append(Param("width_Nm", "Nm", 10.0, nonlinear=True, bounds=(0.1, 1e4)))

@@ -17,10 +17,11 @@ from typing import Any
 import numpy as np
 
 from ..context import Context
+from ..units import M_TO_MM, RAD_TO_DEG
 from .base import Effect, Param, read_values
 
-MM_PER_MIN = 1000.0 * 60.0          # SI m/s -> mm/min
-DEG_PER_MIN = 180.0 / np.pi * 60.0   # SI rad/s -> deg/min
+M_PER_S_TO_MM_PER_MIN = M_TO_MM * 60.0
+RAD_PER_S_TO_DEG_PER_MIN = RAD_TO_DEG * 60.0
 
 
 class Drift(Effect):
@@ -30,8 +31,8 @@ class Drift(Effect):
     equation = "delta_base = [v, w] (t - t0_config)"
 
     def __init__(self, theta: np.ndarray | None = None):
-        params = [Param(f"{a}_mm_per_min", "mm/min", 1e-7, MM_PER_MIN) for a in "xyz"]
-        params += [Param(f"{a}_deg_per_min", "deg/min", 1e-8, DEG_PER_MIN) for a in ("rx", "ry", "rz")]
+        params = [Param(f"{a}_mm_per_min", "mm/min", 1e-7, M_PER_S_TO_MM_PER_MIN) for a in "xyz"]
+        params += [Param(f"{a}_deg_per_min", "deg/min", 1e-8, RAD_PER_S_TO_DEG_PER_MIN) for a in ("rx", "ry", "rz")]
         super().__init__(params, np.zeros(6) if theta is None else theta, None)
 
     @classmethod

@@ -20,10 +20,9 @@ import numpy as np
 
 from ..context import Context
 from ..errors import ConfigError
+from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque
 from .base import Effect, Param, read_location, read_values
-
-DEG = np.pi / 180.0
 
 
 def loading_direction(ctx: Context, tau: np.ndarray, threshold_fraction: float) -> np.ndarray:
@@ -49,7 +48,7 @@ class Hysteresis(Effect):
     equation = "delta_rz,i = h s_i(t), s_i = direction tau_i last moved"
 
     def __init__(self, joint: int, offset_rad: float = 0.0, threshold_fraction: float = 0.02):
-        super().__init__([Param("offset_deg", "deg", 1e-4, yaml_factor=1 / DEG)], np.array([offset_rad]), joint)
+        super().__init__([Param("offset_deg", "deg", 1e-4, yaml_factor=RAD_TO_DEG)], np.array([offset_rad]), joint)
         self.threshold_fraction = threshold_fraction
 
     @classmethod

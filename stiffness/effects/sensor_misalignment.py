@@ -16,9 +16,8 @@ import numpy as np
 
 from ..context import Context
 from ..spatial import exp_so3
+from ..units import RAD_TO_DEG
 from .base import Effect, Param, read_values
-
-DEG = np.pi / 180.0
 
 
 class SensorMisalignment(Effect):
@@ -29,7 +28,7 @@ class SensorMisalignment(Effect):
     equation = "W_true = blockdiag(R(phi), R(phi)) W_measured"
 
     def __init__(self, phi_rad: np.ndarray | None = None):
-        params = [Param(f"{a}_deg", "deg", 1e-2, yaml_factor=1 / DEG, nonlinear=True, bounds=(-0.5, 0.5))
+        params = [Param(f"{a}_deg", "deg", 1e-2, yaml_factor=RAD_TO_DEG, nonlinear=True, bounds=(-0.5, 0.5))
                   for a in ("rx", "ry", "rz")]
         super().__init__(params, np.zeros(3) if phi_rad is None else phi_rad, None)
 
