@@ -11,7 +11,7 @@ from multiprocessing import resource_tracker
 
 import pytest
 
-from service.testing import leaked_threads, sockets_open
+from hil.testing import leaked_threads, sockets_open
 
 
 def child_pids() -> set[int]:

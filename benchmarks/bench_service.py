@@ -33,10 +33,16 @@ def client_main(port: int, duration: float, rate_hz: float, count: int, writer: 
     A ``writer`` also writes the heartbeat and moving joint positions each period, as the PLC would.
     """
     import math
-    import struct
 
     import numpy as np
     from pymodbus.client import ModbusTcpClient
+
+    from hil.testing import CONFIG
+    from plc_interface.contract import Command
+    from plc_interface.register_map import RegisterMap
+
+    rmap = RegisterMap.from_yaml(CONFIG / "registers.yaml")
+    out, inp = rmap.codecs["to_plc"], rmap.codecs["from_plc"]          # registers by name, never by address
 
     c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
     if not c.connect():
@@ -52,8 +58,10 @@ def client_main(port: int, duration: float, rate_hz: float, count: int, writer: 
         if writer:
             k += 1
             q = [10.0 + 5.0 * math.sin(k * 0.01), -80.0, 100.0, 20.0, 40.0 + 3.0 * math.cos(k * 0.01), 30.0]
-            c.write_registers(0x8001, [k & 0xFFFF] + list(struct.unpack("<12H", struct.pack("<6f", *q))))
-        r = c.read_input_registers(0x8000, count=count)
+            values = {"command_word": int(Command.ENABLE), "plc_heartbeat": k & 0xFFFF,
+                      **{f"q{i + 1}": v for i, v in enumerate(q)}}
+            c.write_registers(inp.start, inp.encode([values[n] for n in inp.names]))
+        r = c.read_input_registers(out.start, count=count)
         rtt.append(time.perf_counter() - t0)
         if r.isError():
             errors += 1
@@ -100,9 +108,9 @@ def bench(duration: float, n_clients: int, rate_hz: float, count: int, priority:
           moving_q: bool = False, spin_us: float = 0.0, server_process: bool = False) -> dict:
     import logging
 
+    from hil.testing import free_port, write_config
     from service.app import Service
     from service.config import load_config
-    from service.testing import free_port, write_config
 
     logging.basicConfig(level="WARNING")
     port = free_port()

@@ -5,7 +5,7 @@ path        the circle and its inverse kinematics (the PLC's joint references)
 milling     the process force of an end mill following the feed direction
 robot_stub  the "real" robot: commanded joints + load -> deflected TCP, from a truth model
 sensor      the virtual ATI sensor process (process force + noise + tool weight, fault modes)
-plc_process the virtual PLC process (plc_interface.virtual_plc driving the robot)
+plc_process the virtual PLC process (hil.virtual_plc driving the robot)
 run         one pass and the with/without comparison, each device in its own process
 report      path errors and the Fig. 8 plot
 """

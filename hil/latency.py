@@ -22,11 +22,11 @@ from pathlib import Path
 import can
 import numpy as np
 
+from hil.testing import free_port
+from hil.virtual_sensor import VirtualAtiSensor
 from plc_interface.register_map import RegisterMap
 from service.ati import AtiProtocol
 from service.config import load_config
-from service.sources.virtual_sensor import VirtualAtiSensor
-from service.testing import free_port
 
 from .plc_process import plc_main
 from .run import ServiceProcess, _end, _wait, free_udp_port, write_service_config

@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from stiffness.robot import Robot
+from stiffness.spatial import damped_pinv_solve
 
 from .scenario import CircleConfig
 
@@ -25,8 +26,8 @@ class IkError(RuntimeError):
 
 
 def solve_ik(robot: Robot, T_target: pin.SE3, q0: np.ndarray, tol: float = 1e-10, max_iter: int = 50,
-             damping: float = 1e-6) -> np.ndarray:
-    """Joint angles (rad) that put the TCP at ``T_target`` (damped Newton from ``q0``)."""
+             lam: float = 1e-3) -> np.ndarray:
+    """Joint angles (rad) that put the TCP at ``T_target`` (damped Newton from ``q0``, damping λ = ``lam``)."""
     pm = robot.pin_model
     pd = pm.createData()
     fid = pm.getFrameId("TCP")
@@ -38,7 +39,7 @@ def solve_ik(robot: Robot, T_target: pin.SE3, q0: np.ndarray, tol: float = 1e-10
         if err @ err < tol * tol:
             return q
         J = pin.getFrameJacobian(pm, pd, fid, pin.LOCAL)
-        q = q + J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
+        q = q + damped_pinv_solve(J, lam, err)
     raise IkError(f"inverse kinematics did not converge (residual {np.linalg.norm(err):.2e})")
 
 

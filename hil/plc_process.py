@@ -7,8 +7,8 @@ import time
 
 import numpy as np
 
+from hil.virtual_plc import PlcFaults, PlcLogic, VirtualPlc
 from plc_interface.register_map import RegisterMap
-from plc_interface.virtual_plc import PlcFaults, PlcLogic, VirtualPlc
 
 from .world import World
 

@@ -27,13 +27,13 @@ import numpy as np
 import yaml
 from pymodbus.client import ModbusTcpClient
 
+from hil.testing import free_port
+from hil.virtual_plc import PlcFaults
 from plc_interface.register_map import RegisterMap
-from plc_interface.virtual_plc import PlcFaults
 from service.config import load_config
-from service.errors import ServiceError
-from service.testing import free_port
 from stiffness.model import StiffnessModel
 from stiffness.robot import load_robot
+from stiffness.yamlio import deep_update
 
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario
@@ -42,7 +42,7 @@ from .sensor import sensor_main
 START_TIMEOUT_S = 90.0
 
 
-class HilError(ServiceError):
+class HilError(Exception):
     """A HIL pass could not run: a device process did not start, died, or the service could not be
     reached (the CLI reports it in one line with exit code 2)."""
 
@@ -89,9 +89,7 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
     ati["dbc"] = str((base / ati.get("dbc", "ati_netft_can.dbc")).resolve())
     source["can"]["channel"] = group
     source["can"].setdefault("options", {})["port"] = can_port
-    for k, v in (overrides or {}).items():
-        section = data.setdefault(k, {})
-        section.update(v)
+    deep_update(data, overrides or {})
     path = folder / "service.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path

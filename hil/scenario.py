@@ -5,19 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from stiffness.yamlio import read_yaml, validate
+from stiffness.yamlio import Strict, read_yaml, validate
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIO = ROOT / "config" / "hil" / "circle.yaml"
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
-
-class CircleConfig(_Strict):
+class CircleConfig(Strict):
     center_q_deg: list[float] = Field(min_length=6, max_length=6)
     radius_mm: float = Field(35.0, gt=0.0, le=500.0)
     feed_mm_s: float = Field(50.0, gt=0.0, le=1000.0)
@@ -27,7 +24,7 @@ class CircleConfig(_Strict):
     tail_s: float = Field(0.3, ge=0.0, le=10.0)
 
 
-class MillingConfig(_Strict):
+class MillingConfig(Strict):
     tool_diameter_mm: float = Field(8.0, gt=0.0)
     teeth: int = Field(4, ge=1, le=20)
     spindle_rpm: float = Field(6000.0, gt=0.0)
@@ -43,7 +40,7 @@ class MillingConfig(_Strict):
     seed: int = 7
 
 
-class SensorConfig(_Strict):
+class SensorConfig(Strict):
     noise_N: float = Field(1.5, ge=0.0)
     noise_Nm: float = Field(0.05, ge=0.0)
     seed: int = 11
@@ -51,17 +48,17 @@ class SensorConfig(_Strict):
     lowpass_hz: float = Field(52.0, ge=0.0, le=5000.0)
 
 
-class RobotStubConfig(_Strict):
+class RobotStubConfig(Strict):
     structure_hz: float = Field(40.0, ge=0.0, le=1000.0)
 
 
-class PlcConfig(_Strict):
+class PlcConfig(Strict):
     period_ms: float = Field(2.0, ge=1.0, le=4.0)
     service_timeout_ms: float = Field(100.0, gt=0.0)
     max_rate_deg_s: float = Field(2.0, gt=0.0, le=100.0)
 
 
-class Scenario(_Strict):
+class Scenario(Strict):
     truth: str
     model: str
     service: str = "service.yaml"

@@ -18,8 +18,8 @@ import can
 import numpy as np
 from scipy import signal
 
+from hil.virtual_sensor import VirtualAtiSensor
 from service.ati import BLOCK, AtiProtocol
-from service.sources.virtual_sensor import VirtualAtiSensor
 
 from .world import World
 

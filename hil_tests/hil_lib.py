@@ -19,7 +19,6 @@ MODELS = ROOT / "config" / "models"
 RMAP = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
 OUT = RMAP.codecs["to_plc"].names
 FROM_PLC = {a for r in RMAP.registers if r.direction == "from_plc" for a in range(r.address, r.address + r.count)}
-ST_ACTIVE, ST_FAULTED = 0x2, 0x4
 
 
 def scenario(feed_mm_s: float | None = None) -> Scenario:

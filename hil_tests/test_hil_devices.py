@@ -12,12 +12,12 @@ from hil_lib import EXAMPLES, RMAP, scenario
 
 from hil.robot_stub import RobotStub
 from hil.sensor import HilSensor
+from hil.virtual_plc import PlcFaults, PlcLogic
 from hil.world import World
-from plc_interface.virtual_plc import PlcFaults, PlcLogic
+from plc_interface.contract import Command
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.errors import CanFrameError, SensorTimeout
-from service.pipeline import CMD_ENABLE, CMD_RESET
 from service.sources.can_source import CanSource
 from stiffness.model import StiffnessModel
 
@@ -125,7 +125,7 @@ def test_plc_without_the_service_follows_its_references():
     logic = plc()
     for k in range(100):
         out, q = step(logic, k * 0.004, None)
-        assert q == logic.reference(k * 0.004) and out["command_word"] == CMD_ENABLE
+        assert q == logic.reference(k * 0.004) and out["command_word"] == Command.ENABLE
     assert out["plc_heartbeat"] == 100
 
 
@@ -147,7 +147,7 @@ def test_plc_applies_the_correction_rate_limited_and_drops_it_when_the_link_goes
 def test_plc_pulses_reset_on_first_contact_and_after_a_loss_only():
     logic, dt = plc(), 0.004
     resets = [step(logic, k * dt, service_values(k, [0.0] * 6) if not 50 <= k < 100 else None)[0]["command_word"]
-              & CMD_RESET for k in range(200)]
+              & Command.RESET for k in range(200)]
     assert [k for k, r in enumerate(resets) if r] == [0, 100]
 
 
@@ -155,7 +155,7 @@ def test_plc_uncompensated_neither_enables_nor_applies():
     logic = plc(compensate=False)
     for k in range(50):
         out, q = step(logic, k * 0.004, service_values(k, [0.1] * 6))
-    assert out["command_word"] & CMD_ENABLE == 0 and q == logic.reference(0)
+    assert out["command_word"] & Command.ENABLE == 0 and q == logic.reference(0)
 
 
 def test_plc_heartbeat_freezes_when_told():

@@ -14,8 +14,6 @@ import numpy as np
 import pytest
 from hil_lib import (
     EXAMPLES,
-    ST_ACTIVE,
-    ST_FAULTED,
     Faults,
     compensated,
     corrections,
@@ -25,11 +23,10 @@ from hil_lib import (
     value,
 )
 
-from plc_interface.virtual_plc import PlcFaults
-from service.faults import FAULT_BITS
+from hil.virtual_plc import PlcFaults
+from plc_interface.contract import Fault, Status
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
-ST_RAMPING = 0x8                    # status_word bit 3 (docs/register_map.md)
 T_FAULT = 1.5                       # s after the cut started
 FEED = 30.0                         # mm/s: a 7.3 s circle leaves room for the fault and the recovery
 
@@ -43,7 +40,7 @@ def assert_working_before_the_fault(r):
     m = at(r, 0.3, T_FAULT) & r.log["link"]
     assert m.sum() > 50
     assert (value(r, "fault_word")[m] == 0).all()
-    assert ((value(r, "status_word")[m].astype(int) & ST_ACTIVE) != 0).all()
+    assert ((value(r, "status_word")[m].astype(int) & Status.ACTIVE) != 0).all()
 
 
 def assert_service_safe(r, fault: str):
@@ -51,7 +48,7 @@ def assert_service_safe(r, fault: str):
     without growing and stays there; the robot ends on its references. No deadline: a loaded host may
     delay the trip, never the order of the states."""
     t, link = r.log["t"], r.log["link"]
-    bit = 1 << FAULT_BITS[fault]
+    bit = int(Fault.from_kind(fault))
     fw = np.nan_to_num(value(r, "fault_word")).astype(int)
     tripped = np.flatnonzero((t >= T_FAULT) & link & (fw & bit != 0))
     assert len(tripped), "the fault never tripped"
@@ -59,7 +56,7 @@ def assert_service_safe(r, fault: str):
     assert m.sum() > 50
     fw, st = fw[m], value(r, "status_word")[m].astype(int)
     assert (fw & bit != 0).all(), np.unique(fw)
-    assert (st & ST_FAULTED != 0).all() and (st & ST_ACTIVE == 0).all(), np.unique(st)
+    assert (st & Status.FAULTED != 0).all() and (st & Status.ACTIVE == 0).all(), np.unique(st)
     c = np.abs(corrections(r)[m])
     assert np.all(np.diff(c, axis=0) <= 1e-7), "the correction grew after the fault"
     zero = np.flatnonzero((c == 0.0).all(axis=1))
@@ -95,7 +92,7 @@ def assert_recovers(r, ev, lost_from: float, lost_to: float):
     assert np.abs(r.log["applied"][lost]).max() == 0.0
     assert np.abs(r.log["q_cmd"][lost] - r.log["q_ref"][lost]).max() < 1e-9
     st = np.nan_to_num(value(r, "status_word")).astype(int)
-    back = np.flatnonzero(at(r, lost_to) & r.log["link"] & (st & ST_ACTIVE != 0) & (value(r, "fault_word") == 0))
+    back = np.flatnonzero(at(r, lost_to) & r.log["link"] & (st & Status.ACTIVE != 0) & (value(r, "fault_word") == 0))
     assert len(back), "the compensation never resumed"
     t_back = r.log["t"][back[0]]
     resumed = at(r, t_back + 0.5, ev["t"][ev["cut"]].max())
@@ -125,7 +122,7 @@ def test_service_restarted_mid_run(tmp_path):
     t_lost = t[lost[0]]
     # on SIGTERM the old service ramped its correction down (status bit 3) instead of dropping it
     st = np.nan_to_num(value(r, "status_word")).astype(int)
-    ramping = np.flatnonzero((t >= T_FAULT) & (t < t_lost) & link & (st & ST_RAMPING != 0))
+    ramping = np.flatnonzero((t >= T_FAULT) & (t < t_lost) & link & (st & Status.RAMPING != 0))
     assert len(ramping), "the stopping service never ramped"
     stopping = np.flatnonzero((t >= t[ramping[0]]) & (t < t_lost) & link)
     assert np.all(np.diff(np.abs(corrections(r)[stopping]), axis=0) <= 1e-7), "the correction grew while stopping"

@@ -1,92 +1,207 @@
-"""The register image shared by the cycle thread and the Modbus side, guarded by one lock.
+"""The process image: where the cycle process and the I/O process meet, in shared memory, without a lock.
 
-The cycle writes the whole ``to_plc`` block and reads the whole ``from_plc`` block once per cycle,
-each under the lock, so a client never sees half of a 32-bit value from one cycle and half from the
-next. Modbus access checks every address: reads must fall inside a block, writes inside the PLC's
-registers (``from_plc``), covering every register they touch whole (no half of a 32-bit value);
-anything else is refused with ILLEGAL_ADDRESS (0x02) and changes nothing.
+TwinCAT's task owns its process image and the ADS router and Modbus server meet it only there; so do
+ours. Each direction (``to_plc``, written by the cycle; ``from_plc``, written by the I/O process) has
+two buffers of the whole block and a version counter. Each buffer carries its own sequence number,
+odd while it is being written (a seqlock per buffer):
+
+    writer:  b = (version + 1) & 1;  seq[b] += 1;  write buffer b;  seq[b] += 1;  version += 1
+    reader:  b = version & 1;  s = seq[b];  copy buffer b;  accept if s is even and seq[b] is still s
+
+The writer never waits. A reader reads the newest complete buffer, which the writer touches again only
+two versions later, so a copy fails only if two whole publishes happen during it; it then retries. The
+cycle retries at most `RETRIES` times and otherwise keeps its last good copy (counted in
+``stale_reads``): it never waits on the other process. Each side is single-writer: the cycle thread
+for to_plc, the I/O process's one asyncio loop for from_plc.
+
+Memory order: the counters and words are plain stores to shared memory. x86-64 keeps stores in order
+and loads in order (total store order), which is what the protocol needs; on a weakly ordered CPU
+(ARM) this image would need fences and is not supported.
+
+Modbus rules (I/O side): reads must fall inside a block; writes must fall inside the PLC's registers
+(``from_plc``) and cover every register they touch whole (no half of a 32-bit value); anything else
+is refused (False) and changes nothing.
 """
 
 from __future__ import annotations
 
-import threading
+from multiprocessing.shared_memory import SharedMemory
 
+import numpy as np
+
+from .contract import FromPlc, ToPlc
 from .register_map import RegisterMap
 
-FC_TABLE = {3: "holding_registers", 4: "input_registers", 6: "holding_registers", 16: "holding_registers",
-            23: "holding_registers"}
+RETRIES = 3
+DIRECTIONS = ("to_plc", "from_plc")
+# header (int64): version, seq of buffer 0, seq of buffer 1, stamp (ns) of buffer 0, of buffer 1, per direction
+_H = {"to_plc": 0, "from_plc": 5}
+_HEADER = 10
 
 
-class RegisterImage:
-    """Words of both blocks; addresses are absolute Modbus addresses."""
+class ProcessImage:
+    """Both blocks of the register map, double-buffered in shared memory; pickles to a handle.
 
-    def __init__(self, rmap: RegisterMap):
+    Parameters
+    ----------
+    rmap : RegisterMap
+    """
+
+    def __init__(self, rmap: RegisterMap, _name: str | None = None):
         self.map = rmap
-        self.lock = threading.Lock()
-        self.blocks = {}
-        for direction, b in rmap.blocks.items():
-            self.blocks[direction] = (b.table, b.start, [0] * b.size)
-        self.by_table: dict[str, list[tuple[int, list[int]]]] = {}
-        for table, start, words in self.blocks.values():
-            self.by_table.setdefault(table, []).append((start, words))
+        self.out_codec, self.in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
+        self.tables = {d: (b.table, b.start, b.size) for d, b in rmap.blocks.items()}
+        sizes = {d: b.size for d, b in rmap.blocks.items()}
+        n_bytes = 8 * _HEADER + sum(2 * 2 * n for n in sizes.values())
+        self._owner = _name is None
+        self.shm = SharedMemory(name=_name, create=self._owner, size=n_bytes)
+        self._h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
+        self._buf, off = {}, 8 * _HEADER
+        for d in DIRECTIONS:
+            self._buf[d] = np.ndarray((2, sizes[d]), dtype=np.uint16, buffer=self.shm.buf, offset=off)
+            off += 4 * sizes[d]
+        if self._owner:
+            self._h[:] = 0
+            for d in DIRECTIONS:
+                self._buf[d][:] = 0
         self.writable = rmap.writable
-        # the second and later words of every multi-word PLC register: a write may neither start nor
-        # end (exclusive end) there, or the cycle would read a value torn between two writes
         self.inner = {a for r in rmap.registers if r.direction == "from_plc"
                       for a in range(r.address + 1, r.address + r.count)}
-        self.out_codec = rmap.codecs["to_plc"]
-        self.in_codec = rmap.codecs["from_plc"]
-        self.refused_writes = 0
+        self._read_inputs = self.in_codec.record_reader(FromPlc)
+        self._last_inputs: FromPlc | None = None
+        self.stale_reads = 0            # cycle side: inputs kept from a previous copy
+        self.refused_writes = 0         # I/O side: writes refused by the Modbus rules
+        self._master: list[int] | None = None   # I/O side: the from_plc block it owns
+        self._last_words = [0] * self.out_codec.words
+
+    def __reduce__(self):
+        return (ProcessImage, (self.map, self.shm.name))
+
+    # -- the protocol ---------------------------------------------------------------------------
+    def _publish(self, direction: str, words, stamp_ns: int = 0) -> None:
+        """Write the block's leading words (the rest never changes) into the free buffer, then publish it."""
+        h, k = self._h, _H[direction]
+        b = (int(h[k]) + 1) & 1
+        h[k + 1 + b] += 1
+        self._buf[direction][b, :len(words)] = words
+        h[k + 3 + b] = stamp_ns
+        h[k + 1 + b] += 1
+        h[k] += 1
+
+    def _copy(self, direction: str, lo: int, hi: int) -> tuple[int, int, list[int]] | None:
+        """(version, stamp, words[lo:hi]) of the newest complete buffer, or None after `RETRIES` failures."""
+        h, k, buf = self._h, _H[direction], self._buf[direction]
+        for _ in range(RETRIES):
+            v = int(h[k])
+            b = v & 1
+            s = int(h[k + 1 + b])
+            if s & 1:
+                continue
+            words = buf[b, lo:hi].tolist()
+            stamp = int(h[k + 3 + b])
+            if int(h[k + 1 + b]) == s:
+                return v, stamp, words
+        return None
 
     # -- the cycle's side -----------------------------------------------------------------------
-    def publish(self, words: list[int]) -> None:
-        """Replace the to_plc block's leading words."""
-        block = self.blocks["to_plc"][2]
-        with self.lock:
-            block[: len(words)] = words
+    def publish(self, record: ToPlc, stamp_ns: int = 0) -> None:
+        """Publish one cycle's record (each register takes its value by name); never waits."""
+        self._last_words = words = self.out_codec.encode_record(record)
+        self._publish("to_plc", words, stamp_ns=stamp_ns)
 
-    def inputs(self) -> list[int]:
-        """A consistent copy of the from_plc block."""
-        block = self.blocks["from_plc"][2]
-        with self.lock:
-            return block[: self.in_codec.words]
+    def inputs(self) -> FromPlc:
+        """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""
+        got = self._copy("from_plc", 0, self.in_codec.words)
+        if got is None and self._last_inputs is not None:
+            self.stale_reads += 1
+            return self._last_inputs
+        if got is None:             # no good copy yet: keep trying (only before the first cycle)
+            while got is None:
+                got = self._copy("from_plc", 0, self.in_codec.words)
+        self._last_inputs = self._read_inputs(got[2])
+        return self._last_inputs
 
     def set_inputs(self, values: dict[str, float]) -> None:
-        """Set named from_plc values (initial joint positions; the client role's PLC reads)."""
-        block = self.blocks["from_plc"][2]
-        with self.lock:
-            current = self.in_codec.decode(block)
-            merged = [values.get(n, v) for n, v in zip(self.in_codec.names, current)]
-            block[: self.in_codec.words] = self.in_codec.encode(merged)
+        """Set named from_plc values before the I/O side starts (initial joint positions)."""
+        current = self.in_codec.decode(self._copy("from_plc", 0, self.in_codec.words)[2])
+        merged = [values.get(n, v) for n, v in zip(self.in_codec.names, current)]
+        self._publish("from_plc", self.in_codec.encode(merged))
 
     def outputs(self) -> dict[str, float]:
-        """The to_plc values by name (for logs and tests)."""
-        block = self.blocks["to_plc"][2]
-        with self.lock:
-            words = block[: self.out_codec.words]
-        return dict(zip(self.out_codec.names, self.out_codec.decode(words)))
+        """The newest to_plc values by name (logs, tests, tools); after `close`, the last this side published."""
+        if self._h is None:
+            return dict(zip(self.out_codec.names, self.out_codec.decode(self._last_words)))
+        got = None
+        while got is None:
+            got = self._copy("to_plc", 0, self.out_codec.words)
+        return dict(zip(self.out_codec.names, self.out_codec.decode(got[2])))
 
-    # -- the Modbus side ------------------------------------------------------------------------
+    # -- the I/O side ---------------------------------------------------------------------------
+    def snapshot(self) -> tuple[int, int, list[int], list[int]]:
+        """(version, stamp_ns, to_plc words, from_plc words) of one consistent cycle (whole blocks)."""
+        got = None
+        while got is None:
+            got = self._copy("to_plc", 0, self.tables["to_plc"][2])
+        return got[0], got[1], got[2], list(self._inputs_master())
+
+    def _inputs_master(self) -> list[int]:
+        if self._master is None:
+            got = None
+            while got is None:
+                got = self._copy("from_plc", 0, self.tables["from_plc"][2])
+            self._master = got[2]
+        return self._master
+
     def read(self, table: str, address: int, count: int) -> list[int] | None:
         """Words at [address, address + count) of ``table``, or None if outside every block."""
-        for start, words in self.by_table.get(table, ()):
-            if start <= address and address + count <= start + len(words):
-                with self.lock:
-                    return words[address - start: address - start + count]
+        for d, (tab, start, size) in self.tables.items():
+            if tab == table and start <= address and address + count <= start + size:
+                if d == "from_plc":
+                    return self._inputs_master()[address - start: address - start + count]
+                got = None
+                while got is None:
+                    got = self._copy(d, address - start, address - start + count)
+                return got[2]
         return None
 
     def write(self, table: str, address: int, values: list[int]) -> bool:
         """Write the PLC's registers; False (and no change) if any word is not the PLC's to write, or the
         write starts or ends inside a multi-word register."""
         end = address + len(values)
-        if (table != "holding_registers" or any(a not in self.writable for a in range(address, end))
+        tab, start, _ = self.tables["from_plc"]
+        if (table != tab or not values or any(a not in self.writable for a in range(address, end))
                 or address in self.inner or end in self.inner):
             self.refused_writes += 1
             return False
-        for start, words in self.by_table[table]:
-            if start <= address and address + len(values) <= start + len(words):
-                with self.lock:
-                    words[address - start: address - start + len(values)] = [int(v) & 0xFFFF for v in values]
-                return True
-        self.refused_writes += 1
-        return False
+        master = self._inputs_master()
+        master[address - start: end - start] = [int(v) & 0xFFFF for v in values]
+        self._publish("from_plc", master)
+        return True
+
+    def write_block(self, words: list[int]) -> None:
+        """Replace the from_plc block's leading words (the client role: what it read from the PLC)."""
+        master = self._inputs_master()
+        master[: len(words)] = [int(v) & 0xFFFF for v in words]
+        self._publish("from_plc", master)
+
+    def to_plc_words(self) -> list[int]:
+        """The to_plc block's mapped words (the client role writes them into the PLC)."""
+        got = None
+        while got is None:
+            got = self._copy("to_plc", 0, self.out_codec.words)
+        return got[2]
+
+    # -- life cycle -----------------------------------------------------------------------------
+    def close(self) -> None:
+        """Detach; the creating process also frees the memory."""
+        self._h = None
+        self._buf = {}
+        if self._owner:         # first: a view still alive (BufferError below) must not keep the name
+            try:
+                self.shm.unlink()
+            except FileNotFoundError:
+                pass
+        try:
+            self.shm.close()
+        except BufferError:
+            pass  # a view is still alive somewhere; the mapping goes when it does

@@ -1,113 +1,103 @@
-"""The Modbus TCP server role: the PLC polls the service (pymodbus, classic datastore).
+"""The Modbus TCP server role: the PLC polls the service (pymodbus >= 3.16, SimDevice).
 
-pymodbus 3.9-3.12 is pinned on purpose: its classic datastore lets a device context answer each
-request with an exception code, which is how writes outside the PLC's registers are refused with
-ILLEGAL_ADDRESS (0x02) before anything changes. pymodbus 3.13 replaced that datastore with
-SimDevice/SimData and an async action callback; porting is possible but buys nothing here.
+pymodbus keeps a register list per table; the device's async ``action`` runs before every request and
+makes the image the only truth: a read copies the image's words into pymodbus' list, a write is
+checked and applied by `ProcessImage.write` and refused with ILLEGAL_ADDRESS (0x02) before anything
+changes. Malformed frames and refused requests are logged rate-limited (`RateLimitedLog`): one line per
+client and reason per interval, never a dump per frame (pymodbus' own logger is kept at CRITICAL).
 
-The server runs its own asyncio loop in a thread; the cycle thread never waits for it. The only
-shared state is the `RegisterImage` and its lock.
+The server runs on the I/O process's asyncio loop (`plc_interface.io_server`); the cycle never waits
+for it.
 """
 
 from __future__ import annotations
 
-import asyncio
 import logging
-import threading
 
 from pymodbus.constants import ExcCodes
-from pymodbus.datastore import ModbusServerContext
-from pymodbus.datastore.context import ModbusBaseDeviceContext
 from pymodbus.server import ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .errors import PlcError
-from .image import FC_TABLE, RegisterImage
+from .image import ProcessImage
+from .ratelog import RateLimitedLog
 
 log = logging.getLogger("stiffcomp.modbus")
 
-
-class ImageDeviceContext(ModbusBaseDeviceContext):
-    """A pymodbus device context backed by the register image (addresses are 0-based Modbus addresses)."""
-
-    def __init__(self, image: RegisterImage):
-        self.image = image
-
-    def reset(self) -> None:
-        """Registers are owned by the service; a Modbus reset changes nothing."""
-
-    def getValues(self, func_code, address, count=1):
-        table = FC_TABLE.get(func_code)
-        if table is None:
-            return ExcCodes.ILLEGAL_FUNCTION
-        words = self.image.read(table, address, count)
-        return ExcCodes.ILLEGAL_ADDRESS if words is None else words
-
-    def setValues(self, func_code, address, values):
-        table = FC_TABLE.get(func_code)
-        if table is None or not isinstance(values, list) or not values or isinstance(values[0], bool):
-            return ExcCodes.ILLEGAL_FUNCTION
-        if not self.image.write(table, address, values):
-            log.warning("refused a write of %d register(s) at %#06x: not a PLC register", len(values), address)
-            return ExcCodes.ILLEGAL_ADDRESS
-        return None
+# pymodbus reads the registers back after a write with the write's function code: FC6/16 read too
+READ_TABLE = {3: "holding_registers", 4: "input_registers", 6: "holding_registers", 16: "holding_registers",
+              23: "holding_registers"}
+WRITE_TABLE = {6: "holding_registers", 16: "holding_registers", 23: "holding_registers"}
 
 
-class ModbusServerThread:
-    """Serve ``image`` on host:port until `stop`.
+class ModbusServer:
+    """Serve ``image`` over Modbus TCP on host:port, on the running asyncio loop.
 
     Parameters
     ----------
-    image : RegisterImage or None
+    image : ProcessImage
     host, port : where to listen
-    context : ModbusServerContext, optional
-        Serve this context instead of the image (a plain PLC memory for tests and the virtual PLC).
+    on_request : callable (function_code, refused_reason or None) -> None, optional
+        Told of every request (metrics).
     """
 
-    def __init__(self, image: RegisterImage | None, host: str = "127.0.0.1", port: int = 5020,
-                 context: ModbusServerContext | None = None):
+    def __init__(self, image: ProcessImage, host: str = "127.0.0.1", port: int = 5020, on_request=None):
         self.image = image
-        self.context = context
         self.host, self.port = host, port
-        self._loop: asyncio.AbstractEventLoop | None = None
+        self.on_request = on_request or (lambda fc, reason: None)
+        self.errors = RateLimitedLog(log)
         self._server: ModbusTcpServer | None = None
-        self._thread = threading.Thread(target=self._run, name="stiffcomp-modbus", daemon=True)
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # no hex dump per bad frame
 
-    def start(self, timeout: float = 5.0) -> None:
-        self._thread.start()
-        if not self._ready.wait(timeout) or self._error is not None:
-            self.stop()
-            raise PlcError(f"cannot serve Modbus TCP on {self.host}:{self.port}: {self._error}") from self._error
+    def _device(self) -> SimDevice:
+        """One shared register list over the whole address space, so that every request, whatever its
+        table, reaches the action and the image decides (and counts) what is refused. The action knows
+        the table from the function code; coils and discrete inputs (FC1, FC2, FC5, FC15) are refused
+        with ILLEGAL_FUNCTION."""
+        return SimDevice(0, simdata=[SimData(0, count=0x10000, values=0, datatype=DataType.REGISTERS)],
+                         action=self._action)
 
-    def _run(self) -> None:
-        loop = asyncio.new_event_loop()
-        self._loop = loop
-        asyncio.set_event_loop(loop)
+    async def _action(self, function_code: int, start_address: int, address: int, count: int,
+                      registers: list[int], set_values) -> ExcCodes | None:
+        if set_values is not None and function_code in WRITE_TABLE:
+            if not self.image.write(WRITE_TABLE[function_code], address, list(set_values)):
+                return self._refuse(function_code, "write outside the PLC's registers", address, count)
+            self.on_request(function_code, None)
+            return None
+        table = READ_TABLE.get(function_code)
+        if table is None:
+            return self._refuse(function_code, "unsupported function", address, count, ExcCodes.ILLEGAL_FUNCTION)
+        words = self.image.read(table, address, count)
+        if words is None:
+            return self._refuse(function_code, "read outside the map's blocks", address, count)
+        registers[address - start_address: address - start_address + count] = words
+        self.on_request(function_code, None)
+        return None
+
+    def _refuse(self, fc: int, reason: str, address: int, count: int,
+                code: ExcCodes = ExcCodes.ILLEGAL_ADDRESS) -> ExcCodes:
+        self.errors.report("modbus", reason, f"FC{fc} at {address:#06x}+{count}")
+        self.on_request(fc, reason)
+        return code
+
+    async def start(self) -> None:
+        """Bind and serve in the background; PlcError if the address is not available."""
+        self._server = ModbusTcpServer(self._device(), address=(self.host, self.port))
         try:
-            loop.run_until_complete(self._serve())
-        except BaseException as e:  # noqa: BLE001 - reported to start()
-            self._error = e
-            self._ready.set()
-        finally:
-            loop.run_until_complete(loop.shutdown_asyncgens())
-            loop.close()
-
-    async def _serve(self) -> None:
-        context = self.context or ModbusServerContext(devices=ImageDeviceContext(self.image), single=True)
-        self._server = ModbusTcpServer(context, address=(self.host, self.port))
-        await self._server.serve_forever(background=True)
+            await self._server.serve_forever(background=True)
+        except (OSError, RuntimeError) as e:
+            raise PlcError(f"cannot serve Modbus TCP on {self.host}:{self.port}: {e}") from e
         if not self._server.is_active():
-            raise OSError(f"address {self.host}:{self.port} not available")
+            raise PlcError(f"cannot serve Modbus TCP on {self.host}:{self.port}: address not available")
         log.info("Modbus TCP server on %s:%d", self.host, self.port)
-        self._ready.set()
-        self._stopped = asyncio.Event()
-        await self._stopped.wait()
-        await self._server.shutdown()
 
-    def stop(self) -> None:
-        loop = self._loop
-        if loop is not None and self._thread.is_alive() and hasattr(self, "_stopped"):
-            loop.call_soon_threadsafe(self._stopped.set)
-        if self._thread.is_alive():
-            self._thread.join(5.0)
+    async def stop(self) -> None:
+        if self._server is not None:
+            await self._server.shutdown()
+            self._server = None
+
+    @property
+    def clients(self) -> int:
+        """Connected clients (for metrics)."""
+        s = self._server
+        return len(getattr(s, "active_connections", {}) or {}) if s is not None else 0

@@ -4,57 +4,52 @@ Two blocks: ``to_plc`` (service -> PLC, input registers by default) and ``from_p
 holding registers, the only registers a client may write). 32-bit values take two registers, low
 word first (TwinCAT's layout of a DINT/REAL over an ARRAY OF WORD); see docs/register_map.md.
 
+Every register binds a name of the PLC contract (`plc_interface.contract`) to an address; a name
+the contract does not declare is refused, and so is a map that leaves out a required one. ``type``
+defaults to the contract's type; an integer type with a ``scale`` may carry a float value.
+
 `BlockCodec` packs a whole block with one `struct` call, which keeps the per-cycle cost small.
 """
 
 from __future__ import annotations
 
 import math
+import operator
 import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field, ValidationError
 
 from stiffness.errors import StiffnessError
-from stiffness.yamlio import format_validation_error, read_yaml
+from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
+from .contract import REQUIRED, VALUES
 from .errors import RegisterMapError
 
 TYPES = {"uint16": ("H", 1), "int16": ("h", 1), "uint32": ("I", 2), "int32": ("i", 2), "float32": ("f", 2)}
 INT_RANGE = {"H": (0, 0xFFFF), "h": (-0x8000, 0x7FFF), "I": (0, 0xFFFFFFFF), "i": (-0x80000000, 0x7FFFFFFF)}
 TABLES = ("input_registers", "holding_registers")
-REQUIRED = {
-    "to_plc": ["heartbeat", "status_word", "fault_word", "cycle_count", "exceed_count", "last_exec_us",
-               *(f"correction_q{i}" for i in range(1, 7)),
-               *(f"wrench_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")),
-               *(f"deflection_{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz"))],
-    "from_plc": ["command_word", "plc_heartbeat", *(f"q{i}" for i in range(1, 7))],
-}
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class RegisterEntry(_Strict):
+class RegisterEntry(Strict):
     name: str = Field(min_length=1)
     address: int = Field(ge=0, le=0xFFFF)
-    type: Literal["uint16", "int16", "uint32", "int32", "float32"]
+    type: Literal["uint16", "int16", "uint32", "int32", "float32"] | None = None
     unit: str = ""
     scale: float = Field(1.0, gt=0)
     description: str = ""
 
 
-class BlockConfig(_Strict):
+class BlockConfig(Strict):
     table: Literal["input_registers", "holding_registers"]
     start: int = Field(ge=0, le=0xFFFF)
     size: int = Field(ge=1, le=256)
     registers: list[RegisterEntry]
 
 
-class MapConfig(_Strict):
+class MapConfig(Strict):
     word_order: Literal["low_word_first"] = "low_word_first"
     to_plc: BlockConfig
     from_plc: BlockConfig
@@ -104,6 +99,23 @@ class BlockCodec:
         self._struct = struct.Struct(fmt)
         self._words = struct.Struct("<" + "H" * self.words)
         self._scales = [r.scale for r in registers]
+        self._pick = operator.attrgetter(*self.names) if len(self.names) > 1 else (
+            lambda rec: (getattr(rec, self.names[0]),))
+
+    def encode_record(self, record) -> list[int]:
+        """Words for a contract record (`ToPlc`, `FromPlc`): each register takes its value by name."""
+        return self.encode(self._pick(record))
+
+    def record_reader(self, record_type):
+        """A function words -> ``record_type`` (a contract NamedTuple): each field by name from this block.
+
+        Every field of the record must be a register of the block (the contract's required values are)."""
+        missing = [f for f in record_type._fields if f not in self.index]
+        if missing:
+            raise RegisterMapError(f"the block has no register {missing[0]!r} ({record_type.__name__} needs it)")
+        order = [self.index[f] for f in record_type._fields]
+        make, decode = record_type._make, self.decode
+        return lambda words: make(map(decode(words).__getitem__, order))
 
     def encode(self, values: list[float]) -> list[int]:
         """Words for ``values`` given in ``names`` order (integers are scaled, rounded and clamped)."""
@@ -130,8 +142,14 @@ class RegisterMap:
         for direction, block in self.blocks.items():
             regs = sorted(block.registers, key=lambda r: r.address)
             used: dict[int, str] = {}
+            declared = VALUES[direction]
             for k, r in enumerate(block.registers):
                 where = f"{source}: {direction}.registers[{k}] ({r.name})"
+                if r.name not in declared:
+                    raise RegisterMapError(f"{where}: {r.name!r} is not a value the service produces for this "
+                                           f"direction (the contract's {direction} values: {', '.join(declared)})")
+                if r.type is None:
+                    r.type = declared[r.name].type
                 count = TYPES[r.type][1]
                 if not (block.start <= r.address and r.address + count <= block.start + block.size):
                     raise RegisterMapError(f"{where}: address = {r.address:#06x} must lie in "
@@ -142,9 +160,10 @@ class RegisterMap:
                     used[a] = r.name
                 if r.type == "float32" and r.scale != 1.0:
                     raise RegisterMapError(f"{where}: scale = {r.scale:g}: float32 registers take scale 1")
-            for r in regs:
+            for r in regs:      # unit and meaning default to the contract's
+                v = declared[r.name]
                 self.registers.append(Register(r.name, block.table, r.address, r.type, TYPES[r.type][1],
-                                               r.unit, r.scale, direction, r.description))
+                                               r.unit or v.unit, r.scale, direction, r.description or v.meaning))
             names = [r.name for r in block.registers]
             dup = sorted({n for n in names if names.count(n) > 1})
             if dup:

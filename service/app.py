@@ -1,41 +1,46 @@
-"""The service: build every stage from the config, run the cycle thread and the PLC side, stop cleanly.
+"""The service: build every stage from the config, run the cycle and the I/O process, stop cleanly.
+
+Two processes, as TwinCAT separates its real-time task from the ADS router and the Modbus server:
+
+* this process runs the 1 ms cycle (`CyclicTask`) and nothing else while it runs: no server, no
+  notifier thread, no file or socket I/O but the sensor's non-blocking reads; log lines only on state
+  changes;
+* the I/O process (`plc_interface.io_process.IoProcess`) serves Modbus TCP (or the Modbus client
+  role) and ADS on one asyncio loop.
+
+They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
+builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
 
 Start-up validates everything before anything starts: the config, the model (and whether the
-real-time predictor supports all its effects), the register map and the F/T source. Then the PLC
-side starts, then the cycle thread.
+real-time predictor supports all its effects), the register map against the contract and the F/T
+source. Then the I/O process starts, then the cycle.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
-from plc_interface.image import RegisterImage
+from plc_interface.contract import Producer, TaskState, TaskValues, ToPlc, stopped
+from plc_interface.errors import RegisterMapError
+from plc_interface.image import ProcessImage
+from plc_interface.io_server import IoSettings
 from plc_interface.register_map import RegisterMap
 from stiffness.errors import StiffnessError
 from stiffness.model import StiffnessModel
 
 from .config import ServiceConfig
 from .errors import ServiceConfigError
-from .pipeline import ST_STOPPED, Compensator
+from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
 
 log = logging.getLogger("stiffcomp.service")
-
-TASK_INIT, TASK_RUN, TASK_STOP = 0, 1, 2
-# the to_plc values in the order work() produces them
-WORK_ORDER = ["heartbeat", "status_word", "fault_word", "task_state", "cycle_count", "exceed_count",
-              "last_exec_us", "cycle_time_us", "period_jitter_us",
-              *(f"correction_q{i}" for i in range(1, 7)),
-              *(f"wrench_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")),
-              *(f"deflection_{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz"))]
 
 
 class Service:
@@ -53,156 +58,138 @@ class Service:
             self.model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
         except StiffnessError as e:
             raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
-        self.compensator = Compensator.from_config(cfg, self.model)
-        self.rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
-        # the checks that can fail come first; the image (shared memory) and then the source open last
-        names = self.rmap.codecs["to_plc"].names
-        extra = [n for n in names if n not in WORK_ORDER]
-        if extra:       # the map's own check has made sure every required name is there
-            raise ServiceConfigError(f"{self.rmap.source}: to_plc register {extra[0]!r} is not a value the service "
-                                     f"produces (known: {', '.join(WORK_ORDER)})")
-        self._out_index = {n: k for k, n in enumerate(names)}
-        self._out = [0.0] * len(names)
-        self._order = [WORK_ORDER.index(n) for n in names]      # codec order -> work() order
-        in_names = self.rmap.codecs["from_plc"].names
-        self._cmd_idx, self._hb_idx = in_names.index("command_word"), in_names.index("plc_heartbeat")
-        self._q_idx = [in_names.index(f"q{i}") for i in range(1, 7)]
-        self._corr = [self._out_index[f"correction_q{i}"] for i in range(1, 7)]
+        self.cycle = Cycle.from_config(cfg, self.model)
+        try:
+            self.rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
+        except RegisterMapError as e:
+            raise ServiceConfigError(f"{cfg.path}: plc.register_map = {cfg.plc.register_map!r}: {e}") from e
         self.period = cfg.cycle.period_ms / 1000.0
         self.info = TaskInfo(self.period, cfg.cycle.history)
-        self.plc = None
+        self.produce = Producer()
+        self.produce.check(self._task_values(TaskState.INIT), self.cycle.signals())
+        self.io = None
         self.task: CyclicTask | None = None
         self.failed = threading.Event()
-        self.task_state = TASK_INIT
         self._closed = False
-        if cfg.plc.role == "server" and cfg.plc.server_process:
-            from plc_interface.shared_image import SharedRegisterImage
-            self.image = SharedRegisterImage(self.rmap)
-        else:
-            self.image = RegisterImage(self.rmap)
+        self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
+        # the checks that can fail come first; the image (shared memory) and then the source open last
+        self.image = ProcessImage(self.rmap)
         try:
             self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
             self.source = make_source(cfg)
         except BaseException:
-            if hasattr(self.image, "close"):
-                self.image.close()
+            self.image.close()
             raise
-        self._set("cycle_time_us", self.period * 1e6)
+        self.record: ToPlc = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
 
-    def _set(self, name: str, value: float) -> None:
-        k = self._out_index.get(name)
-        if k is not None:
-            self._out[k] = value
+    def _task_values(self, state: TaskState) -> TaskValues:
+        info = self.info
+        n = info.cycle_count + (state == TaskState.RUN)
+        return TaskValues(n & 0xFFFF, int(state), n, info.exceed_count, info.last_exec_s * 1e6, self.period * 1e6,
+                          info.last_jitter_s * 1e6, int(info.last_exceeded))
 
     # -- the cycle ------------------------------------------------------------------------------
-    def work(self, t: float, exceeded: bool) -> None:
-        """One cycle: inputs from the image and the source, the compensator, outputs to the image."""
-        image = self.image
-        vals = image.in_codec.decode(image.inputs())
-        q = [vals[k] for k in self._q_idx]
+    def work(self, t: float, exceeded: bool) -> bool:
+        """One cycle: inputs from the image and the source, the cycle, the record to the image.
+
+        Returns False when a requested stop has ramped the correction to zero (the task then ends)."""
+        inp = self.image.inputs()
         reading, errors = self.source.poll(t)
-        comp = self.compensator
-        comp.cycle(t, reading, errors, int(vals[self._cmd_idx]), int(vals[self._hb_idx]), q, exceeded)
-        info = self.info
-        n = info.cycle_count + 1
-        out = [n & 0xFFFF, comp.status_word, comp.faults.word, TASK_RUN, n, info.exceed_count,
-               info.last_exec_s * 1e6, self.period * 1e6, info.last_jitter_s * 1e6,
-               *comp.correction, *comp.wrench_base, *comp.deflection]
-        self._out = ordered = [out[k] for k in self._order]
-        image.publish(image.out_codec.encode(ordered))
+        cyc = self.cycle
+        if self.task is not None and self.task.stop_requested and not cyc.stopping:
+            self._begin_stop(t)
+        cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat),
+                 [inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6], exceeded)
+        self.record = record = self.produce(self._task_values(TaskState.RUN), cyc.signals())
+        if cyc.stopping and self._stop_done(t):
+            self.record = record = stopped(record)
+            self.image.publish(record, time.time_ns())
+            return False
+        self.image.publish(record, time.time_ns())
+        return True
+
+    def _begin_stop(self, t: float) -> None:
+        """Ramp to zero (it never jumps, even on stop), bounded in cycles and loosely in time: the ramp ends
+        after about fault_ramp_s / period cycles (a step counts at most two periods, see CorrectionLimiter);
+        the caps allow twice that, and a loaded host that skips deadlines."""
+        self.cycle.stopping = True
+        ramp_s = self.cfg.limits.fault_ramp_s
+        self._stop_at = (self.info.cycle_count + 2 * int(ramp_s / self.period) + 10, t + 5 * ramp_s + 1.0)
+
+    def _stop_done(self, t: float) -> bool:
+        correction = self.cycle.correction
+        if not any(v != 0.0 for v in correction):
+            return True
+        last_cycle, last_t = self._stop_at
+        if self.info.cycle_count > last_cycle or t > last_t:
+            log.warning("the correction did not reach zero within fault_ramp_s on stop: %s deg",
+                        np.array2string(np.array(correction), precision=4))
+            return True
+        return False
 
     def _on_error(self, e: BaseException) -> None:
         log.critical("the cycle stopped on an unexpected error: %r; outputs are zeroed", e)
-        self.compensator.correction = [0.0] * 6
-        for k in self._corr:
-            self._out[k] = 0.0
-        self._set("status_word", ST_STOPPED)
-        self.image.publish(self.image.out_codec.encode(self._out))
+        self.cycle.compensator.correction = [0.0] * 6
+        self.record = stopped(self.record)._replace(task_state=self.record.task_state)
+        self.image.publish(self.record, time.time_ns())
         self.failed.set()
 
     # -- life cycle -----------------------------------------------------------------------------
+    def io_settings(self) -> IoSettings | None:
+        """What the I/O process serves, or None when there is nothing to serve."""
+        cfg = self.cfg
+        if cfg.plc.role == "none":
+            return None
+        return IoSettings(plc=cfg.plc, avoid_cpu=cfg.cycle.cpu)
+
     def start(self) -> None:
-        self._set("task_state", TASK_INIT)
-        self.image.publish(self.image.out_codec.encode(self._out))
-        if self.cfg.plc.role == "server" and self.cfg.plc.server_process:
-            from plc_interface.modbus_process import ModbusServerProcess
-            self.plc = ModbusServerProcess(self.image, self.cfg.plc.host, self.cfg.plc.port,
-                                           avoid_cpu=self.cfg.cycle.cpu)
-        elif self.cfg.plc.role == "server":
-            from plc_interface.modbus_server import ModbusServerThread
-            self.plc = ModbusServerThread(self.image, self.cfg.plc.host, self.cfg.plc.port)
-        elif self.cfg.plc.role == "client":
-            from plc_interface.modbus_client import ModbusClientThread
-            c = self.cfg.plc.client
-            self.plc = ModbusClientThread(self.image, self.cfg.plc.host, self.cfg.plc.port, self.cfg.plc.device_id,
-                                          c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
-                                          c.read_start)
-        try:
-            if self.plc is not None:
-                self.plc.start()
-        except BaseException:
-            self.plc = None         # it cleaned up after itself
-            self.stop()             # frees the image and the source
-            raise
-        # The Modbus thread shares the interpreter lock: a short switch interval bounds how long the
-        # cycle waits for it after waking up, and stays longer than the cycle's work (so the work
-        # itself is not interrupted by a forced switch).
-        self._switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(self.cfg.cycle.gil_switch_interval_us * 1e-6)
+        self.image.publish(self.record, time.time_ns())
+        settings = self.io_settings()
+        if settings is not None:
+            from plc_interface.io_process import IoProcess
+
+            self.io = IoProcess(self.image, settings)
+            try:
+                self.io.start()
+            except BaseException:
+                self.io = None          # it cleaned up after itself
+                self.stop()             # frees the image and the source
+                raise
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6)
         self.task.start()
-        self.task_state = TASK_RUN
+        p = self.cfg.plc
         log.info("service running: %.3f ms cycle, source %s, PLC %s", self.period * 1000, self.cfg.source.type,
-                 self.cfg.plc.role if self.plc is None else f"{self.cfg.plc.role} {self.cfg.plc.host}:{self.cfg.plc.port}")
+                 p.role if self.io is None else f"{p.role} {p.host}:{p.port} (I/O process)")
 
     def stop(self) -> None:
-        """Ramp the correction to zero, stop the cycle, publish the stopped state, then stop the PLC side.
+        """Ask the cycle to ramp the correction to zero and end, publish the stopped state, stop the I/O.
 
         Safe to call more than once, and after a failed `start`."""
         if self._closed:
             return
         self._closed = True
-        if self.task is not None:
-            self._ramp_down()
-            self.task.stop()
-            sys.setswitchinterval(self._switch_interval)
-        for k in self._corr:
-            self._out[k] = 0.0
-        self._set("status_word", ST_STOPPED)
-        self._set("task_state", TASK_STOP)
-        self.image.publish(self.image.out_codec.encode(self._out))
-        self.task_state = TASK_STOP
-        if self.plc is not None:
-            self.plc.stop()
-        if hasattr(self.image, "close"):
-            self.image.close()
+        task = self.task
+        if task is not None and task.running:
+            task.request_stop()
+            if not task.join(5 * self.cfg.limits.fault_ramp_s + 5.0):
+                log.error("the cycle did not end after the stop request")
+        if self.task_state != TaskState.STOP:      # a cycle that never ran or died still leaves the stopped state
+            self.record = stopped(self.record)
+            self.image.publish(self.record, time.time_ns())
+        if self.io is not None:
+            self.io.stop()
+        self.image.close()
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
 
-    def _ramp_down(self) -> None:
-        """Keep cycling in the safe state until the correction is zero (it never jumps, even on stop).
-
-        Bounded by ``limits.fault_ramp_s`` plus a few periods (in cycles); a cycle that died cannot ramp (the PLC
-        supervises status bit 6 and the heartbeat for that case, see docs/register_map.md).
-        """
-        comp, task, info = self.compensator, self.task, self.info
-        comp.stopping = True
-        ramp_s = self.cfg.limits.fault_ramp_s
-        # the ramp ends after about ramp_s / period cycles (a cycle's step counts at most two periods,
-        # see CorrectionLimiter); the caps allow twice that, and a loaded host that skips deadlines
-        last_cycle = info.cycle_count + 2 * int(ramp_s / self.period) + 10
-        deadline = time.monotonic() + 5 * ramp_s + 1.0
-        while task.running and any(v != 0.0 for v in comp.correction):
-            if info.cycle_count > last_cycle or time.monotonic() > deadline:
-                log.warning("the correction did not reach zero within fault_ramp_s on stop: %s deg",
-                            np.array2string(np.array(comp.correction), precision=4))
-                break
-            time.sleep(self.period)
+    @property
+    def task_state(self) -> TaskState:
+        return TaskState(int(self.record.task_state))
 
     def log_stats(self) -> None:
         s = self.info.stats()
-        c = self.compensator
+        c = self.cycle
         log.info("task: cycles %d, exceed %d, exec p50/p99/max %.1f/%.1f/%.1f us, jitter p99.9 %.1f us; "
                  "faults [%s]; correction %s deg", s["cycles"], s["exceed_count"], s["exec_us"]["p50"],
                  s["exec_us"]["p99"], s["exec_us"]["max"], s["period_jitter_us"]["p999"],
@@ -210,6 +197,6 @@ class Service:
 
     def write_stats(self, path: str | Path) -> dict:
         stats = self.info.stats()
-        stats["status"] = "stopped" if self.task_state == TASK_STOP else "running"
+        stats["status"] = "stopped" if self.task_state == TaskState.STOP else "running"
         Path(path).write_text(json.dumps(stats, indent=2) + "\n")
         return stats

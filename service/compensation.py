@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import lapack
 
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.model import StiffnessModel
+from stiffness.spatial import damped_pinv_solve
 
 from .errors import ModelUnsupportedError
 
@@ -107,14 +107,13 @@ class FastPredictor:
         self.spring_ids = [self.pm.getFrameId(n) for n in ("A1", "A2", "A3", "A4", "A5")]
         self.tcp_id = self.pm.getFrameId("TCP")
         self.sensor_id = self.pm.getFrameId("sensor")
-        self.lam2 = float(damping) ** 2
+        self.lam = float(damping)
         self.iterations = int(refinement_iterations)
         self.Ad = np.empty((6, 6, 6))
         self.Ad[0] = np.eye(6)                  # joint 1's spring sits in the base frame
         self._w = np.empty(6)
         self.J = np.zeros((6, 6))
         self.J_pinv = np.zeros((6, 6))
-        self._eye = np.eye(6)
         self.R_s = np.eye(3).tolist()
         self.p_s = [0.0, 0.0, 0.0]
         self.T_tcp = np.eye(4)
@@ -131,9 +130,7 @@ class FastPredictor:
         pin.computeJointJacobians(pm, pd, q_rad)
         pin.updateFramePlacements(pm, pd)
         self.J = J = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
-        A = J @ J.T
-        A.flat[::7] += self.lam2
-        self.J_pinv = J.T @ lapack.dgesv(A, self._eye)[2]       # J^T (J J^T + λ² I)^-1
+        self.J_pinv = damped_pinv_solve(J, self.lam)
         oMf, Ad = pd.oMf, self.Ad
         for k, fid in enumerate(self.spring_ids):
             Ad[k + 1] = oMf[fid].action
@@ -164,11 +161,6 @@ class FastPredictor:
         tx, ty, tz = self.p_tcp
         return np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
 
-    def _pinv_apply(self, J: np.ndarray, e: np.ndarray) -> np.ndarray:
-        A = J @ J.T
-        A.flat[::7] += self.lam2
-        return J.T @ lapack.dgesv(A, e)[2]
-
     def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:
         """δq (rad) that moves the unloaded TCP by -dX (m, rad); `kinematics(q_rad)` must have run."""
         dq = -(self.J_pinv @ dX)
@@ -184,20 +176,7 @@ class FastPredictor:
                 Tk = pd.oMf[self.tcp_id]
                 e = np.concatenate([p_target - Tk.translation, pin.log3(R_target @ Tk.rotation.T)])
                 Jk = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
-                dq = dq + self._pinv_apply(Jk, e)
+                dq = dq + damped_pinv_solve(Jk, self.lam, e)
             # pd now holds the frames of q + δq; nothing reads pd between cycles (kinematics() keeps
             # its own copies of J, the adjoints and the poses), so there is nothing to restore
         return dq
-
-    def tcp_pose(self, q_rad: np.ndarray) -> np.ndarray:
-        """The TCP's base pose (4x4) at ``q_rad``."""
-        pin.framesForwardKinematics(self.pm, self.pd, q_rad)
-        return self.pd.oMf[self.tcp_id].homogeneous
-
-    def pose_error(self, q_rad: np.ndarray, dq: np.ndarray, dX: np.ndarray) -> float:
-        """Distance (m + rad) of the TCP at q + δq from the unloaded TCP at q moved by -dX."""
-        T0 = self.tcp_pose(q_rad)
-        Tk = self.tcp_pose(q_rad + dq)
-        dp = Tk[:3, 3] - (T0[:3, 3] - dX[:3])
-        dr = pin.log3(Tk[:3, :3] @ (pin.exp3(-dX[3:]) @ T0[:3, :3]).T)
-        return float(np.linalg.norm(dp) + np.linalg.norm(dr))

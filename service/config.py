@@ -14,19 +14,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
+from plc_interface.settings import PlcSettings
 from stiffness.errors import StiffnessError
-from stiffness.yamlio import format_validation_error, read_yaml
+from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
 from .errors import ServiceConfigError
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.yaml"
 
-
-class _Strict(BaseModel):
-    # inf and NaN are refused everywhere: an infinite limit would silently disable it
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _six_or_one(v: float | list[float]) -> list[float]:
@@ -38,23 +35,22 @@ def _six_or_one(v: float | list[float]) -> list[float]:
     return vals
 
 
-class CycleConfig(_Strict):
+class CycleConfig(Strict):
     period_ms: float = Field(1.0, ge=0.1, le=100.0)
     stats_log_interval_s: float = Field(10.0, ge=0.0)
     history: int = Field(600_000, ge=1000, le=10_000_000)
     realtime_priority: int = Field(0, ge=0, le=99)
     cpu: int | None = Field(None, ge=0, le=1023)
-    gil_switch_interval_us: float = Field(200.0, ge=20.0, le=5000.0)
     spin_us: float = Field(0.0, ge=0.0, le=1000.0)
 
 
-class ModelConfig(_Strict):
+class ModelConfig(Strict):
     file: str
     refinement_iterations: int = Field(0, ge=0, le=10)
     damping: float = Field(1e-3, ge=0.0, le=1.0)
 
 
-class AtiConfig(_Strict):
+class AtiConfig(Strict):
     base_id: int = Field(0x020, ge=0, le=0x7F0)
     counts_per_force: float = Field(10.0, gt=0)
     counts_per_torque: float = Field(100.0, gt=0)
@@ -62,7 +58,7 @@ class AtiConfig(_Strict):
     dbc: str = "ati_netft_can.dbc"
 
 
-class CanConfig(_Strict):
+class CanConfig(Strict):
     interface: str = "virtual"
     channel: str = "ati0"
     bitrate: int | None = Field(1_000_000, gt=0)
@@ -70,13 +66,13 @@ class CanConfig(_Strict):
     options: dict[str, str | int | float | bool] = Field(default_factory=dict)
 
 
-class ReplayConfig(_Strict):
+class ReplayConfig(Strict):
     file: str
     pacing: Literal["realtime", "fast"] = "realtime"
     loop: bool = True
 
 
-class SourceConfig(_Strict):
+class SourceConfig(Strict):
     type: Literal["replay", "can"] = "replay"
     ati: AtiConfig = Field(default_factory=AtiConfig)
     can: CanConfig = Field(default_factory=CanConfig)
@@ -91,25 +87,25 @@ class SourceConfig(_Strict):
         return self
 
 
-class SpikeConfig(_Strict):
+class SpikeConfig(Strict):
     max_step_N: float = Field(300.0, gt=0)
     max_step_Nm: float = Field(30.0, gt=0)
     max_held: int = Field(3, ge=0, le=100)
 
 
-class FilterConfig(_Strict):
+class FilterConfig(Strict):
     type: Literal["butterworth", "bessel", "none"] = "butterworth"
     order: int = Field(2, ge=1, le=8)
     cutoff_hz: float = Field(100.0, gt=0)
     spike: SpikeConfig = Field(default_factory=SpikeConfig)
 
 
-class BodyConfig(_Strict):
+class BodyConfig(Strict):
     mass_kg: float = Field(0.0, ge=0.0, le=1000.0)
     cog_mm: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
 
 
-class GravityConfig(_Strict):
+class GravityConfig(Strict):
     g_mps2: list[float] = Field(default_factory=lambda: [0.0, 0.0, -9.81], min_length=3, max_length=3)
     sensor: BodyConfig = Field(default_factory=BodyConfig)
     tool: BodyConfig = Field(default_factory=BodyConfig)
@@ -118,7 +114,7 @@ class GravityConfig(_Strict):
     bias: list[float] = Field(default_factory=lambda: [0.0] * 6, min_length=6, max_length=6)
 
 
-class LimitsConfig(_Strict):
+class LimitsConfig(Strict):
     max_correction_deg: float | list[float] = 0.5
     max_rate_deg_s: float | list[float] = 5.0
     fault_ramp_s: float = Field(0.2, gt=0.0, le=10.0)
@@ -126,34 +122,15 @@ class LimitsConfig(_Strict):
     _check = field_validator("max_correction_deg", "max_rate_deg_s")(_six_or_one)
 
 
-class FaultsConfig(_Strict):
+class FaultsConfig(Strict):
     sensor_timeout_ms: float = Field(10.0, gt=0)
     plc_heartbeat_timeout_ms: float = Field(200.0, ge=0)
     overrun_trip_count: int = Field(10, ge=1, le=1000)
 
 
-class PlcClientConfig(_Strict):
-    period_ms: float = Field(10.0, ge=1.0)
-    timeout_s: float = Field(1.0, gt=0)
-    write_start: int = Field(0x3000, ge=0, le=0xFFFF)
-    read_table: Literal["input_registers", "holding_registers"] = "input_registers"
-    read_start: int = Field(0x8000, ge=0, le=0xFFFF)
 
 
-class PlcConfig(_Strict):
-    role: Literal["server", "client", "none"] = "server"
-    host: str = "127.0.0.1"
-    port: int = Field(5020, ge=1, le=65535)
-    device_id: int = Field(1, ge=0, le=247)
-    register_map: str = "registers.yaml"
-    initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
-                                       min_length=6, max_length=6)
-    enable_on_start: bool = False
-    server_process: bool = False
-    client: PlcClientConfig = Field(default_factory=PlcClientConfig)
-
-
-class ServiceConfig(_Strict):
+class ServiceConfig(Strict):
     cycle: CycleConfig = Field(default_factory=CycleConfig)
     model: ModelConfig
     source: SourceConfig
@@ -161,7 +138,7 @@ class ServiceConfig(_Strict):
     gravity: GravityConfig = Field(default_factory=GravityConfig)
     limits: LimitsConfig = Field(default_factory=LimitsConfig)
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
-    plc: PlcConfig = Field(default_factory=PlcConfig)
+    plc: PlcSettings = Field(default_factory=PlcSettings)
 
     # set by load_config: where the file was, for relative paths and messages
     path: Path = Field(default=Path("<config>"), exclude=True)

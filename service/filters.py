@@ -33,15 +33,14 @@ class SosLowPass:
 
     @classmethod
     def design(cls, kind: str, order: int, cutoff_hz: float, rate_hz: float) -> SosLowPass:
+        """A low-pass from scipy.signal.iirfilter ("butterworth" or "bessel", phase-normalised), or a
+        pass-through for "none"."""
         if kind == "none":
             return cls(np.array([[1.0, 0, 0, 1.0, 0, 0]]))
-        if kind == "butterworth":
-            sos = signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos")
-        elif kind == "bessel":
-            sos = signal.bessel(order, cutoff_hz, btype="low", fs=rate_hz, output="sos", norm="phase")
-        else:
+        ftype = {"butterworth": "butter", "bessel": "bessel"}.get(kind)
+        if ftype is None:
             raise ValueError(f"unknown filter type {kind!r}")
-        return cls(sos)
+        return cls(signal.iirfilter(order, cutoff_hz, btype="low", ftype=ftype, fs=rate_hz, output="sos"))
 
     @classmethod
     def from_config(cls, section, period_s: float) -> SosLowPass:
@@ -105,9 +104,6 @@ class SpikeRejector:
     @classmethod
     def from_config(cls, section) -> SpikeRejector:
         return cls([section.max_step_N] * 3 + [section.max_step_Nm] * 3, section.max_held)
-
-    def reset(self) -> None:
-        self.last, self.held = None, 0
 
     def update(self, x: list[float]) -> list[float]:
         """The accepted value for sample ``x`` (six floats)."""

@@ -1,4 +1,4 @@
-"""Gravity compensation of the sensor wrench, and the payload identification behind `stiffcomp payload`.
+"""Gravity compensation of the sensor wrench (the real-time part; `service.payload` identifies the payload).
 
 A static payload of mass m with centre of gravity c (sensor frame) loads the sensor with
 
@@ -12,24 +12,14 @@ sensor reads W = W_ext + [F_g; T_g] + b, with b its bias, so the external wrench
 The bodies (sensor, tool, fixture, workpiece) combine into one mass and one centre of gravity. Tare
 adds the current external wrench to the bias, so the load at that moment reads zero.
 
-Identification: for poses k with orientation R_k and readings W_k, with g_k = R_k^T g,
-
-    F_k = m g_k + b_F,    T_k = -[g_k]x (m c) + b_T
-
-is linear in (m, m c, b_F, b_T); `identify_payload` solves it by least squares.
+The offline identification of m, c and b from static poses is `service.payload`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 BODIES = ("sensor", "tool", "fixture", "workpiece")
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 class GravityCompensator:
@@ -93,49 +83,3 @@ class GravityCompensator:
     @cog.setter
     def cog(self, value) -> None:
         self._cog = [float(v) for v in value]
-
-
-@dataclass
-class PayloadFit:
-    """Result of `identify_payload`; ``ok`` is False when the poses do not determine the payload."""
-
-    mass_kg: float
-    cog_m: np.ndarray
-    bias: np.ndarray
-    residual_rms: np.ndarray      # (6,) per channel
-    rank: int
-    ok: bool
-    message: str
-
-
-def identify_payload(R_sensor: np.ndarray, wrench: np.ndarray, g: np.ndarray | None = None) -> PayloadFit:
-    """Least-squares mass, centre of gravity and bias from static readings.
-
-    Parameters
-    ----------
-    R_sensor : (K, 3, 3) sensor orientations in the base
-    wrench : (K, 6) static readings (no external load), N and Nm
-    g : (3,) gravity in base axes, m/s^2 (default [0, 0, -9.81])
-
-    The poses must turn the sensor so that gravity points along at least three independent
-    directions in the sensor frame; otherwise ``ok`` is False and the message says so.
-    """
-    g = np.array([0.0, 0.0, -9.81]) if g is None else np.asarray(g, dtype=float)
-    K = len(wrench)
-    A = np.zeros((6 * K, 10))
-    for k in range(K):
-        gk = R_sensor[k].T @ g
-        A[6 * k:6 * k + 3, 0] = gk
-        A[6 * k:6 * k + 3, 4:7] = np.eye(3)
-        A[6 * k + 3:6 * k + 6, 1:4] = -_skew(gk)
-        A[6 * k + 3:6 * k + 6, 7:10] = np.eye(3)
-    y = np.asarray(wrench, dtype=float).reshape(-1)
-    x, _, rank, _ = np.linalg.lstsq(A, y, rcond=None)
-    res = (y - A @ x).reshape(K, 6)
-    rms = np.sqrt((res ** 2).mean(0))
-    m = float(x[0])
-    cog = x[1:4] / m if abs(m) > 1e-9 else np.zeros(3)
-    ok = rank == 10
-    msg = "ok" if ok else (f"the {K} poses determine only {rank} of 10 parameters: turn the sensor so that "
-                           "gravity points along three independent directions")
-    return PayloadFit(m, cog, x[4:10], rms, int(rank), ok, msg)

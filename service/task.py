@@ -1,9 +1,15 @@
-"""The cyclic task: absolute deadlines, TwinCAT-style task info, and the statistics of a run.
+"""The cyclic task: absolute deadlines, TwinCAT-style task info, the statistics of a run, and stop.
 
-The loop sleeps until ``due`` and then advances ``due += period``; it never sleeps a fixed period, so
-the work time does not accumulate into drift. A cycle *exceeds* (TwinCAT's exceed counter) when it
-ends after the next cycle's deadline; the deadlines it skipped are counted in ``exceed_count`` too.
-The work function receives the time (s since start) and whether the previous cycle exceeded.
+The loop runs on `plc_interface.deadlines.Deadlines` (the project's one schedule and its one catch-up
+rule: a cycle that ends after the next deadline has exceeded, and the deadlines it skipped count as
+exceeded too). The work function receives the time (s since start) and whether the previous cycle
+exceeded.
+
+Stop is a request the cycle handles: `CyclicTask.request_stop` sets a flag the work function reads
+(``stop_requested``). A work function that handles stop itself (the service ramps the correction to
+zero in its own cycles) returns True while it goes on and False when it is done; a plain work function
+returns None and the task ends at the first cycle after the request. Nothing polls the cycle from
+another thread.
 """
 
 from __future__ import annotations
@@ -16,6 +22,8 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+
+from plc_interface.deadlines import Deadlines
 
 log = logging.getLogger("stiffcomp.task")
 
@@ -32,6 +40,7 @@ class TaskInfo:
         self.exceed_count = 0
         self.last_exec_s = 0.0
         self.last_jitter_s = 0.0
+        self.last_exceeded = False
         self.max_exec_s = 0.0
         self.max_jitter_s = 0.0
         self._exec = np.zeros(history)
@@ -65,13 +74,14 @@ class TaskInfo:
 
 
 class CyclicTask:
-    """Run ``work(t, exceeded)`` every ``period_s`` in its own thread, on absolute deadlines.
+    """Run ``work(t, exceeded) -> bool`` every ``period_s`` in its own thread, on absolute deadlines.
 
     Parameters
     ----------
     period_s : float
-    work : callable (t: float, exceeded: bool) -> None
-        t is the cycle's start time in s since the task started.
+    work : callable (t: float, exceeded: bool) -> bool or None
+        t is the cycle's start time in s since the task started; False ends the task, True goes on even
+        after a stop request, None goes on until a stop request.
     info : TaskInfo
     on_error : callable (BaseException) -> None
         The policy for an exception escaping ``work``: the task stops after calling it.
@@ -80,12 +90,12 @@ class CyclicTask:
     cpu : int or None
         Pin the cycle thread to this CPU.
     spin_s : float
-        Sleep until ``spin_s`` before the deadline, then poll the clock (yielding the interpreter lock
-        with sleep(0)). On virtual machines a core that never idles wakes with warm caches: the work
-        is faster and less often preempted, at the price of that fraction of a core.
+        Sleep until ``spin_s`` before the deadline, then poll the clock (yielding with sleep(0)). On
+        virtual machines a core that never idles wakes with warm caches, at the price of that fraction
+        of a core.
     """
 
-    def __init__(self, period_s: float, work: Callable[[float, bool], None], info: TaskInfo,
+    def __init__(self, period_s: float, work: Callable[[float, bool], bool | None], info: TaskInfo,
                  on_error: Callable[[BaseException], None], realtime_priority: int = 0,
                  clock: Callable[[], float] = time.perf_counter, cpu: int | None = None, spin_s: float = 0.0):
         self.period = float(period_s)
@@ -96,17 +106,27 @@ class CyclicTask:
         self.cpu = cpu
         self.spin = float(spin_s)
         self.clock = clock
-        self._stop = threading.Event()
+        self.stop_requested = False
+        self.stopped = threading.Event()
         self._thread = threading.Thread(target=self._run, name="stiffcomp-cycle", daemon=True)
         self.error: BaseException | None = None
 
     def start(self) -> None:
         self._thread.start()
 
-    def stop(self, timeout: float = 2.0) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout)
+    def request_stop(self) -> None:
+        """Ask the cycle to finish (it reads ``stop_requested``); returns at once."""
+        self.stop_requested = True
+
+    def stop(self, timeout: float = 5.0) -> bool:
+        """Request the stop and wait for the task to end; True if it did."""
+        self.request_stop()
+        return self.join(timeout)
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait for the task to end; True if it did."""
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
 
     @property
     def running(self) -> bool:
@@ -130,34 +150,25 @@ class CyclicTask:
         self._set_priority()
         gc.collect()
         gc.freeze()              # objects made at start-up never get scanned again
-        period, clock, info, work, spin = self.period, self.clock, self.info, self.work, self.spin
-        sleep, stop = time.sleep, self._stop.is_set
-        t0 = clock()
-        due = t0
+        clock, info, work, spin = self.clock, self.info, self.work, self.spin
+        deadlines = Deadlines(self.period, clock=clock)
+        t0 = deadlines.due
         prev_start: float | None = None
         exceeded = False
         try:
-            while not stop():
-                now = clock()
-                if due - spin > now:
-                    sleep(due - spin - now)
-                while clock() < due:
-                    sleep(0)
+            go_on: bool | None = None
+            while go_on is True or (go_on is None and not self.stop_requested):
+                deadlines.sleep_until(spin)
                 start = clock()
-                work(start - t0, exceeded)
+                go_on = work(start - t0, exceeded)
                 end = clock()
-                info.record(end - start, None if prev_start is None else abs(start - prev_start - period))
+                info.record(end - start, None if prev_start is None else abs(start - prev_start - self.period))
                 prev_start = start
-                due += period
-                exceeded = end > due
-                if exceeded:
-                    info.exceed_count += 1
-                    missed = int((end - due) // period)
-                    if missed:                  # skip the deadlines already past; count them
-                        info.exceed_count += missed
-                        due += missed * period
+                exceeded = info.last_exceeded = deadlines.advance(end)
+                info.exceed_count = deadlines.exceeded
         except BaseException as e:  # noqa: BLE001 - handed to the explicit policy below
             self.error = e
             self.on_error(e)
         finally:
             gc.unfreeze()
+            self.stopped.set()

@@ -14,18 +14,15 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from .errors import ConfigError
 from .spatial import rpy_matrix, transform
-from .yamlio import read_yaml, validate
+from .yamlio import Strict, read_yaml, validate
 
 N_JOINTS = 6
 BODIES = ("A1", "A2", "A3", "A4", "A5", "A6", "TCP")
 
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
 
 def _six(v: list[float]) -> list[float]:
@@ -34,7 +31,7 @@ def _six(v: list[float]) -> list[float]:
     return v
 
 
-class DHConfig(_Strict):
+class DHConfig(Strict):
     a_mm: list[float]
     alpha_deg: list[float]
     d_mm: list[float]
@@ -43,7 +40,7 @@ class DHConfig(_Strict):
     _check = field_validator("a_mm", "alpha_deg", "d_mm", "offset_deg")(_six)
 
 
-class PoseConfig(_Strict):
+class PoseConfig(Strict):
     xyz_mm: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
     rpy_deg: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
 
@@ -55,7 +52,7 @@ class SensorConfig(PoseConfig):
     frame: int = Field(6, ge=0, le=6, description="DH frame the sensor is mounted on")
 
 
-class RobotConfig(_Strict):
+class RobotConfig(Strict):
     name: str = "robot"
     dh: DHConfig
     joint_limits_deg: list[tuple[float, float]]

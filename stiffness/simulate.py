@@ -29,36 +29,33 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from .errors import ConfigError
 from .measurements import Dataset
 from .model import StiffnessModel
 from .robot import BODIES, N_JOINTS, Robot
 from .spatial import transform, transport_wrench
-from .yamlio import read_yaml, validate
+from .yamlio import Strict, read_yaml, validate
 
 AXES = ("x", "y", "z")
 MAX_ROWS = 5_000_000  # refuse campaigns that would not fit in memory comfortably
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
-
-class ConfigurationSpec(_Strict):
+class ConfigurationSpec(Strict):
     name: str = Field(min_length=1)
     q_deg: list[float] = Field(min_length=N_JOINTS, max_length=N_JOINTS)
 
 
-class RandomConfigurations(_Strict):
+class RandomConfigurations(Strict):
     count: int = Field(ge=1, le=10_000)
     seed: int | None = Field(None, description="defaults to the campaign's seed")
     margin_deg: float = Field(5.0, ge=0.0, description="stay this far inside every joint limit")
     prefix: str = Field("C", min_length=1)
 
 
-class LoadSpec(_Strict):
+class LoadSpec(Strict):
     axes: list[Literal["x", "y", "z"]] = Field(default_factory=lambda: list(AXES), min_length=1)
     max_N: float = Field(1200.0, gt=0.0, le=1e6)
     step_N: float = Field(300.0, gt=0.0)
@@ -80,7 +77,7 @@ class LoadSpec(_Strict):
         return np.concatenate([[0.0], half, [0.0], -half, [0.0]])
 
 
-class ReadingSpec(_Strict):
+class ReadingSpec(Strict):
     repeats: int = Field(3, ge=1, le=1000)
     interval_s: float = Field(4.0, gt=0.0)
     settle_s: float = Field(8.0, ge=0.0)
@@ -88,14 +85,14 @@ class ReadingSpec(_Strict):
     start_s: float = 0.0
 
 
-class NoiseSpec(_Strict):
+class NoiseSpec(Strict):
     position_mm: float = Field(0.03, ge=0.0, le=10.0)
     rotation_deg: float = Field(0.002, ge=0.0, le=1.0)
     force_N: float = Field(2.0, ge=0.0, le=1000.0)
     moment_Nm: float = Field(0.5, ge=0.0, le=1000.0)
 
 
-class CampaignSpec(_Strict):
+class CampaignSpec(Strict):
     """The campaign YAML, validated; unknown keys are rejected."""
 
     name: str = "campaign"

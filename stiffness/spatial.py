@@ -7,6 +7,7 @@ caller uses consistently (the model core uses metres, radians, newtons and newto
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import lapack
 from scipy.spatial.transform import Rotation
 
 
@@ -92,3 +93,22 @@ def transport_wrench(W_i: np.ndarray, T_0i: np.ndarray, T_0j: np.ndarray) -> np.
     R_ji = np.swapaxes(T_ij[..., :3, :3], -1, -2)
     A = wrench_action_matrix(R_ji, T_ij[..., :3, 3])
     return np.einsum("...ab,...b->...a", A, W_i)
+
+
+def damped_pinv_solve(J: np.ndarray, lam: float, rhs: np.ndarray | None = None) -> np.ndarray:
+    """The damped least-squares step J^T (J J^T + λ² I)^-1 rhs (rhs = I: the damped pseudo-inverse itself).
+
+    Parameters
+    ----------
+    J : (m, n) Jacobian
+    lam : float
+        λ, in the units of J's rows (m or rad); it bounds the step near singularities and is
+        invisible (≪ the smallest singular value) away from them.
+    rhs : (m,) or (m, k), optional
+
+    One implementation for the service's correction and the HIL's inverse kinematics.
+    """
+    A = J @ J.T
+    A.flat[:: A.shape[0] + 1] += lam * lam
+    b = np.eye(A.shape[0]) if rhs is None else rhs
+    return J.T @ lapack.dgesv(A, b)[2]

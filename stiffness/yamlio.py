@@ -6,11 +6,18 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)
+
+
+class Strict(BaseModel):
+    """The base of every YAML schema: unknown keys are refused (a typo must not fall back to a default),
+    and so are inf and NaN (an infinite limit would silently disable it)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
@@ -51,3 +58,14 @@ def validate(model: type[M], data: dict[str, Any], source: str, prefix: str = ""
         return model.model_validate(data)
     except ValidationError as e:
         raise ConfigError(format_validation_error(source, e, prefix)) from e
+
+
+def deep_update(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """Merge ``over`` into ``base`` at every depth (a nested mapping is merged, anything else replaced);
+    the one way configs are overridden (tests, HIL runs, benchmarks). Returns ``base``."""
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(base.get(k), dict):
+            deep_update(base[k], v)
+        else:
+            base[k] = v
+    return base

@@ -45,14 +45,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 def user_errors() -> tuple[type[BaseException], ...]:
-    """Exception types that mean bad input, reported without a traceback."""
-    errors: list[type[BaseException]] = [StiffnessError]
-    try:
-        from service.errors import ServiceError  # the service may not be installed in a trimmed build
-        errors.append(ServiceError)
-    except ImportError:
-        pass
-    return tuple(errors)
+    """The roots of the error trees that mean bad input, reported in one line without a traceback."""
+    from hil.run import HilError
+    from plc_interface.errors import PlcError
+    from service.errors import ServiceError
+
+    return (StiffnessError, ServiceError, PlcError, HilError)
 
 
 def main(argv: list[str] | None = None) -> int:

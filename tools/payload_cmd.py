@@ -8,18 +8,13 @@ frame. Prints the result as a ``gravity`` section for config/default.yaml (or JS
 
 from __future__ import annotations
 
-import csv
 import json
-from pathlib import Path
 
 import numpy as np
 
 from service.config import DEFAULT_CONFIG, load_config
-from service.errors import ServiceConfigError
-from service.gravity import identify_payload
+from service.payload import identify_payload, read_poses
 from stiffness.model import StiffnessModel
-
-COLUMNS = [f"q{i}_deg" for i in range(1, 7)] + ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
 
 
 def register(sub) -> None:
@@ -28,29 +23,6 @@ def register(sub) -> None:
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (robot and gravity vector)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a YAML snippet")
     p.set_defaults(func=run)
-
-
-def read_poses(path: str) -> np.ndarray:
-    p = Path(path)
-    if not p.exists():
-        raise ServiceConfigError(f"{path}: poses file not found")
-    with open(p, newline="") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
-        if missing:
-            raise ServiceConfigError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            try:
-                vals = [float(row[c]) for c in COLUMNS]
-            except (TypeError, ValueError):
-                raise ServiceConfigError(f"{path}: line {line}: every value must be a number") from None
-            if not np.all(np.isfinite(vals)):
-                raise ServiceConfigError(f"{path}: line {line}: values must be finite")
-            rows.append(vals)
-    if len(rows) < 3:
-        raise ServiceConfigError(f"{path}: {len(rows)} pose(s); at least 3 are needed (better 6 or more)")
-    return np.array(rows)
 
 
 def run(args) -> int:

@@ -16,13 +16,14 @@ import time
 import can
 import numpy as np
 
+from hil.demo_log import milling_wrench
+from hil.virtual_sensor import VirtualAtiSensor
+from plc_interface.deadlines import Deadlines
 from service.ati import AtiProtocol
 from service.config import DEFAULT_CONFIG, load_config
-from service.errors import ServiceConfigError
 from service.sources.can_source import open_bus
-from service.sources.demo_log import milling_wrench
 from service.sources.replay import LOG_SUFFIXES
-from service.sources.virtual_sensor import VirtualAtiSensor
+from stiffness.errors import OutputError
 
 
 class LockedLogger(can.Listener):
@@ -58,7 +59,7 @@ def run(args) -> int:
     from pathlib import Path
 
     if Path(args.out).suffix.lower() not in LOG_SUFFIXES:
-        raise ServiceConfigError(f"record: {args.out}: the log type must be one of {', '.join(LOG_SUFFIXES)}")
+        raise OutputError(f"record: {args.out}: the log type must be one of {', '.join(LOG_SUFFIXES)}")
     cfg = load_config(args.config)
     c = cfg.source.can
     interface, channel = args.interface or c.interface, args.channel or c.channel
@@ -66,7 +67,7 @@ def run(args) -> int:
     try:
         logger = LockedLogger(args.out)       # first: a bad path opens nothing else
     except OSError as e:
-        raise ServiceConfigError(f"record: {args.out}: cannot write the log: {e.strerror or e}") from e
+        raise OutputError(f"record: {args.out}: cannot write the log: {e.strerror or e}") from e
     sensor = bus = None
     try:
         if args.virtual_sensor:
@@ -88,10 +89,9 @@ def run(args) -> int:
     sent = 0
     try:
         t_end = time.monotonic() + args.duration
-        period = 1.0 / args.request_hz if args.request_hz > 0 else None
-        due = time.monotonic()
+        deadlines = Deadlines(1.0 / args.request_hz) if args.request_hz > 0 else None
         while not stop.is_set() and time.monotonic() < t_end:
-            if period is None:
+            if deadlines is None:
                 stop.wait(min(0.1, max(0.0, t_end - time.monotonic())))
                 continue
             msg = can.Message(arbitration_id=arb, data=data, is_extended_id=False, timestamp=time.time())
@@ -101,10 +101,8 @@ def run(args) -> int:
                 sent += 1
             except can.CanError:
                 pass
-            due += period
-            delay = due - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+            deadlines.advance(time.monotonic())
+            deadlines.sleep_until()
     finally:
         for s, h in previous.items():
             signal.signal(s, h)

@@ -1,4 +1,4 @@
-"""Replay of a python-can log file (.asc, .blf, .log, .trc, .csv through can.LogReader).
+"""Replay of a python-can log file (.asc, .blf, .log, .trc, .csv through can.LogReader), and writing one.
 
 Reading and pacing are separate: `read_log` reads the whole file once at start-up; `ReplaySource`
 hands the frames out either by the service's clock (``pacing: realtime``, frames whose log time has
@@ -13,7 +13,9 @@ from collections.abc import Iterable
 from pathlib import Path
 
 import can
+import numpy as np
 
+from ..ati import AtiProtocol
 from ..errors import SourceError
 from .base import Frame, FtSource
 
@@ -40,6 +42,28 @@ def read_log(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
     frames.sort(key=lambda f: f[0])      # stable: a recorder may log its own requests slightly out of order
     t0 = frames[0][0]
     return [(t - t0, i, d, err) for t, i, d, err in frames]
+
+
+def write_log(path: str | Path, wrench: np.ndarray, rate_hz: float = 1000.0, protocol: AtiProtocol | None = None,
+              status: np.ndarray | None = None, extra: list[tuple[int, int, bytes]] | None = None) -> None:
+    """Write request + answer frames for each row of ``wrench`` to a python-can log (format by suffix).
+
+    ``extra`` adds frames (sample index, id, data) after that sample, e.g. to inject bad frames.
+    """
+    p = protocol or AtiProtocol()
+    req_id, req = p.request_short_data()
+    extra_at: dict[int, list[tuple[int, bytes]]] = {}
+    for k, arb, data in extra or []:
+        extra_at.setdefault(k, []).append((arb, data))
+    with can.Logger(str(path)) as log:
+        for k, w in enumerate(wrench):
+            t = 1.0 + k / rate_hz
+            log(can.Message(timestamp=t, arbitration_id=req_id, data=req, is_extended_id=False))
+            st = int(status[k]) if status is not None else 0
+            for j, (arb, data) in enumerate(p.encode(w, st, k)):
+                log(can.Message(timestamp=t + (j + 1) * 2e-4, arbitration_id=arb, data=data, is_extended_id=False))
+            for arb, data in extra_at.get(k, []):
+                log(can.Message(timestamp=t + 6e-4, arbitration_id=arb, data=data, is_extended_id=False))
 
 
 class ReplaySource(FtSource):

@@ -14,22 +14,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hil.testing import constant_log, free_port, write_config
 from service.app import Service
 from service.compensation import FastPredictor
 from service.config import load_config
-from service.testing import constant_log, free_port, write_config
 from stiffness.model import StiffnessModel
 
 PROBE = Path(__file__).with_name("plc_probe.py")
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]
 
 
-@pytest.fixture(params=[False, True], ids=["server-thread", "server-process"])
-def service(tmp_path, request):
-    """The service with its Modbus server in a thread, and in a process of its own (shared-memory image)."""
+@pytest.fixture()
+def service(tmp_path):
+    """The service as deployed: the cycle here, Modbus served by its I/O process (shared-memory image)."""
     log = constant_log(tmp_path / "load.blf", [200.0, -100.0, 300.0, 10.0, 5.0, 2.0], seconds=1.0)
     cfg = load_config(write_config(tmp_path, {
-        "plc": {"port": free_port(), "server_process": request.param},
+        "plc": {"port": free_port()},
         "source": {"replay": {"file": str(log)}},
         "gravity": {"tool": {"mass_kg": 0.0}, "bias": [0.0] * 6},
         "faults": {"overrun_trip_count": 1000},     # a loaded CI machine must not trip it here

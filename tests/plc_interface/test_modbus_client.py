@@ -2,40 +2,75 @@
 
 from __future__ import annotations
 
+import asyncio
 import struct
+import threading
 import time
 
 import pytest
 from pymodbus.client import ModbusTcpClient
-from pymodbus.datastore import ModbusDeviceContext, ModbusSequentialDataBlock, ModbusServerContext
+from pymodbus.server import ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
 
+from hil.testing import CONFIG, free_port, write_config
 from plc_interface.errors import PlcConnectionError
-from plc_interface.image import RegisterImage
-from plc_interface.modbus_client import ModbusClientThread
-from plc_interface.modbus_server import ModbusServerThread
+from plc_interface.image import ProcessImage
+from plc_interface.io_server import IoSettings, IoThread
 from plc_interface.register_map import RegisterMap
+from plc_interface.settings import PlcClientSettings, PlcSettings
 from service.app import Service
 from service.config import load_config
-from service.testing import CONFIG, free_port, write_config
 
 BASE = 0x8000      # the PLC's input registers the service reads (TF6250 GVL.mb_Input_Registers)
 OUT = 0x3000       # the PLC's holding registers the service writes (TF6250 %MW area)
 
 
+class PlcMemory:
+    """A PLC's Modbus memory, served by a real pymodbus server in a thread: holding registers anyone may
+    write, and input registers the PLC program fills (``inputs``, address -> word)."""
+
+    def __init__(self, port: int):
+        self.port, self.inputs = port, {}
+        self._loop = asyncio.new_event_loop()
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._loop.run_until_complete, args=(self._serve(),), daemon=True)
+
+    async def _action(self, fc, start, address, count, registers, set_values):
+        if fc == 4:
+            registers[address - start: address - start + count] = [self.inputs.get(a, 0)
+                                                                  for a in range(address, address + count)]
+
+    async def _serve(self):
+        device = SimDevice(0, simdata=[SimData(0, count=0x10000, values=0, datatype=DataType.REGISTERS)],
+                           action=self._action)
+        self.server = ModbusTcpServer(device, address=("127.0.0.1", self.port))
+        await self.server.serve_forever(background=True)
+        self._stopped = asyncio.Event()
+        self._ready.set()
+        await self._stopped.wait()
+        await self.server.shutdown()
+
+    def __enter__(self):
+        self._thread.start()
+        assert self._ready.wait(10)
+        return self
+
+    def __exit__(self, *exc):
+        self._loop.call_soon_threadsafe(self._stopped.set)
+        self._thread.join(10)
+        self._loop.close()
+
+
 @pytest.fixture()
 def plc():
-    """A PLC's Modbus memory: plain holding registers, served by a real pymodbus server."""
-    device = ModbusDeviceContext(hr=ModbusSequentialDataBlock(0, [0] * 0x10000),
-                                 ir=ModbusSequentialDataBlock(0, [0] * 0x10000))
-    server = ModbusServerThread(None, "127.0.0.1", free_port(), context=ModbusServerContext(devices=device))
-    server.start()
-    client = ModbusTcpClient("127.0.0.1", port=server.port, timeout=2)
-    assert client.connect()
-    try:
-        yield server.port, client, device
-    finally:
-        client.close()
-        server.stop()
+    """A PLC's Modbus memory and a client of it."""
+    with PlcMemory(free_port()) as memory:
+        client = ModbusTcpClient("127.0.0.1", port=memory.port, timeout=2)
+        assert client.connect()
+        try:
+            yield memory.port, client, memory
+        finally:
+            client.close()
 
 
 def f32_words(x):
@@ -47,7 +82,7 @@ def test_service_in_client_role_exchanges_with_the_plc(tmp_path, plc):
     words = [0x1, 1]
     for v in (10.0, -80.0, 100.0, 20.0, 40.0, 30.0):
         words += f32_words(v)
-    device.setValues(4, BASE, words)              # the PLC program fills its input registers
+    device.inputs.update({BASE + k: w for k, w in enumerate(words)})     # the PLC program fills its inputs
     cfg = load_config(write_config(tmp_path, {"plc": {"role": "client", "port": port, "client": {"period_ms": 5}},
                                               "faults": {"overrun_trip_count": 1000,
                                                          "plc_heartbeat_timeout_ms": 0}}))
@@ -75,6 +110,10 @@ def test_service_in_client_role_exchanges_with_the_plc(tmp_path, plc):
 
 
 def test_unreachable_plc_is_a_clear_error():
-    image = RegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
-    with pytest.raises(PlcConnectionError, match="cannot connect to the PLC"):
-        ModbusClientThread(image, "127.0.0.1", free_port(), timeout_s=0.5).start()
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    settings = IoSettings(plc=PlcSettings(role="client", port=free_port(), client=PlcClientSettings(timeout_s=0.5)))
+    try:
+        with pytest.raises(PlcConnectionError, match="cannot connect to the PLC"):
+            IoThread(image, settings).start()
+    finally:
+        image.close()

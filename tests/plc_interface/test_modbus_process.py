@@ -1,5 +1,5 @@
-"""The Modbus server process: a child that dies while starting is a prompt PlcError; the image's memory
-is freed even while a view of it is alive."""
+"""The I/O process: a child that dies while starting is a prompt PlcError; the image's memory is freed
+even while a view of it is alive."""
 
 from __future__ import annotations
 
@@ -9,16 +9,18 @@ from multiprocessing.shared_memory import SharedMemory
 import numpy as np
 import pytest
 
+from hil.testing import CONFIG, free_port
 from plc_interface.errors import PlcError
-from plc_interface.modbus_process import ModbusServerProcess
+from plc_interface.image import ProcessImage
+from plc_interface.io_process import IoProcess
+from plc_interface.io_server import IoSettings
 from plc_interface.register_map import RegisterMap
-from plc_interface.shared_image import SharedRegisterImage
-from service.testing import CONFIG, free_port
+from plc_interface.settings import PlcSettings
 
 
 def test_a_child_that_dies_while_starting_is_a_prompt_plc_error():
-    image = SharedRegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
-    server = ModbusServerProcess(image, "127.0.0.1", free_port())
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    server = IoProcess(image, IoSettings(plc=PlcSettings(port=free_port())))
     image.close()                      # the child cannot attach to the image: it dies unpickling it
     t0 = time.monotonic()
     with pytest.raises(PlcError, match="died"):
@@ -28,7 +30,7 @@ def test_a_child_that_dies_while_starting_is_a_prompt_plc_error():
 
 
 def test_close_frees_the_memory_even_with_a_view_alive():
-    image = SharedRegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
     name = image.shm.name
     view = np.frombuffer(image.shm.buf, dtype=np.uint8)     # an export still alive: close() cannot unmap
     image.close()

@@ -7,36 +7,41 @@ import struct
 import pytest
 from pymodbus.client import ModbusTcpClient
 
+from hil.testing import CONFIG, free_port
+from plc_interface.contract import ToPlc
 from plc_interface.errors import PlcError
-from plc_interface.image import RegisterImage
-from plc_interface.modbus_server import ModbusServerThread
+from plc_interface.image import ProcessImage
+from plc_interface.io_server import IoSettings, IoThread
 from plc_interface.register_map import RegisterMap
-from service.testing import CONFIG, free_port
+from plc_interface.settings import PlcSettings
 
 BASE = 0x8000
 
 
 @pytest.fixture()
 def served():
-    image = RegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
-    server = ModbusServerThread(image, "127.0.0.1", free_port())
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    port = free_port()
+    server = IoThread(image, IoSettings(plc=PlcSettings(port=port)))
     server.start()
-    client = ModbusTcpClient("127.0.0.1", port=server.port, timeout=2)
+    client = ModbusTcpClient("127.0.0.1", port=port, timeout=2)
     assert client.connect()
     try:
         yield image, client
     finally:
         client.close()
         server.stop()
+        image.close()
+
+
+def record(**values) -> ToPlc:
+    """A to_plc record: zero but for ``values``."""
+    return ToPlc(**{f: 0.0 for f in ToPlc._fields} | values)
 
 
 def test_client_reads_what_the_cycle_publishes(served):
     image, client = served
-    codec = image.out_codec
-    vals = [0.0] * len(codec.names)
-    vals[codec.index["cycle_count"]] = 123456
-    vals[codec.index["correction_q3"]] = -0.0125
-    image.publish(codec.encode(vals))
+    image.publish(record(cycle_count=123456, correction_q3=-0.0125))
     r = client.read_input_registers(BASE, count=32)
     assert not r.isError()
     assert r.registers[4] | (r.registers[5] << 16) == 123456
@@ -48,10 +53,10 @@ def test_plc_writes_reach_the_cycle(served):
     image, client = served
     words = [0x1, 42] + list(struct.unpack("<HH", struct.pack("<f", 12.5))) * 6
     assert not client.write_registers(BASE, words).isError()
-    vals = dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))
+    vals = image.inputs()._asdict()
     assert vals["command_word"] == 1 and vals["plc_heartbeat"] == 42 and vals["q6"] == 12.5
     assert not client.write_register(BASE + 1, 43).isError()
-    assert dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))["plc_heartbeat"] == 43
+    assert image.inputs()._asdict()["plc_heartbeat"] == 43
 
 
 @pytest.mark.parametrize("address, values", [
@@ -90,7 +95,7 @@ def test_writes_covering_half_a_32_bit_register_get_0x02_and_change_nothing(serv
     r = client.write_register(address, values[0]) if fc6 else client.write_registers(address, values)
     assert r.isError() and r.exception_code == 0x02
     assert client.read_holding_registers(BASE, count=16).registers == before
-    assert dict(zip(image.in_codec.names, image.in_codec.decode(image.inputs())))["q1"] == 12.5
+    assert image.inputs()._asdict()["q1"] == 12.5
     assert image.refused_writes == 1
 
 
@@ -103,14 +108,16 @@ def test_reads_outside_the_map_get_0x02(served):
 
 
 def test_busy_port_is_a_clear_error():
-    image = RegisterImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
-    first = ModbusServerThread(image, "127.0.0.1", free_port())
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    settings = IoSettings(plc=PlcSettings(port=free_port()))
+    first = IoThread(image, settings)
     first.start()
     try:
-        with pytest.raises(PlcError, match=f"cannot serve Modbus TCP on 127.0.0.1:{first.port}"):
-            ModbusServerThread(image, "127.0.0.1", first.port).start()
+        with pytest.raises(PlcError, match=f"cannot serve Modbus TCP on 127.0.0.1:{settings.plc.port}"):
+            IoThread(image, settings).start()
     finally:
         first.stop()
+        image.close()
 
 
 def test_coils_and_discrete_inputs_are_refused(served):

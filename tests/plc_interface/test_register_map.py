@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
+from hil.testing import CONFIG
 from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import REQUIRED, BlockCodec, Register, RegisterMap
-from service.testing import CONFIG
 from tools.cli import main
 
 MAP = CONFIG / "registers.yaml"
@@ -77,7 +77,7 @@ def test_integers_are_clamped_not_wrapped():
 
 
 @pytest.mark.parametrize("edit, match", [
-    (lambda d: d["to_plc"]["registers"].append({"name": "x", "address": 0x8000, "type": "uint16"}), "overlaps"),
+    (lambda d: d["to_plc"]["registers"].append({"name": "dq_q1", "address": 0x8000, "type": "uint16"}), "overlaps"),
     (lambda d: d["to_plc"]["registers"].pop(0), "register 'heartbeat' is missing"),
     (lambda d: d["from_plc"].update(table="input_registers"), "can write only holding_registers"),
     (lambda d: d["to_plc"]["registers"][0].update(address=0x9000), "must lie in"),
@@ -95,10 +95,10 @@ def test_bad_maps_are_refused_with_the_key(tmp_path, edit, match):
 
 
 def test_service_accepts_a_map_without_optional_registers_and_refuses_unknown_ones(tmp_path):
+    from hil.testing import write_config
     from service.app import Service
     from service.config import load_config
     from service.errors import ServiceConfigError
-    from service.testing import write_config
 
     data = yaml.safe_load(MAP.read_text())
     data["to_plc"]["registers"] = [r for r in data["to_plc"]["registers"]

@@ -3,9 +3,9 @@
 import pytest
 import yaml
 
+from hil.testing import CONFIG
 from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import RegisterMap
-from service.testing import CONFIG
 
 
 def test_overlapping_blocks_in_one_table_are_refused(tmp_path):

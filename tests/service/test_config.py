@@ -7,9 +7,9 @@ import socket
 import pytest
 import yaml
 
+from hil.testing import free_port, write_config
 from service.config import DEFAULT_CONFIG, load_config
 from service.errors import ServiceConfigError
-from service.testing import free_port, write_config
 from tools.cli import main
 
 

@@ -2,9 +2,9 @@
 
 import pytest
 
+from hil.testing import write_config
 from service.config import load_config
 from service.errors import ServiceConfigError
-from service.testing import write_config
 
 
 @pytest.mark.parametrize("override, key", [

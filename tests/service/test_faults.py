@@ -12,14 +12,15 @@ import math
 import numpy as np
 import pytest
 
+from hil.demo_log import write_log
+from hil.testing import write_config
+from plc_interface.contract import Command, Fault, Status
 from service.ati import AtiProtocol
 from service.config import load_config
-from service.faults import FAULT_BITS
-from service.pipeline import CMD_ENABLE, CMD_RESET, ST_ACTIVE, ST_FAULTED, Compensator
+from service.pipeline import Cycle
 from service.sources import make_source
-from service.sources.demo_log import write_log
-from service.testing import write_config
 from stiffness.model import StiffnessModel
+from stiffness.yamlio import deep_update
 
 DT = 1e-3
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]
@@ -35,11 +36,10 @@ def build(tmp_path, samples: int = 2000, status=None, extra=None, wrench=None, o
     over = {"source": {"replay": {"file": str(log), "pacing": "fast", "loop": False}},
             "gravity": {"tool": {"mass_kg": 0.0}, "bias": [0.0] * 6},
             "limits": {"max_rate_deg_s": 50.0, "fault_ramp_s": 0.1}}
-    for k, v in (overrides or {}).items():
-        over[k] = {**over.get(k, {}), **v}
+    deep_update(over, overrides or {})
     cfg = load_config(write_config(tmp_path, over))
     model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
-    return cfg, Compensator.from_config(cfg, model), make_source(cfg)
+    return cfg, Cycle.from_config(cfg, model), make_source(cfg)
 
 
 class Driver:
@@ -49,12 +49,12 @@ class Driver:
         self.comp, self.src, self.k = comp, src, 0
         self.history = []
 
-    def run(self, n, command=CMD_ENABLE, q=Q, hb_frozen=False, overrun=False):
+    def run(self, n, command=Command.ENABLE, q=Q, hb_frozen=False, overrun=False):
         for _ in range(n):
             t = self.k * DT
             reading, errors = self.src.poll(t)
             hb = 7 if hb_frozen else self.k & 0xFFFF
-            out = self.comp.cycle(t, reading, errors, command, hb, q, overrun)
+            out = self.comp.step(t, reading, errors, command, hb, q, overrun)
             self.history.append(list(out))
             self.k += 1
         return np.array(self.history[-n:])
@@ -115,13 +115,13 @@ def test_fault_trips_ramps_to_zero_and_latches_until_reset(tmp_path, caplog, nam
     cfg, comp, src = build(tmp_path, **build_kw)
     drv = Driver(comp, src)
     healthy = drv.run(N_OK)
-    assert comp.faults.word == 0 and comp.status_word & ST_ACTIVE
+    assert comp.faults.word == 0 and comp.status_word & Status.ACTIVE
     start = healthy[-1]
     assert np.abs(start).max() > 1e-3                      # a real correction is being output
     with caplog.at_level(logging.ERROR, logger="stiffcomp.faults"):
         faulted = drv.run(N_FAULT, **fault_kw)
-    assert comp.faults.word & (1 << FAULT_BITS[fault])
-    assert comp.status_word & ST_FAULTED and not comp.status_word & ST_ACTIVE
+    assert comp.faults.word & Fault.from_kind(fault)
+    assert comp.status_word & Status.FAULTED and not comp.status_word & Status.ACTIVE
     lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith(f"fault {fault}:")]
     assert len(lines) == 1
     # safe state: ramps to zero within fault_ramp_s and never jumps
@@ -134,7 +134,7 @@ def test_fault_trips_ramps_to_zero_and_latches_until_reset(tmp_path, caplog, nam
     latched = drv.run(50)
     assert np.all(latched == 0.0) and comp.faults.word
     # ... until the PLC resets it (rising edge of bit 2)
-    drv.run(1, command=CMD_ENABLE | CMD_RESET)
+    drv.run(1, command=Command.ENABLE | Command.RESET)
     resumed = drv.run(200)
     assert comp.faults.word == 0
     assert np.abs(resumed[-1]).max() > 1e-3
@@ -164,11 +164,11 @@ def test_reset_pulses_while_the_sensor_is_silent_never_go_active(tmp_path):
     drv = Driver(comp, src)
     drv.run(N_OK)
     drv.run(N_FAULT)                                      # the log has ended: sensor_timeout, ramped to zero
-    assert comp.faults.word & (1 << FAULT_BITS["sensor_timeout"])
+    assert comp.faults.word & Fault.SENSOR_TIMEOUT
     assert np.all(np.array(comp.correction) == 0.0)
     for _ in range(20):                                   # a PLC pulsing reset
-        out = drv.run(1, command=CMD_ENABLE | CMD_RESET)
-        assert comp.faults.word & (1 << FAULT_BITS["sensor_timeout"])
-        assert not comp.status_word & ST_ACTIVE and np.all(out == 0.0)
+        out = drv.run(1, command=Command.ENABLE | Command.RESET)
+        assert comp.faults.word & Fault.SENSOR_TIMEOUT
+        assert not comp.status_word & Status.ACTIVE and np.all(out == 0.0)
         out = drv.run(2)
-        assert comp.faults.word and not comp.status_word & ST_ACTIVE and np.all(out == 0.0)
+        assert comp.faults.word and not comp.status_word & Status.ACTIVE and np.all(out == 0.0)

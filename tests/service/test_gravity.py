@@ -6,7 +6,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from service.config import load_config
-from service.gravity import GravityCompensator, identify_payload
+from service.gravity import GravityCompensator
+from service.payload import identify_payload
 
 G = np.array([0.0, 0.0, -9.81])
 

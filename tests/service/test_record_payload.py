@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
+from hil.testing import write_config
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.gravity import GravityCompensator
 from service.sources.replay import ReplaySource, read_log
-from service.testing import write_config
 from stiffness.model import StiffnessModel
 from tools.cli import main
 

@@ -8,7 +8,7 @@ import subprocess
 import sys
 import time
 
-from service.testing import ROOT, free_port, write_config
+from hil.testing import ROOT, free_port, write_config
 
 STATS_KEYS = {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
 

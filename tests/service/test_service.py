@@ -7,14 +7,14 @@ import time
 import can
 import numpy as np
 
+from hil.testing import free_port, write_config
+from hil.virtual_sensor import VirtualAtiSensor
+from plc_interface.contract import Status
 from plc_interface.register_map import RegisterMap  # noqa: F401  (the service imports it too)
 from service.app import Service
 from service.ati import AtiProtocol
 from service.config import load_config
-from service.pipeline import ST_STOPPED
 from service.sources.replay import ReplaySource
-from service.sources.virtual_sensor import VirtualAtiSensor
-from service.testing import free_port, write_config
 
 
 def wait_for(pred, timeout=10.0):
@@ -37,7 +37,7 @@ def test_service_with_a_live_can_sensor(tmp_path):
         s = Service(cfg)
         s.start()
         try:
-            assert wait_for(lambda: s.compensator.status_word & 0x2 and abs(s.compensator.correction[0]) > 1e-4)
+            assert wait_for(lambda: s.cycle.status_word & 0x2 and abs(s.cycle.correction[0]) > 1e-4)
             out = s.image.outputs()
         finally:
             s.stop()
@@ -65,7 +65,7 @@ def test_an_unexpected_error_stops_the_cycle_with_zero_correction(tmp_path):
     try:
         assert s.failed.wait(10.0)
         out = s.image.outputs()
-        assert out["status_word"] == ST_STOPPED
+        assert out["status_word"] == Status.STOPPED
         assert all(out[f"correction_q{i}"] == 0.0 for i in range(1, 7))
         assert isinstance(s.task.error, OSError)
     finally:
@@ -79,7 +79,7 @@ def test_stop_publishes_the_stopped_state(tmp_path):
     assert wait_for(lambda: s.info.cycle_count > 20)
     s.stop()
     out = s.image.outputs()
-    assert out["status_word"] & ST_STOPPED and out["task_state"] == 2
+    assert out["status_word"] & Status.STOPPED and out["task_state"] == 2
     assert out["cycle_count"] >= 20
 
 
@@ -97,13 +97,14 @@ def test_stop_ramps_the_correction_to_zero_without_a_jump(tmp_path):
         record, work = [], s.work
 
         def recording_work(t, exceeded):
-            work(t, exceeded)
-            record.append((t, [s._out[k] for k in s._corr]))
+            go_on = work(t, exceeded)
+            record.append((t, [getattr(s.record, f"correction_q{i}") for i in range(1, 7)]))
+            return go_on
 
         s.work = recording_work
         s.start()
         try:
-            comp = s.compensator
+            comp = s.cycle
             assert wait_for(lambda: comp.status_word & 0x2 and abs(comp.correction[0]) > 1e-4
                             and np.allclose(comp.correction, comp.dq_deg, atol=1e-9))
         finally:
@@ -111,7 +112,7 @@ def test_stop_ramps_the_correction_to_zero_without_a_jump(tmp_path):
             s.stop()
     out = s.image.outputs()
     final = [out[f"correction_q{i}"] for i in range(1, 7)]
-    assert out["status_word"] & ST_STOPPED and final == [0.0] * 6
+    assert out["status_word"] & Status.STOPPED and final == [0.0] * 6
     t = np.array([r[0] for r in record[n0 - 1:]])
     corr = np.array([r[1] for r in record[n0 - 1:]])
     start = np.abs(corr[0])

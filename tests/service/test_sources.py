@@ -8,14 +8,15 @@ import can
 import numpy as np
 import pytest
 
+from hil.demo_log import write_log
+from hil.testing import write_config
+from hil.virtual_sensor import VirtualAtiSensor
+from plc_interface.contract import Command
 from service.ati import AtiProtocol
 from service.errors import SensorTimeout, SourceError
-from service.pipeline import CMD_ENABLE, CMD_TARE, Compensator
+from service.pipeline import Cycle
 from service.sources.can_source import CanSource, open_bus
-from service.sources.demo_log import write_log
 from service.sources.replay import ReplaySource, read_log
-from service.sources.virtual_sensor import VirtualAtiSensor
-from service.testing import write_config
 
 KW = {"timeout_s": 0.01, "max_force_N": 2500.0, "max_torque_Nm": 250.0}
 
@@ -112,18 +113,18 @@ def _loaded_compensator(tmp_path):
     log = tmp_path / "c.blf"
     write_log(log, np.tile([50.0, 20.0, -30.0, 1.0, 2.0, 3.0], (300, 1)))
     cfg = load_config(write_config(tmp_path, {"source": {"replay": {"file": str(log), "pacing": "fast"}}}))
-    comp = Compensator.from_config(cfg, StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)))
+    comp = Cycle.from_config(cfg, StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)))
     src = make_source(cfg)
     q = cfg.plc.initial_q_deg
     for k in range(100):
-        comp.cycle(k * 1e-3, *src.poll(k * 1e-3), CMD_ENABLE, k, q)
+        comp.step(k * 1e-3, *src.poll(k * 1e-3), Command.ENABLE, k, q)
     assert np.abs(comp.wrench_sensor).max() > 1.0
     return comp, src, q
 
 
 def test_tare_command_zeroes_the_wrench(tmp_path):
     comp, src, q = _loaded_compensator(tmp_path)
-    comp.cycle(0.1, *src.poll(0.1), CMD_ENABLE | CMD_TARE, 100, q)
+    comp.step(0.1, *src.poll(0.1), Command.ENABLE | Command.TARE, 100, q)
     assert comp.tares == 1
     np.testing.assert_allclose(comp.wrench_sensor, 0.0, atol=1e-9)
     np.testing.assert_allclose(comp.deflection, 0.0, atol=1e-12)
@@ -143,7 +144,7 @@ def test_can_source_between_processes_over_udp_multicast():
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     load = [250.0, -60.0, 410.0, 7.5, -3.0, 2.25]
-    proc = subprocess.Popen([sys.executable, "-m", "service.sources.virtual_sensor", "--interface", "udp_multicast",
+    proc = subprocess.Popen([sys.executable, "-m", "hil.virtual_sensor", "--interface", "udp_multicast",
                              "--channel", channel, "--port", str(port), "--load", ",".join(map(str, load)), "--seconds", "20"],
                             stdout=subprocess.PIPE, text=True)
     try:
@@ -214,10 +215,10 @@ def test_replay_fast_loop_poll_returns_after_one_pass_without_a_sample(tmp_path)
 
 def test_a_tare_edge_in_a_cycle_without_a_sample_applies_to_the_next_sample(tmp_path):
     comp, src, q = _loaded_compensator(tmp_path)
-    comp.cycle(0.1, None, [], CMD_ENABLE | CMD_TARE, 100, q)       # the edge, but no sample this cycle
+    comp.step(0.1, None, [], Command.ENABLE | Command.TARE, 100, q)       # the edge, but no sample this cycle
     assert comp.tares == 0
-    comp.cycle(0.101, *src.poll(0.101), CMD_ENABLE | CMD_TARE, 101, q)   # the bit is still high: no new edge
+    comp.step(0.101, *src.poll(0.101), Command.ENABLE | Command.TARE, 101, q)   # the bit is still high: no new edge
     assert comp.tares == 1
     np.testing.assert_allclose(comp.wrench_sensor, 0.0, atol=1e-9)
-    comp.cycle(0.102, *src.poll(0.102), CMD_ENABLE, 102, q)
+    comp.step(0.102, *src.poll(0.102), Command.ENABLE, 102, q)
     assert comp.tares == 1

@@ -9,11 +9,11 @@ import socket
 import numpy as np
 import pytest
 
+from hil.demo_log import write_log
+from hil.testing import free_port, write_config
 from service.app import Service
 from service.config import load_config
 from service.errors import SourceError
-from service.sources.demo_log import write_log
-from service.testing import free_port, write_config
 from tools.cli import main
 
 
@@ -28,7 +28,7 @@ def test_a_source_that_fails_to_open_frees_the_shared_image(tmp_path):
     log = tmp_path / "other_sensor.blf"
     write_log(log, np.zeros((5, 6)))                      # a log of the sensor at base id 0x020
     cfg = load_config(write_config(tmp_path, {
-        "plc": {"port": free_port(), "server_process": True},
+        "plc": {"port": free_port()},
         "source": {"type": "replay", "replay": {"file": str(log)}, "ati": {"base_id": 0x030}}}))
     before = shm_segments()
     with pytest.raises(SourceError, match="no sample frame"):
@@ -40,7 +40,7 @@ def test_run_on_a_port_in_use_exits_2_and_leaves_nothing(tmp_path, capsys):
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
-        cfg = write_config(tmp_path, {"plc": {"port": busy.getsockname()[1], "server_process": True}})
+        cfg = write_config(tmp_path, {"plc": {"port": busy.getsockname()[1]}})
         before = shm_segments()
         handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
         assert main(["run", "--config", str(cfg), "--duration", "1"]) == 2

@@ -2,7 +2,7 @@
 
 The shipped config/replay/demo_milling.blf is made by::
 
-    python -m service.sources.demo_log config/replay/demo_milling.blf
+    python -m hil.demo_log config/replay/demo_milling.blf
 
 The wrench (sensor axes) is a cut that ramps in and out: a static feed force, the tooth-pass
 oscillation of a 4-flute cutter at 6000 rpm (400 Hz, which the low-pass removes), the weight of the
@@ -12,12 +12,10 @@ default payload at the default pose, a sensor bias, white noise and a few single
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-import can
 import numpy as np
 
-from ..ati import AtiProtocol
+from service.sources.replay import write_log
 
 
 def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: int = 1,
@@ -43,34 +41,11 @@ def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: 
     return w
 
 
-def write_log(path: str | Path, wrench: np.ndarray, rate_hz: float = 1000.0, protocol: AtiProtocol | None = None,
-              status: np.ndarray | None = None, extra: list[tuple[int, int, bytes]] | None = None) -> None:
-    """Write request + answer frames for each row of ``wrench`` to a python-can log (format by suffix).
-
-    ``extra`` adds frames (sample index, id, data) after that sample, e.g. to inject bad frames.
-    """
-    p = protocol or AtiProtocol()
-    req_id, req = p.request_short_data()
-    extra_at: dict[int, list[tuple[int, bytes]]] = {}
-    for k, arb, data in extra or []:
-        extra_at.setdefault(k, []).append((arb, data))
-    with can.Logger(str(path)) as log:
-        for k, w in enumerate(wrench):
-            t = 1.0 + k / rate_hz
-            log(can.Message(timestamp=t, arbitration_id=req_id, data=req, is_extended_id=False))
-            st = int(status[k]) if status is not None else 0
-            for j, (arb, data) in enumerate(p.encode(w, st, k)):
-                log(can.Message(timestamp=t + (j + 1) * 2e-4, arbitration_id=arb, data=data, is_extended_id=False))
-            for arb, data in extra_at.get(k, []):
-                log(can.Message(timestamp=t + 6e-4, arbitration_id=arb, data=data, is_extended_id=False))
-
-
 def default_gravity_bias() -> np.ndarray:
     """Payload weight and bias of config/default.yaml at its initial pose, as the sensor reads them."""
+    from service.config import load_config
+    from service.gravity import GravityCompensator
     from stiffness.model import StiffnessModel
-
-    from ..config import load_config
-    from ..gravity import GravityCompensator
 
     cfg = load_config()
     robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot

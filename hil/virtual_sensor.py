@@ -17,7 +17,7 @@ from typing import Self
 import can
 import numpy as np
 
-from ..ati import REQ_BIAS, REQ_SHORT_DATA, AtiProtocol
+from service.ati import REQ_BIAS, REQ_SHORT_DATA, AtiProtocol
 
 
 class VirtualAtiSensor:

@@ -32,9 +32,9 @@ import numpy as np
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from service.pipeline import CMD_ENABLE, CMD_RESET
-
-from .register_map import RegisterMap
+from plc_interface.contract import Command
+from plc_interface.deadlines import Deadlines
+from plc_interface.register_map import RegisterMap
 
 log = logging.getLogger("stiffcomp.virtual_plc")
 
@@ -103,7 +103,7 @@ class PlcLogic:
         q_cmd = [r + a for r, a in zip(q_ref, self.applied)]
         if self.faults.heartbeat_stop_at is None or t < self.faults.heartbeat_stop_at:
             self.heartbeat = (self.heartbeat + 1) & 0xFFFF
-        command = (CMD_ENABLE if self.compensate else 0) | (CMD_RESET if self.reset_pulse else 0)
+        command = int((Command.ENABLE if self.compensate else 0) | (Command.RESET if self.reset_pulse else 0))
         values = {"command_word": command, "plc_heartbeat": self.heartbeat,
                   **{f"q{i + 1}": v for i, v in enumerate(q_cmd)}}
         return [values[n] for n in self.in_names], q_cmd
@@ -223,24 +223,14 @@ class VirtualPlc:
             lg.k += 1
 
     def run(self, t_start: float, t_end: float, t0: float, clock: Callable[[], float] = time.monotonic) -> CycleLog:
-        """Run cycles on absolute deadlines from program time ``t_start`` to ``t_end``; program time
-        t = clock() - t0. Returns the cycle log."""
+        """Run cycles on absolute deadlines (`Deadlines`, the project's one catch-up rule) from program time
+        ``t_start`` to ``t_end``; program time t = clock() - t0. Returns the cycle log."""
         n = int((t_end - t_start) / self.period) + 16
         self.log = CycleLog(n, len(self.out_codec.names))
-        period = self.period
-        due = t0 + t_start
-        while True:
-            now = clock()
-            if due > now:
-                time.sleep(due - now)
-            t = due - t0
-            if t > t_end:
-                break
-            self.cycle(t, clock())
-            due += period
-            late = clock() - due
-            if late > 0:                      # skip the deadlines already past; count them
-                missed = int(late // period) + 1
-                self.overruns += missed
-                due += missed * period
+        deadlines = Deadlines(self.period, start=t0 + t_start, clock=clock)
+        while deadlines.due - t0 <= t_end:
+            deadlines.sleep_until()
+            self.cycle(deadlines.due - t0, clock())
+            deadlines.advance(clock())
+            self.overruns = deadlines.exceeded
         return self.log

@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .ati import AtiProtocol
-from .sources.demo_log import write_log
+from service.ati import AtiProtocol
+from service.sources.replay import write_log
+from stiffness.yamlio import deep_update
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"
@@ -27,15 +28,6 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-def deep_update(base: dict, over: dict) -> dict:
-    for k, v in over.items():
-        if isinstance(v, dict) and isinstance(base.get(k), dict):
-            deep_update(base[k], v)
-        else:
-            base[k] = v
-    return base
 
 
 def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml") -> Path:

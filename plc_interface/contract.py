@@ -1,0 +1,221 @@
+"""The PLC contract: every value that crosses to or from the PLC, declared once, addressed by name.
+
+This module is the one owner of what the PLC sees (STYLE.md, guideline 13). It declares
+
+* the command, status and fault bits (`Command`, `Status`, `Fault`) and the task state (`TaskState`);
+* the values each way (`TO_PLC`, `FROM_PLC`): name, type, unit, meaning and, for the values the
+  service publishes, where each comes from in the cycle (``source``);
+* the named records the cycle produces and reads (`ToPlc`, `FromPlc`), whose fields are those names.
+
+The register map (config/registers.yaml) binds names to Modbus addresses; the ADS symbols
+(``GVL_Comp.<name>``) come from the same map. Nothing is matched by position: the image encodes a
+record by name, and a map that names a value the contract does not declare is refused at start-up.
+
+Adding a value for the PLC: declare it here (a `Value` whose ``source`` names the cycle quantity it
+publishes) and bind it in the register map YAML. docs/architecture.md walks through an example.
+
+The ``source`` of a to_plc value is a dotted path with an optional index, evaluated once per cycle on
+the cycle's namespace: ``task`` (the task's counters, `TaskValues`) and ``signals`` (the signal path's
+outputs of the cycle, `service.pipeline.Signals`), e.g. ``signals.correction[0]``.
+"""
+
+from __future__ import annotations
+
+import enum
+import operator
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+from .errors import ContractError
+
+
+class Command(enum.IntFlag):
+    """Bits of ``command_word`` (PLC -> service). Tare and reset act on their rising edge."""
+
+    ENABLE = 0x1        # apply the correction while no fault is latched
+    TARE = 0x2          # rising edge: the current external wrench becomes the new zero
+    RESET = 0x4         # rising edge: clear latched faults whose cause is gone
+
+
+class Status(enum.IntFlag):
+    """Bits of ``status_word`` (service -> PLC)."""
+
+    RUNNING = 0x1       # the cycle runs
+    ACTIVE = 0x2        # the correction is applied (enabled, no fault, a sample seen, not stopping)
+    FAULTED = 0x4       # a fault is latched (see fault_word)
+    RAMPING = 0x8       # the correction is ramping to zero
+    SENSOR_OK = 0x10    # a sample was seen and no sensor fault is latched
+    PLC_SEEN = 0x20     # the PLC heartbeat has changed at least once
+    STOPPED = 0x40      # the service stopped (the last value it publishes)
+
+
+class Fault(enum.IntFlag):
+    """Bits of ``fault_word``: latched until a reset whose cause is gone. The names are the fault kinds
+    that logs, metrics and `service.errors.SensorError.fault` use."""
+
+    SENSOR_TIMEOUT = 1 << 0     # the sensor silent past faults.sensor_timeout_ms
+    SENSOR_STATUS = 1 << 1      # the sensor's status word reports an error
+    SENSOR_SATURATED = 1 << 2   # a gauge channel at the INT16 limit
+    VALUE_INVALID = 1 << 3      # NaN, inf or out-of-range wrench, q or correction
+    CAN_FRAME = 1 << 4          # a malformed or unknown CAN frame
+    PLC_HEARTBEAT = 1 << 5      # the PLC heartbeat did not change within faults.plc_heartbeat_timeout_ms
+    OVERRUN = 1 << 6            # faults.overrun_trip_count consecutive cycles overran their period
+    JOINT_LIMITS = 1 << 7       # q outside the robot's joint limits
+
+    @property
+    def kind(self) -> str:
+        """The fault's name as logs and metrics spell it (``sensor_timeout``)."""
+        return (self.name or "").lower()
+
+    @classmethod
+    def from_kind(cls, kind: str) -> Fault:
+        return cls[kind.upper()]
+
+    @classmethod
+    def spell(cls, word: int) -> list[str]:
+        """The kinds set in a fault word, lowest bit first."""
+        return [f.kind for f in cls if word & f]
+
+
+SENSOR_FAULTS = (Fault.SENSOR_TIMEOUT | Fault.SENSOR_STATUS | Fault.SENSOR_SATURATED | Fault.VALUE_INVALID
+                 | Fault.CAN_FRAME)
+
+
+class TaskState(enum.IntEnum):
+    """``task_state``, as TwinCAT's task state."""
+
+    INIT = 0
+    RUN = 1
+    STOP = 2
+
+
+TYPES = ("uint16", "int16", "uint32", "int32", "float32")
+
+
+@dataclass(frozen=True)
+class Value:
+    """One value of the contract.
+
+    Parameters
+    ----------
+    name : the name the register map, the ADS symbols and the tests use
+    type : the wire type, one of `TYPES`
+    unit : physical unit ("" for counts and bit words)
+    meaning : one line a PLC programmer reads
+    source : for to_plc values, the cycle quantity it publishes (see the module docstring)
+    required : the register map must bind it
+    """
+
+    name: str
+    type: str
+    unit: str
+    meaning: str
+    source: str = ""
+    required: bool = True
+
+
+_JOINTS = range(1, 7)
+_WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
+_DEFLECTION = ("dx", "dy", "dz", "rx", "ry", "rz")
+
+TO_PLC: tuple[Value, ...] = (
+    Value("heartbeat", "uint16", "", "+1 every cycle (wraps at 65535)", "task.heartbeat"),
+    Value("status_word", "uint16", "", "Status bits: 0 running, 1 correction active, 2 faulted, 3 ramping, "
+          "4 sensor ok, 5 PLC heartbeat seen, 6 stopped", "signals.status_word"),
+    Value("fault_word", "uint16", "", "latched Fault bits", "signals.fault_word"),
+    Value("task_state", "uint16", "", "TaskState: 0 init, 1 run, 2 stop", "task.task_state", required=False),
+    Value("cycle_count", "uint32", "", "cycles run since start", "task.cycle_count"),
+    Value("exceed_count", "uint32", "", "cycles that overran their period, plus the deadlines skipped after one",
+          "task.exceed_count"),
+    Value("last_exec_us", "float32", "us", "work time of the last cycle", "task.last_exec_us"),
+    Value("cycle_time_us", "float32", "us", "configured cycle time", "task.cycle_time_us", required=False),
+    Value("period_jitter_us", "float32", "us", "|actual - nominal period| of the last cycle",
+          "task.period_jitter_us", required=False),
+    Value("cycle_exceeded", "uint16", "", "1 if the last cycle overran its period", "task.cycle_exceeded",
+          required=False),
+    *(Value(f"correction_q{i}", "float32", "deg", f"joint {i} correction to add to q_r, after limits",
+            f"signals.correction[{i - 1}]") for i in _JOINTS),
+    *(Value(f"wrench_{c}", "float32", "N" if c[0] == "f" else "Nm",
+            "filtered, gravity-compensated wrench, base axes (moments about the sensor origin)",
+            f"signals.wrench_base[{k}]") for k, c in enumerate(_WRENCH)),
+    *(Value(f"deflection_{c}", "float32", "mm" if k < 3 else "deg", "predicted TCP deflection, base axes",
+            f"signals.deflection[{k}]") for k, c in enumerate(_DEFLECTION)),
+    *(Value(f"dq_q{i}", "float32", "deg", f"joint {i} correction before limits (what the model asks for)",
+            f"signals.dq_deg[{i - 1}]", required=False) for i in _JOINTS),
+    Value("tare_count", "uint16", "", "tares done since start (wraps at 65535)", "signals.tare_count",
+          required=False),
+)
+
+FROM_PLC: tuple[Value, ...] = (
+    Value("command_word", "uint16", "", "Command bits: 0 enable, 1 tare (rising edge), 2 reset faults (rising edge)"),
+    Value("plc_heartbeat", "uint16", "", "the PLC changes it at least every faults.plc_heartbeat_timeout_ms"),
+    *(Value(f"q{i}", "float32", "deg", f"actual position of joint {i}") for i in _JOINTS),
+)
+
+VALUES: dict[str, dict[str, Value]] = {"to_plc": {v.name: v for v in TO_PLC},
+                                       "from_plc": {v.name: v for v in FROM_PLC}}
+REQUIRED: dict[str, list[str]] = {d: [v.name for v in vs.values() if v.required] for d, vs in VALUES.items()}
+
+# The records, one field per contract name (float for every value: integers are carried exactly).
+ToPlc = NamedTuple("ToPlc", [(v.name, float) for v in TO_PLC])
+ToPlc.__doc__ = "One cycle's values for the PLC, one field per `TO_PLC` name."
+FromPlc = NamedTuple("FromPlc", [(v.name, float) for v in FROM_PLC])
+FromPlc.__doc__ = "The PLC's values as the cycle reads them, one field per `FROM_PLC` name."
+
+
+class TaskValues(NamedTuple):
+    """The task's counters of one cycle (the ``task`` of a source path)."""
+
+    heartbeat: int
+    task_state: int
+    cycle_count: int
+    exceed_count: int
+    last_exec_us: float
+    cycle_time_us: float
+    period_jitter_us: float
+    cycle_exceeded: int
+
+
+_SOURCE = re.compile(r"^(task|signals)\.([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
+
+
+def _getter(source: str) -> Callable[[Any, Any], float]:
+    m = _SOURCE.match(source)
+    if m is None:
+        raise ContractError(f"contract source {source!r} must be 'task.NAME' or 'signals.NAME[INDEX]'")
+    root, attr, index = m.group(1), m.group(2), m.group(3)
+    get = operator.attrgetter(attr)
+    pick = 0 if root == "task" else 1
+    if index is None:
+        return lambda *ns: get(ns[pick])
+    k = int(index)
+    return lambda *ns: get(ns[pick])[k]
+
+
+class Producer:
+    """Builds the `ToPlc` record of a cycle from its ``task`` and ``signals`` by the contract's sources.
+
+    The sources are compiled once; `check` evaluates them on sample records so a source that names a
+    missing quantity fails at start-up, not in the cycle.
+    """
+
+    def __init__(self) -> None:
+        self._getters = [_getter(v.source) for v in TO_PLC]
+
+    def check(self, task: TaskValues, signals: Any) -> None:
+        for v, g in zip(TO_PLC, self._getters):
+            try:
+                float(g(task, signals))
+            except (AttributeError, IndexError, TypeError, ValueError) as e:
+                raise ContractError(f"contract value {v.name!r}: source {v.source!r} does not resolve: {e}") from e
+
+    def __call__(self, task: TaskValues, signals: Any) -> ToPlc:
+        return ToPlc._make([g(task, signals) for g in self._getters])
+
+
+def stopped(record: ToPlc) -> ToPlc:
+    """The record a stopped service leaves: zero correction, status STOPPED, task state STOP."""
+    zero = {f"correction_q{i}": 0.0 for i in _JOINTS}
+    return record._replace(status_word=int(Status.STOPPED), task_state=int(TaskState.STOP), **zero)

@@ -1,0 +1,62 @@
+"""Absolute deadlines, the one schedule every periodic loop of stiffcomp runs on.
+
+``due += period`` after every cycle: the work time never accumulates into drift. The one catch-up
+rule: a cycle that ends after the next deadline has *exceeded*; the deadlines that passed entirely
+during it are skipped and counted as exceeded too (TwinCAT's exceed counter), and the next cycle
+starts at once on the latest deadline that has passed. A loaded host therefore never bursts to catch
+up, and ``cycles + exceeded`` accounts for every deadline.
+
+The cycle task (`service.task.CyclicTask`), the virtual PLC, the Modbus client role, `stiffcomp
+record` and the benchmarks all use `Deadlines`; they differ only in how they wait (`sleep_until`,
+`wait_async`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+
+
+class Deadlines:
+    """The deadlines of one periodic loop.
+
+    Parameters
+    ----------
+    period_s : float
+    start : float
+        The first deadline (clock time).
+    clock : callable () -> float
+    """
+
+    def __init__(self, period_s: float, start: float | None = None, clock: Callable[[], float] = time.monotonic):
+        self.period = float(period_s)
+        self.clock = clock
+        self.due = clock() if start is None else float(start)
+        self.exceeded = 0           # deadlines exceeded or skipped
+
+    def advance(self, end: float) -> bool:
+        """Move past a cycle that ended at ``end``; True if it exceeded (the count is in ``exceeded``)."""
+        self.due += self.period
+        if end <= self.due:
+            return False
+        missed = int((end - self.due) // self.period)
+        self.due += missed * self.period
+        self.exceeded += 1 + missed
+        return True
+
+    def sleep_until(self, spin_s: float = 0.0, sleep: Callable[[float], None] = time.sleep) -> None:
+        """Block until the deadline; with ``spin_s``, sleep until that long before it and then poll the clock
+        (yielding with sleep(0))."""
+        clock, due = self.clock, self.due
+        now = clock()
+        if due - spin_s > now:
+            sleep(due - spin_s - now)
+        while clock() < due:
+            sleep(0)
+
+    async def wait_async(self) -> None:
+        """Await the deadline on an asyncio loop."""
+        delay = self.due - self.clock()
+        if delay > 0:
+            await asyncio.sleep(delay)

@@ -1,0 +1,125 @@
+"""The I/O side of the service: one asyncio loop serving every protocol from the process image.
+
+`IoServer` mounts, on one loop, the Modbus TCP server (or the Modbus client role, which writes into a
+PLC's TF6250 registers), the ADS server and the monitoring endpoint. It meets the cycle only in the
+`ProcessImage`. In production it runs in a process of its own (`IoProcess`, the only layout `stiffcomp
+run` uses); `IoThread` runs the very same `IoServer` on a loop in a thread of the caller, for tests of
+the protocols without a service.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import PlcError
+from .image import ProcessImage
+from .settings import PlcSettings
+
+log = logging.getLogger("stiffcomp.io")
+
+
+@dataclass
+class IoSettings:
+    """What the I/O process serves: the PLC role, and the optional ADS and monitoring sections."""
+
+    plc: PlcSettings = field(default_factory=PlcSettings)
+    ads: Any = None                 # plc_interface.ads settings, or None (no ADS server)
+    monitoring: Any = None          # monitoring settings, or None
+    avoid_cpu: int | None = None    # keep the I/O process off the cycle's CPU when it is pinned
+
+
+class IoServer:
+    """Every protocol of the service on the running asyncio loop.
+
+    Parameters
+    ----------
+    image : ProcessImage
+    settings : IoSettings
+    """
+
+    def __init__(self, image: ProcessImage, settings: IoSettings):
+        self.image = image
+        self.settings = settings
+        self.parts: list[Any] = []
+
+    async def start(self) -> None:
+        """Start every part; on failure the parts already started are stopped and PlcError is raised."""
+        s = self.settings
+        try:
+            if s.plc.role == "server":
+                from .modbus_server import ModbusServer
+
+                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port))
+            elif s.plc.role == "client":
+                from .modbus_client import ModbusClient
+
+                c = s.plc.client
+                await self._add(ModbusClient(self.image, s.plc.host, s.plc.port, s.plc.device_id,
+                                             c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
+                                             c.read_start))
+        except BaseException:
+            await self.stop()
+            raise
+
+    async def _add(self, part) -> None:
+        await part.start()
+        self.parts.append(part)
+
+    async def stop(self) -> None:
+        for part in reversed(self.parts):
+            try:
+                await part.stop()
+            except Exception as e:  # noqa: BLE001 - one failing part must not keep the others running
+                log.error("stopping %s failed: %r", type(part).__name__, e)
+        self.parts = []
+
+    def part(self, kind: type) -> Any:
+        return next((p for p in self.parts if isinstance(p, kind)), None)
+
+
+async def _serve(server: IoServer, started: threading.Event | None, stop_requested) -> None:
+    await server.start()
+    if started is not None:
+        started.set()
+    try:
+        while not stop_requested():
+            await asyncio.sleep(0.05)
+    finally:
+        await server.stop()
+
+
+class IoThread:
+    """The `IoServer` on an asyncio loop in a thread of this process (tests only; production uses
+    `plc_interface.io_process.IoProcess`, which runs the same server)."""
+
+    def __init__(self, image: ProcessImage, settings: IoSettings):
+        self.server = IoServer(image, settings)
+        self._stop = threading.Event()
+        self._started = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="stiffcomp-io", daemon=True)
+
+    def _run(self) -> None:
+        try:
+            asyncio.run(_serve(self.server, self._started, self._stop.is_set))
+        except BaseException as e:  # noqa: BLE001 - reported to start()
+            self._error = e
+            self._started.set()
+
+    def start(self, timeout: float = 10.0) -> None:
+        self._thread.start()
+        if not self._started.wait(timeout):
+            self.stop()
+            raise PlcError("the I/O server did not start in time")
+        if self._error is not None:
+            self.stop()
+            raise self._error if isinstance(self._error, PlcError) else PlcError(str(self._error))
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(10.0)

@@ -1,0 +1,33 @@
+"""The config sections of the PLC side (``plc:``), owned here and mounted in the service config.
+
+Each section is a strict pydantic model (unknown keys, inf and NaN refused); the service config
+(`service.config.ServiceConfig`) composes them, and the I/O process receives them as they are.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from stiffness.yamlio import Strict
+
+
+class PlcClientSettings(Strict):
+    period_ms: float = Field(10.0, ge=1.0, le=1000.0)
+    timeout_s: float = Field(1.0, gt=0, le=60.0)
+    write_start: int = Field(0x3000, ge=0, le=0xFFFF)
+    read_table: Literal["input_registers", "holding_registers"] = "input_registers"
+    read_start: int = Field(0x8000, ge=0, le=0xFFFF)
+
+
+class PlcSettings(Strict):
+    role: Literal["server", "client", "none"] = "server"
+    host: str = "127.0.0.1"
+    port: int = Field(5020, ge=1, le=65535)
+    device_id: int = Field(1, ge=0, le=247)
+    register_map: str = "registers.yaml"
+    initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
+                                       min_length=6, max_length=6)
+    enable_on_start: bool = False
+    client: PlcClientSettings = Field(default_factory=PlcClientSettings)

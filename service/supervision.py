@@ -1,0 +1,116 @@
+"""Supervision beside the signal path: command edges, the PLC heartbeat, overruns and the joint limits.
+
+As Klipper's ``verify_heater`` watches a heater beside its control loop, `Supervisor.update` watches
+the cycle's inputs and decides, each cycle, whether the correction may be applied; the signal path
+(`service.pipeline.Compensator`) only computes. Faults latch in the shared `FaultMonitor`:
+
+* reset (rising edge of `Command.RESET`) clears them first, so a fault whose cause persists trips again
+  in the same cycle (the sensor errors of the cycle are applied after the reset);
+* the PLC heartbeat must change within ``heartbeat_timeout_s`` while the PLC enables (supervision
+  starts at the enable's rising edge; 0 switches it off);
+* ``overrun_trip_count`` consecutive exceeded cycles trip the overrun fault;
+* a joint position from the PLC that is not finite or outside the robot's limits trips a fault, and
+  the kinematics keep the last good one.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from plc_interface.contract import Command, Fault
+
+from .errors import SensorError
+from .faults import FaultMonitor
+
+
+class Supervision(NamedTuple):
+    """What the supervisor decided for one cycle."""
+
+    enabled: bool                   # the PLC enables (or enable_on_start)
+    tare: bool                      # rising edge of the tare bit
+    reset: bool                     # rising edge of the reset bit
+    q_deg: list[float] | None       # new, valid joint positions (None: unchanged or refused)
+
+
+class Supervisor:
+    """Watch the commands, the heartbeat, overruns and the joints.
+
+    Parameters
+    ----------
+    faults : FaultMonitor
+    joint_limits_deg : (6, 2)
+    heartbeat_timeout_s : float
+        0 switches the PLC heartbeat supervision off.
+    overrun_trip_count : int
+    enable_on_start : bool
+        Act as if the enable bit were set (demo and bench without a PLC).
+    """
+
+    def __init__(self, faults: FaultMonitor, joint_limits_deg: np.ndarray, heartbeat_timeout_s: float,
+                 overrun_trip_count: int, enable_on_start: bool = False):
+        self.faults = faults
+        self.lo = [float(v) for v in joint_limits_deg[:, 0]]
+        self.hi = [float(v) for v in joint_limits_deg[:, 1]]
+        self.hb_timeout = float(heartbeat_timeout_s)
+        self.overrun_trip = int(overrun_trip_count)
+        self.enable_on_start = enable_on_start
+        self.prev_command = 0
+        self.prev_hb: int | None = None
+        self.hb_change_t = 0.0
+        self.plc_seen = False
+        self.overruns = 0
+        self._q_last: list[float] | None = None
+
+    @classmethod
+    def from_config(cls, cfg, faults: FaultMonitor, joint_limits_deg: np.ndarray) -> Supervisor:
+        return cls(faults, joint_limits_deg, cfg.faults.plc_heartbeat_timeout_ms / 1000.0,
+                   cfg.faults.overrun_trip_count, cfg.plc.enable_on_start)
+
+    def update(self, t: float, command: int, plc_heartbeat: int, q_deg: list[float], overrun: bool,
+               errors: list[SensorError]) -> Supervision:
+        """One cycle at ``t`` (s)."""
+        faults = self.faults
+        rising = command & ~self.prev_command
+        self.prev_command = command
+        reset = bool(rising & Command.RESET)
+        if reset:
+            faults.reset()
+            self.overruns = 0
+        for e in errors:              # after the reset: a reset clears only faults whose cause is gone
+            faults.trip_error(e)
+        self._heartbeat(t, plc_heartbeat, bool(rising & Command.ENABLE), bool(command & Command.ENABLE))
+        self.overruns = self.overruns + 1 if overrun else 0
+        if self.overruns >= self.overrun_trip:
+            faults.trip(Fault.OVERRUN, f"{self.overruns} consecutive cycles overran their period")
+        q_new = None
+        if q_deg != self._q_last and self._check_q(q_deg):
+            # exact comparison: a cache that never approximates
+            q_new = self._q_last = list(q_deg)
+        return Supervision(bool(command & Command.ENABLE) or self.enable_on_start, bool(rising & Command.TARE),
+                           reset, q_new)
+
+    def _check_q(self, q_deg: list[float]) -> bool:
+        for j, v in enumerate(q_deg):
+            if not math.isfinite(v):
+                self.faults.trip(Fault.VALUE_INVALID, f"q{j + 1} = {v} from the PLC is not finite")
+                return False
+            if not self.lo[j] <= v <= self.hi[j]:
+                self.faults.trip(Fault.JOINT_LIMITS, f"q{j + 1} = {v:.3f} deg is outside the joint limits "
+                                 f"[{self.lo[j]:g}, {self.hi[j]:g}]")
+                return False
+        return True
+
+    def _heartbeat(self, t: float, hb: int, enable_rose: bool, enabled_by_plc: bool) -> None:
+        if self.prev_hb is None or hb != self.prev_hb:
+            if self.prev_hb is not None:
+                self.plc_seen = True
+            self.prev_hb = hb
+            self.hb_change_t = t
+        if enable_rose:
+            self.hb_change_t = t          # supervision starts when the PLC enables
+        if self.hb_timeout > 0 and enabled_by_plc and t - self.hb_change_t > self.hb_timeout:
+            self.faults.trip(Fault.PLC_HEARTBEAT, f"plc_heartbeat unchanged for {(t - self.hb_change_t) * 1000:.0f} "
+                             f"ms (timeout {self.hb_timeout * 1000:g} ms)")
