@@ -1,0 +1,136 @@
+"""No reader ever sees two cycles mixed: a writer process publishes as fast as it can, readers check.
+
+Every value of cycle n is a function of n alone, so a read that mixes words of two cycles shows values
+of two different n. The writer runs in a process of its own (as the cycle does); the readers are a
+Modbus client through the I/O server, and the image's own readers.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+
+import numpy as np
+from pymodbus.client import ModbusTcpClient
+
+from hil.testing import CONFIG, free_port
+from plc_interface.contract import ToPlc
+from plc_interface.image import ProcessImage
+from plc_interface.io_server import IoSettings, IoThread
+from plc_interface.register_map import RegisterMap
+from plc_interface.settings import PlcSettings
+
+MAP = RegisterMap.from_yaml(CONFIG / "registers.yaml")
+
+
+def record(n: int) -> ToPlc:
+    """Cycle n's record: every field a function of n that float32 and the integer types carry exactly."""
+    return ToPlc._make([float((n + k) % 60000) for k in range(len(ToPlc._fields))])
+
+
+def writer(image: ProcessImage, stop, published, started) -> None:
+    n = 0
+    try:
+        while not stop.is_set():
+            image.publish(record(n))
+            n += 1
+            if n == 1:
+                started.set()
+        published.value = n
+    finally:
+        image.close()
+
+
+def cycles_seen(values: dict[str, float]) -> set[int]:
+    """The n each value belongs to."""
+    return {int(values[f] - k) % 60000 for k, f in enumerate(ToPlc._fields) if f in values}
+
+
+def test_no_reader_sees_two_cycles_mixed():
+    image = ProcessImage(MAP)
+    ctx = multiprocessing.get_context("spawn")
+    stop, started, published = ctx.Event(), ctx.Event(), ctx.Value("q", 0)
+    proc = ctx.Process(target=writer, args=(image, stop, published, started))
+    port = free_port()
+    io = IoThread(image, IoSettings(plc=PlcSettings(port=port)))
+    io.start()
+    codec = MAP.codecs["to_plc"]
+    seen: set[int] = set()
+    try:
+        proc.start()
+        assert started.wait(60)
+        with ModbusTcpClient("127.0.0.1", port=port, timeout=5) as c:
+            assert c.connect()
+            for _ in range(1500):
+                r = c.read_input_registers(codec.start, count=codec.words)
+                assert not r.isError()
+                values = dict(zip(codec.names, codec.decode(r.registers)))
+                if not any(values.values()):        # the writer has not published yet
+                    continue
+                ns = cycles_seen(values)
+                assert len(ns) == 1, f"one read holds values of cycles {sorted(ns)}"
+                seen |= ns
+                out = image.outputs()
+                if any(out.values()):
+                    ns = cycles_seen(out)
+                    assert len(ns) == 1, f"the image's reader saw cycles {sorted(ns)}"
+    finally:
+        stop.set()
+        proc.join(20)
+        io.stop()
+        image.close()
+    assert proc.exitcode == 0
+    # the reads did overlap the writer: they saw many different cycles, while it published more still
+    assert len(seen) > 100 and published.value > len(seen)
+
+
+def test_the_cycle_reads_each_plc_write_whole():
+    """The cycle side's reader against the I/O side writing the PLC's block as fast as it can."""
+    image = ProcessImage(MAP)
+    inp = MAP.codecs["from_plc"]
+    ctx = multiprocessing.get_context("spawn")
+    stop = ctx.Event()
+    started = ctx.Event()
+    proc = ctx.Process(target=plc_writer, args=(image, stop, started))
+    checked = 0
+    try:
+        proc.start()
+        assert started.wait(60)
+        for _ in range(20000):
+            v = image.inputs()
+            if v.command_word == 0:         # the writer has not written yet
+                continue
+            base = v.plc_heartbeat
+            assert [v.q1, v.q2, v.q3, v.q4, v.q5, v.q6] == [float(base + k) for k in range(6)], v
+            checked += 1
+    finally:
+        stop.set()
+        proc.join(20)
+        image.close()
+    assert proc.exitcode == 0
+    assert checked > 10000 and inp.words == 14
+
+
+def plc_writer(image: ProcessImage, stop, started) -> None:
+    inp = image.in_codec
+    n = 0
+    try:
+        while not stop.is_set():
+            values = {"command_word": 1, "plc_heartbeat": n % 60000,
+                      **{f"q{i + 1}": float(n % 60000 + i) for i in range(6)}}
+            image.write_block(inp.encode([values[k] for k in inp.names]))
+            n += 1
+            if n == 1:
+                started.set()
+    finally:
+        image.close()
+
+
+def test_a_published_record_reads_back_by_name():
+    image = ProcessImage(MAP)
+    try:
+        image.publish(record(1234))
+        out = image.outputs()
+        expected = record(1234)._asdict()
+        assert all(np.isclose(out[k], expected[k]) for k in out)
+    finally:
+        image.close()
