@@ -22,9 +22,7 @@ outputs of the cycle, `service.pipeline.Signals`), e.g. ``signals.correction[0]`
 from __future__ import annotations
 
 import enum
-import operator
 import re
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -181,38 +179,35 @@ class TaskValues(NamedTuple):
 _SOURCE = re.compile(r"^(task|signals)\.([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
 
 
-def _getter(source: str) -> Callable[[Any, Any], float]:
-    m = _SOURCE.match(source)
-    if m is None:
+def _expression(source: str) -> str:
+    """The Python expression of a source path (validated: a root, a name and an optional index only)."""
+    if _SOURCE.match(source) is None:
         raise ContractError(f"contract source {source!r} must be 'task.NAME' or 'signals.NAME[INDEX]'")
-    root, attr, index = m.group(1), m.group(2), m.group(3)
-    get = operator.attrgetter(attr)
-    pick = 0 if root == "task" else 1
-    if index is None:
-        return lambda *ns: get(ns[pick])
-    k = int(index)
-    return lambda *ns: get(ns[pick])[k]
+    return source
 
 
 class Producer:
     """Builds the `ToPlc` record of a cycle from its ``task`` and ``signals`` by the contract's sources.
 
-    The sources are compiled once; `check` evaluates them on sample records so a source that names a
-    missing quantity fails at start-up, not in the cycle.
+    The sources are compiled once into one function (each path is checked against a strict pattern
+    first, so the compiled text holds names and indices only); `check` evaluates every source on
+    sample records so a source that names a missing quantity fails at start-up, not in the cycle.
     """
 
     def __init__(self) -> None:
-        self._getters = [_getter(v.source) for v in TO_PLC]
+        body = ", ".join(_expression(v.source) for v in TO_PLC)
+        self._values = eval(f"lambda task, signals: ({body},)", {})
+        self._make = ToPlc._make
 
     def check(self, task: TaskValues, signals: Any) -> None:
-        for v, g in zip(TO_PLC, self._getters):
+        for v in TO_PLC:
             try:
-                float(g(task, signals))
+                float(eval(f"lambda task, signals: {v.source}", {})(task, signals))
             except (AttributeError, IndexError, TypeError, ValueError) as e:
                 raise ContractError(f"contract value {v.name!r}: source {v.source!r} does not resolve: {e}") from e
 
     def __call__(self, task: TaskValues, signals: Any) -> ToPlc:
-        return ToPlc._make([g(task, signals) for g in self._getters])
+        return self._make(self._values(task, signals))
 
 
 def stopped(record: ToPlc) -> ToPlc:

@@ -99,31 +99,44 @@ class BlockCodec:
         self._struct = struct.Struct(fmt)
         self._words = struct.Struct("<" + "H" * self.words)
         self._scales = [r.scale for r in registers]
-        self._pick = operator.attrgetter(*self.names) if len(self.names) > 1 else (
+        self.pick = operator.attrgetter(*self.names) if len(self.names) > 1 else (
             lambda rec: (getattr(rec, self.names[0]),))
 
     def encode_record(self, record) -> list[int]:
         """Words for a contract record (`ToPlc`, `FromPlc`): each register takes its value by name."""
-        return self.encode(self._pick(record))
+        return self.encode(self.pick(record))
 
     def record_reader(self, record_type):
-        """A function words -> ``record_type`` (a contract NamedTuple): each field by name from this block.
+        """A function values (``names`` order) -> ``record_type`` (a contract NamedTuple): each field by name.
 
         Every field of the record must be a register of the block (the contract's required values are)."""
         missing = [f for f in record_type._fields if f not in self.index]
         if missing:
             raise RegisterMapError(f"the block has no register {missing[0]!r} ({record_type.__name__} needs it)")
         order = [self.index[f] for f in record_type._fields]
-        make, decode = record_type._make, self.decode
-        return lambda words: make(map(decode(words).__getitem__, order))
+        make = record_type._make
+        return lambda values: make(map(values.__getitem__, order))
 
     def encode(self, values: list[float]) -> list[int]:
         """Words for ``values`` given in ``names`` order (integers are scaled, rounded and clamped)."""
+        return list(self._words.unpack(self._struct.pack(*self._scaled(values))))
+
+    def _scaled(self, values) -> list:
         out = list(values)
         for k, scale, lo, hi in self._ints:
             x = out[k] * scale
             out[k] = min(max(round(x), lo), hi) if math.isfinite(x) else 0
-        return list(self._words.unpack(self._struct.pack(*out)))
+        return out
+
+    def pack_into(self, buffer, offset: int, values) -> None:
+        """Write ``values`` (``names`` order) as the block's words, little-endian, into ``buffer`` at byte
+        ``offset`` (the process image's memory: one struct call, no intermediate list of words)."""
+        self._struct.pack_into(buffer, offset, *self._scaled(values))
+
+    def unpack_from(self, buffer, offset: int) -> list[float]:
+        """Values in ``names`` order from the block's words in ``buffer`` at byte ``offset``."""
+        raw = self._struct.unpack_from(buffer, offset)
+        return [v if s == 1.0 else v / s for v, s in zip(raw, self._scales)]
 
     def decode(self, words: list[int]) -> list[float]:
         """Values in ``names`` order from the block's words (integers divided by their scale)."""
