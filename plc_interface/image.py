@@ -10,6 +10,7 @@ anything else is refused with ILLEGAL_ADDRESS (0x02) and changes nothing.
 from __future__ import annotations
 
 import threading
+import time
 
 from .register_map import RegisterMap
 
@@ -21,7 +22,7 @@ class RegisterImage:
     """Words of both blocks; addresses are absolute Modbus addresses."""
 
     def __init__(self, rmap: RegisterMap):
-        self.map = rmap
+        self.map = self.rmap = rmap
         self.lock = threading.Lock()
         self.blocks = {}
         for direction, b in rmap.blocks.items():
@@ -37,13 +38,23 @@ class RegisterImage:
         self.out_codec = rmap.codecs["to_plc"]
         self.in_codec = rmap.codecs["from_plc"]
         self.refused_writes = 0
+        self.version, self.stamp_ns = 0, 0      # of the last publish (`snapshot`)
 
     # -- the cycle's side -----------------------------------------------------------------------
-    def publish(self, words: list[int]) -> None:
-        """Replace the to_plc block's leading words."""
+    def publish(self, words: list[int], stamp_ns: int | None = None) -> None:
+        """Replace the to_plc block's leading words; ``stamp_ns`` is the cycle's start (time.time_ns)."""
         block = self.blocks["to_plc"][2]
+        stamp = time.time_ns() if stamp_ns is None else stamp_ns
         with self.lock:
             block[: len(words)] = words
+            self.version += 1
+            self.stamp_ns = stamp
+
+    def snapshot(self) -> tuple[int, int, list[int], list[int]]:
+        """(version, stamp_ns, to_plc words, from_plc words) of one publish, for the ADS server."""
+        to_plc, from_plc = self.blocks["to_plc"][2], self.blocks["from_plc"][2]
+        with self.lock:
+            return self.version, self.stamp_ns, list(to_plc), list(from_plc)
 
     def inputs(self) -> list[int]:
         """A consistent copy of the from_plc block."""

@@ -32,7 +32,7 @@ log = logging.getLogger("stiffcomp.service")
 TASK_INIT, TASK_RUN, TASK_STOP = 0, 1, 2
 # the to_plc values in the order work() produces them
 WORK_ORDER = ["heartbeat", "status_word", "fault_word", "task_state", "cycle_count", "exceed_count",
-              "last_exec_us", "cycle_time_us", "period_jitter_us",
+              "last_exec_us", "cycle_time_us", "period_jitter_us", "cycle_exceeded",
               *(f"correction_q{i}" for i in range(1, 7)),
               *(f"wrench_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")),
               *(f"deflection_{c}" for c in ("dx", "dy", "dz", "rx", "ry", "rz"))]
@@ -107,7 +107,7 @@ class Service:
         n = info.cycle_count + 1
         out = [n & 0xFFFF, comp.status_word, comp.faults.word, TASK_RUN, n, info.exceed_count,
                info.last_exec_s * 1e6, self.period * 1e6, info.last_jitter_s * 1e6,
-               *comp.correction, *comp.wrench_base, *comp.deflection]
+               int(exceeded), *comp.correction, *comp.wrench_base, *comp.deflection]
         self._out = ordered = [out[k] for k in self._order]
         image.publish(image.out_codec.encode(ordered))
 
