@@ -9,6 +9,7 @@ block since its last publish; at the end it reports that and the from_plc block 
 from __future__ import annotations
 
 import asyncio
+import logging
 import multiprocessing
 from pathlib import Path
 from typing import Self
@@ -26,7 +27,9 @@ def fake_values(cycle: int) -> dict[str, float]:
             "correction_q1": 0.5 * (cycle // 8), "correction_q2": -1.25, "wrench_fz": 42.0}
 
 
-async def _run(settings: dict, period_s: float, conn) -> None:
+async def _run(settings: dict, period_s: float, conn, log_path: str | None) -> None:
+    if log_path:
+        logging.basicConfig(filename=log_path, level=logging.INFO)
     image = RegisterImage(RegisterMap.from_yaml(MAP))
     codec = image.out_codec
     server = AdsServer(image, AdsSettings(**settings))
@@ -55,24 +58,24 @@ async def _run(settings: dict, period_s: float, conn) -> None:
                            "refused": image.refused_writes}))
 
 
-def _serve(settings: dict, period_s: float, conn) -> None:
-    asyncio.run(_run(settings, period_s, conn))
+def _serve(settings: dict, period_s: float, conn, log_path: str | None) -> None:
+    asyncio.run(_run(settings, period_s, conn, log_path))
 
 
 class AdsChild:
     """``with AdsChild(net_id=..., ...) as child:`` serves on ``child.host:child.port`` until the block ends;
     ``child.report`` then holds the fake cycle's findings."""
 
-    def __init__(self, period_s: float = 0.002, **settings):
+    def __init__(self, period_s: float = 0.002, log_path: str | None = None, **settings):
         settings.setdefault("host", "127.0.0.1")
         settings.setdefault("port", 0)
-        self.settings, self.period_s = settings, period_s
+        self.settings, self.period_s, self.log_path = settings, period_s, log_path
         self.report: dict = {}
 
     def __enter__(self) -> Self:
         ctx = multiprocessing.get_context("spawn")
         self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(self.settings, self.period_s, child), daemon=True)
+        self._proc = ctx.Process(target=_serve, args=(self.settings, self.period_s, child, self.log_path), daemon=True)
         self._proc.start()
         child.close()
         if not self._conn.poll(30):
