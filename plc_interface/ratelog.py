@@ -55,11 +55,12 @@ class RateLimitedLog:
 
     def _emit(self, key: tuple[str, str], now: float, detail: str) -> None:
         n = self._pending.pop(key, 0)
+        since = self._last.get(key)
         self._last[key] = now
         if n:
+            span = "first report" if since is None else f"in the last {now - since:.0f} s"
             tail = f" ({detail})" if detail else ""
-            self.logger.log(self.level, "%s: %s: %d time(s) in the last %g s%s", key[0], key[1], n,
-                            self.interval_s, tail)
+            self.logger.log(self.level, "%s: %s: %d time(s), %s%s", key[0], key[1], n, span, tail)
 
     def _expire(self) -> None:
         """Forget pairs quiet for a whole interval (their counts are written first)."""

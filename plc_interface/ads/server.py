@@ -104,6 +104,7 @@ class AdsServer:
         self._tasks: set[asyncio.Task] = set()
         self._wake = asyncio.Event()
         self._version: int | None = None
+        self._tracebacks: set[type] = set()
 
     # -- life cycle --------------------------------------------------------------------------------
     async def start(self) -> None:
@@ -200,7 +201,9 @@ class AdsServer:
         try:
             return h.reply(self.command(conn, h, frame[ams.AMS_HEADER_SIZE:]))
         except Exception as e:                 # a bug must cost one request, not the server
-            log.exception("ADS request %#x from %s failed", h.command, conn.peer)
+            if type(e) not in self._tracebacks:        # one traceback per kind of bug, then counts only
+                self._tracebacks.add(type(e))
+                log.exception("ADS request %#x from %s failed", h.command, conn.peer)
             self.ratelog.report(conn.peer, f"internal error: {type(e).__name__}")
             return h.reply(b"", ams.ADSERR_DEVICE_ERROR)
 
