@@ -157,3 +157,22 @@ def test_notifications_cyclic_and_on_change(plc):
     now = time.time()
     for stamp, _ in cyclic + change + task:             # FILETIME of the cycle's start, converted by pyads
         assert abs(stamp.timestamp() - now) < 300.0
+
+
+def test_sum_read_write_gets_handles_one_result_each(plc):
+    names = [b"GVL_Comp.q6", b"GVL_Comp.NoSuchSymbol"]
+    req = b"".join(struct.pack("<IIII", 0xF003, 0, 4, len(n)) for n in names) + b"".join(names)
+    raw = bytes(plc.read_write(0xF082, len(names), ctypes.c_ubyte * 28, list(req), ctypes.c_ubyte * len(req),
+                               return_ctypes=True, check_length=False))
+    (err1, len1), (err2, len2) = struct.unpack_from("<II", raw, 0), struct.unpack_from("<II", raw, 8)
+    assert (err1, len1, err2, len2) == (0, 4, 0x710, 0)
+    handle = struct.unpack_from("<I", raw, 16)[0]
+    plc.write_by_name("GVL_Comp.q6", 3.75)
+    assert plc.read_by_name("", pyads.PLCTYPE_REAL, handle=handle) == 3.75
+    plc.release_handle(handle)
+
+
+def test_device_info_and_state(plc):
+    name, version = plc.read_device_info()
+    assert name == "stiffcomp" and (version.version, version.revision) == (0, 1)
+    assert plc.read_state() == (pyads.ADSSTATE_RUN, 0)          # the fake cycle's task_state is 1 (run)
