@@ -151,7 +151,10 @@ class AdsServer:
             if not any(c.notes.items for c in self.connections):
                 self._wake.clear()
                 await self._wake.wait()
-            self.on_cycle()
+            try:
+                self.on_cycle()
+            except Exception as e:  # noqa: BLE001 (the image gone, or a bug: keep serving requests)
+                self._bug(e, "sampling notifications failed")
             await asyncio.sleep(self.settings.notify_poll_s)
 
     # -- connections -------------------------------------------------------------------------------
@@ -200,12 +203,16 @@ class AdsServer:
             return h.reply(b"", error)
         try:
             return h.reply(self.command(conn, h, frame[ams.AMS_HEADER_SIZE:]))
-        except Exception as e:                 # a bug must cost one request, not the server
-            if type(e) not in self._tracebacks:        # one traceback per kind of bug, then counts only
-                self._tracebacks.add(type(e))
-                log.exception("ADS request %#x from %s failed", h.command, conn.peer)
-            self.ratelog.report(conn.peer, f"internal error: {type(e).__name__}")
+        except Exception as e:  # noqa: BLE001 (a bug must cost one request, not the server)
+            self._bug(e, f"ADS request {h.command:#x} from {conn.peer} failed", conn.peer)
             return h.reply(b"", ams.ADSERR_DEVICE_ERROR)
+
+    def _bug(self, e: Exception, what: str, client: str = "server") -> None:
+        """Log an unexpected exception: its traceback once per kind, then rate-limited counts."""
+        if type(e) not in self._tracebacks:
+            self._tracebacks.add(type(e))
+            log.error("%s", what, exc_info=e)
+        self.ratelog.report(client, f"internal error: {type(e).__name__}")
 
     def command(self, conn: Connection, h: ams.AmsHeader, payload: bytes) -> bytes:
         """The response payload of one well-addressed request."""

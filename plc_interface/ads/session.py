@@ -14,7 +14,7 @@ from . import ams
 from .area import MB_GROUP, TASKINFO_GROUP, AreaView, Layout
 from .symbols import Symbol, SymbolTable
 
-SYM_HND_BY_NAME, SYM_VAL_BY_HND, SYM_RELEASE_HND = 0xF003, 0xF005, 0xF006
+SYM_HND_BY_NAME, SYM_VAL_BY_NAME, SYM_VAL_BY_HND, SYM_RELEASE_HND = 0xF003, 0xF004, 0xF005, 0xF006
 SYM_INFO_BY_NAME_EX, SYM_UPLOAD, SYM_UPLOAD_INFO, SYM_UPLOAD_INFO2 = 0xF009, 0xF00B, 0xF00C, 0xF00F
 SUM_READ, SUM_WRITE, SUM_READ_WRITE = 0xF080, 0xF081, 0xF082
 SUM_GROUPS = {SUM_READ, SUM_WRITE, SUM_READ_WRITE}
@@ -108,6 +108,11 @@ class Session:
             handle = next(self.device.handle_ids)
             self.handles[handle] = sym
             return 0, HANDLE.pack(handle)
+        if group == SYM_VAL_BY_NAME:            # value by name in one request, without a handle
+            sym = symbols.find(data)
+            if sym is None:
+                return ams.ADSERR_SYMBOL_NOT_FOUND, b""
+            return view.read(sym.group, sym.offset, sym.size) if rlen >= sym.size else (ams.ADSERR_INVALID_SIZE, b"")
         if group == SYM_INFO_BY_NAME_EX:
             sym = symbols.find(data)
             if sym is None:

@@ -91,7 +91,10 @@ def test_sum_read_of_a_list_by_name_is_one_cycle(plc):
 def test_unknown_symbol_is_0x710_and_the_connection_goes_on(plc):
     assert ads_error(plc.read_by_name, "GVL_Comp.NoSuchSymbol", pyads.PLCTYPE_INT) == 0x710
     assert ads_error(plc.get_handle, "GVL_Comp.NoSuchSymbol") == 0x710
+    assert ads_error(plc.read_write, 0xF004, 0, pyads.PLCTYPE_REAL, "GVL_Comp.NoSuchSymbol", pyads.PLCTYPE_STRING) \
+        == 0x710
     assert plc.read_by_name("GVL_Comp.wrench_fz") == 42.0
+    assert plc.read_write(0xF004, 0, pyads.PLCTYPE_REAL, "GVL_Comp.wrench_fz", pyads.PLCTYPE_STRING) == 42.0
 
 
 def test_refused_writes_change_nothing(plc):
