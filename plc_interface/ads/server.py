@@ -68,7 +68,10 @@ class Connection:
             raise Closing("AMS frame shorter than its 32-byte header (closed)")
         if length > self.server.settings.max_frame_bytes:
             raise Closing("AMS frame longer than max_frame_bytes (closed)")
-        return await self.reader.readexactly(length)
+        try:        # a frame begun must end: a client stalled mid-frame must not hold its slot for ever
+            return await asyncio.wait_for(self.reader.readexactly(length), self.server.settings.frame_timeout_s)
+        except TimeoutError:
+            raise Closing("frame not completed within frame_timeout_s (closed)") from None
 
     def send_due(self, view) -> None:
         """Queue this cycle's notification frames, unless the client has stopped reading."""
@@ -125,7 +128,7 @@ class AdsServer:
         if self._poller is not None:
             self._poller.cancel()
         for conn in list(self.connections):
-            conn.writer.close()
+            conn.writer.transport.abort()       # not close(): a client that does not read would hold it open
         tasks = [t for t in (*self._tasks, self._poller) if t is not None]
         await asyncio.gather(*tasks, return_exceptions=True)
         if self._server is not None:
@@ -139,7 +142,7 @@ class AdsServer:
         if not any(c.notes.items for c in self.connections):
             return
         snap = self.port.snapshot()
-        if snap[0] == self._version:
+        if snap[0] in (self._version, 0):       # the same cycle again, or none published yet
             return
         self._version = snap[0]
         view = self.device.view_of(snap)

@@ -45,6 +45,7 @@ class AdsSettings(_Strict):
     max_handles, max_notifications : per connection (ADS error 0x716 beyond)
     max_sum_requests : sub-requests in one sum command (pyads sends at most 500)
     max_frame_bytes : longest AMS frame accepted; a longer announced length closes the connection
+    frame_timeout_s : s, a frame begun must be complete within this, or the connection is closed
     max_send_buffer : bytes queued to a client that does not read; notifications to it are skipped
         beyond this, so a stalled client cannot grow the server's memory
     notify_poll_s : s, how often the server checks the image for a new cycle while notifications exist
@@ -62,6 +63,7 @@ class AdsSettings(_Strict):
     max_notifications: int = Field(256, ge=1)
     max_sum_requests: int = Field(500, ge=1)
     max_frame_bytes: int = Field(1 << 20, ge=1024)
+    frame_timeout_s: float = Field(10.0, gt=0)
     max_send_buffer: int = Field(1 << 20, ge=1024)
     notify_poll_s: float = Field(0.001, gt=0, le=0.1)
     log_interval_s: float = Field(10.0, gt=0)
