@@ -20,6 +20,7 @@ import logging
 
 from ..ratelog import RateLimitedLog
 from . import ams
+from .area import AreaView
 from .notifications import Notifications
 from .port import ImagePort
 from .session import Device, Session
@@ -73,7 +74,7 @@ class Connection:
         except TimeoutError:
             raise Closing("frame not completed within frame_timeout_s (closed)") from None
 
-    def send_due(self, view) -> None:
+    def send_due(self, view: AreaView) -> None:
         """Queue this cycle's notification frames, unless the client has stopped reading."""
         frames = self.notes.due(view, self.server.net_id, self.server.settings.ams_port)
         if not frames or self.writer.is_closing():

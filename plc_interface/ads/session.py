@@ -12,6 +12,7 @@ import struct
 
 from . import ams
 from .area import MB_GROUP, TASKINFO_GROUP, AreaView, Layout
+from .port import ImagePort
 from .symbols import Symbol, SymbolTable
 
 SYM_HND_BY_NAME, SYM_VAL_BY_NAME, SYM_VAL_BY_HND, SYM_RELEASE_HND = 0xF003, 0xF004, 0xF005, 0xF006
@@ -32,7 +33,7 @@ class Device:
     max_handles, max_sum_requests, max_frame_bytes : limits (`AdsSettings`)
     """
 
-    def __init__(self, port, max_handles: int = 1024, max_sum_requests: int = 500,
+    def __init__(self, port: ImagePort, max_handles: int = 1024, max_sum_requests: int = 500,
                  max_frame_bytes: int = 1 << 20):
         self.port = port
         self.layout = Layout(port.rmap)
@@ -44,7 +45,8 @@ class Device:
         """The areas of the newest published cycle."""
         return self.view_of(self.port.snapshot())
 
-    def view_of(self, snap) -> AreaView:
+    def view_of(self, snap: tuple[int, int, list[int], list[int]]) -> AreaView:
+        """The areas of ``snap`` (an `ImagePort.snapshot`)."""
         return AreaView(self.layout, snap)
 
 
