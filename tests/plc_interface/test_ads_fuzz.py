@@ -19,7 +19,9 @@ NET_ID = "5.6.7.9.1.1"
 TARGET = ams.net_id_bytes(NET_ID)
 SOURCE = ams.net_id_bytes("127.0.0.1.1.1")
 GROUPS = [0x4020, 0x4040, 0xF003, 0xF005, 0xF006, 0xF009, 0xF00B, 0xF00C, 0xF00F, 0xF080, 0xF081, 0xF082, 0x4021]
-u32 = st.one_of(st.integers(0, 64), st.sampled_from([0x7FFFFFFF, 0xFFFFFFFF, 1024, 1023, 500, 501]),
+# small numbers, the edges of the PLC's block in %MB (bytes 512..539: command word, heartbeat, q1..q6),
+# limits, and anything
+u32 = st.one_of(st.integers(0, 64), st.integers(508, 544), st.sampled_from([0x7FFFFFFF, 0xFFFFFFFF, 1024, 1023, 500, 501]),
                 st.integers(0, 0xFFFFFFFF))
 group = st.one_of(st.sampled_from(GROUPS), st.integers(0, 0xFFFFFFFF))
 blob = st.binary(max_size=64)
@@ -28,6 +30,9 @@ names = st.sampled_from([b"GVL_Comp.q1\0", b"GVL_Comp.NoSuchSymbol", b"gvl_comp.
 
 @st.composite
 def payloads(draw) -> tuple[int, bytes]:
+    if draw(st.integers(0, 5)) == 0:        # a write at the PLC's block, whole registers or not
+        data = draw(st.binary(min_size=1, max_size=8))
+        return ams.WRITE, struct.pack("<III", 0x4020, draw(st.integers(508, 544)), len(data)) + data
     cmd = draw(st.sampled_from([1, 2, 3, 4, 5, 6, 7, 8, 9, 0, 10, 0xFFFF]))
     g, off = draw(group), draw(u32)
     if cmd == ams.READ:
@@ -146,13 +151,14 @@ def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_pa
                 s.close()
             plc.release_handle(handle)
             plc.close()
+    words = child.report["from_plc"]
+    tally["PLC words written"] = sum(1 for w in words if w)
     print(f"ADS fuzz: {tally}")
     record_property("ads_fuzz_frames", tally["frames"])
     assert tally["frames"] >= 1000 and tally["answered"] > 0 and tally["closed"] > 0
     assert child.report["tampered"] == 0                 # nothing wrote into the service's block
     rmap = RegisterMap.from_yaml(MAP)
     start = rmap.blocks["from_plc"].start
-    words = child.report["from_plc"]
     stray = [start + i for i, w in enumerate(words) if w and start + i not in rmap.writable]
     assert stray == []                                   # nor outside the PLC's registers
     assert log.stat().st_size < 100_000
