@@ -105,3 +105,47 @@ def test_stop_returns_with_a_client_that_does_not_read():
         return stuck, server.connections
 
     assert run(body) == ([True], set())
+
+
+def test_cycle_times_count_on_the_cycles_stamps_and_on_change_sends_changes_only():
+    t0 = 1_700_000_000_000_000_000
+
+    async def body(image, server):
+        reader, writer = await asyncio.open_connection(*server.address)
+        codec = image.out_codec
+        k_count, k_corr = codec.names.index("cycle_count"), codec.names.index("correction_q1")
+        handles = {}
+        for name, offset, mode, cycle_100ns in (("cyclic", 8, ams.TRANS_SERVER_CYCLE, 50_000),     # 5 ms
+                                                 ("change", 32, ams.TRANS_SERVER_ON_CHANGE, 0)):
+            writer.write(request(ams.ADD_NOTIFICATION, struct.pack("<IIIIII16x", 0x4020, offset, 4, mode, 0,
+                                                                   cycle_100ns)))
+            _, payload = await read_frame(reader)
+            result, handles[name] = ams.ADD_NOTE_RES.unpack(payload)
+            assert result == 0
+        for cycle in range(1, 13):                                  # 12 cycles, 1 ms apart
+            vals = [0.0] * len(codec.names)
+            vals[k_count], vals[k_corr] = cycle, float(cycle // 3)
+            image.publish(codec.encode(vals), stamp_ns=t0 + (cycle - 1) * 1_000_000)
+            server.on_cycle()
+        writer.write(request(ams.READ_STATE, b"", invoke=99))
+        sent = {"cyclic": [], "change": []}
+        names = {v: k for k, v in handles.items()}
+        while True:
+            h, payload = await read_frame(reader)
+            if h.invoke_id == 99 and h.flags & ams.FLAG_RESPONSE:
+                break
+            filetime, n = ams.STAMP_HEAD.unpack_from(payload, 8)
+            pos = 20
+            for _ in range(n):
+                handle, size = ams.SAMPLE_HEAD.unpack_from(payload, pos)
+                fmt = "<I" if names[handle] == "cyclic" else "<f"
+                sent[names[handle]].append(((filetime - 116_444_736_000_000_000) * 100 - t0,
+                                            struct.unpack_from(fmt, payload, pos + 8)[0]))
+                pos += 8 + size
+        writer.close()
+        return sent
+
+    sent = run(body, notify_poll_s=0.1)
+    ms = 1_000_000
+    assert sent["cyclic"] == [(0, 1), (5 * ms, 6), (10 * ms, 11)]
+    assert sent["change"] == [(0, 0.0), (2 * ms, 1.0), (5 * ms, 2.0), (8 * ms, 3.0), (11 * ms, 4.0)]
