@@ -32,7 +32,11 @@ TASK_STATES = {0: ams.ADSSTATE_INIT, 1: ams.ADSSTATE_RUN, 2: ams.ADSSTATE_STOP}
 
 
 class Closing(Exception):
-    """The connection is to be closed; the message is the reason logged."""
+    """The connection is to be closed; ``reason`` is logged (rate-limited by it), ``detail`` with it."""
+
+    def __init__(self, reason: str, detail: str = ""):
+        super().__init__(reason)
+        self.reason, self.detail = reason, detail
 
 
 class Connection:
@@ -53,7 +57,7 @@ class Connection:
                 self.writer.write(reply)
                 await self.writer.drain()
         except Closing as e:
-            self.server.ratelog.report(self.peer, str(e))
+            self.server.ratelog.report(self.peer, e.reason, e.detail)
         except (ConnectionError, asyncio.IncompleteReadError):
             pass
 
@@ -192,7 +196,7 @@ class AdsServer:
         if h.flags & ams.FLAG_RESPONSE:
             raise Closing("a response frame sent to the server (closed)")
         if not self.settings.allows(conn.peer, ams.net_id_text(h.source)):
-            raise Closing(f"no route for AMS Net ID {ams.net_id_text(h.source)} (closed)")
+            raise Closing("no route for this AMS Net ID (closed)", f"Net ID {ams.net_id_text(h.source)}")
         error = 0
         if h.length != len(frame) - ams.AMS_HEADER_SIZE:
             error, reason = ams.ERR_INVALID_AMS_LENGTH, "AMS length disagrees with the frame"

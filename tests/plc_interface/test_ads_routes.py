@@ -28,15 +28,17 @@ def device_info(host: str, port: int, source: str) -> bytes:
     return out
 
 
-def test_unknown_net_id_is_disconnected_and_a_known_route_is_answered():
+def test_unknown_net_id_is_disconnected_and_a_known_route_is_answered(tmp_path):
     routes = [{"net_id": KNOWN, "address": "127.0.0.1"}]
-    with AdsChild(net_id=NET_ID, allow_loopback=False, routes=routes) as child:
+    log = tmp_path / "ads.log"
+    with AdsChild(net_id=NET_ID, allow_loopback=False, routes=routes, log_path=str(log)) as child:
         assert device_info(child.host, child.port, "10.0.0.8.1.1") == b""           # closed, no reply
         reply = device_info(child.host, child.port, KNOWN)
         h = ams.AmsHeader.parse(reply[6:])
         assert (h.invoke_id, h.error, h.flags & ams.FLAG_RESPONSE) == (77, 0, 1)
         result, *_ , name = ams.DEVICE_INFO_RES.unpack_from(reply, 38)
         assert result == 0 and name.rstrip(b"\0") == b"stiffcomp"
+    assert "no route for this AMS Net ID (closed): 1 time(s), first report (Net ID 10.0.0.8.1.1)" in log.read_text()
 
 
 def test_default_accepts_loopback_only():
