@@ -207,7 +207,7 @@ class AdsServer:
         elif h.command not in ams.COMMANDS:
             error, reason = ams.ADSERR_SRV_NOT_SUPP, "unknown ADS command"
         if error:
-            conn.server.ratelog.report(conn.peer, reason)
+            self.ratelog.report(conn.peer, reason)
             return h.reply(b"", error)
         try:
             return h.reply(self.command(conn, h, frame[ams.AMS_HEADER_SIZE:]))
