@@ -210,6 +210,11 @@ class Producer:
         return self._make(self._values(task, signals))
 
 
+def to_plc(**values: float) -> ToPlc:
+    """A `ToPlc` record: zero but for ``values`` (tests, tools, a service before its first cycle)."""
+    return ToPlc(**{**dict.fromkeys(ToPlc._fields, 0.0), **values})
+
+
 def stopped(record: ToPlc) -> ToPlc:
     """The record a stopped service leaves: zero correction, status STOPPED, task state STOP."""
     zero = {f"correction_q{i}": 0.0 for i in _JOINTS}

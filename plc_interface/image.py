@@ -25,11 +25,12 @@ is refused (False) and changes nothing.
 
 from __future__ import annotations
 
+import time
 from multiprocessing.shared_memory import SharedMemory
 
 import numpy as np
 
-from .contract import FromPlc, ToPlc
+from .contract import FromPlc, ToPlc, to_plc
 from .register_map import RegisterMap
 
 RETRIES = 3
@@ -48,7 +49,7 @@ class ProcessImage:
     """
 
     def __init__(self, rmap: RegisterMap, _name: str | None = None):
-        self.map = rmap
+        self.rmap = rmap
         self.out_codec, self.in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
         self.tables = {d: (b.table, b.start, b.size) for d, b in rmap.blocks.items()}
         sizes = {d: b.size for d, b in rmap.blocks.items()}
@@ -73,10 +74,10 @@ class ProcessImage:
         self.stale_reads = 0            # cycle side: inputs kept from a previous copy
         self.refused_writes = 0         # I/O side: writes refused by the Modbus rules
         self._master: list[int] | None = None   # I/O side: the from_plc block it owns
-        self._last_record = ToPlc._make([0.0] * len(ToPlc._fields))
+        self._last_record = to_plc()
 
     def __reduce__(self):
-        return (ProcessImage, (self.map, self.shm.name))
+        return (ProcessImage, (self.rmap, self.shm.name))
 
     # -- the protocol ---------------------------------------------------------------------------
     def _publish(self, direction: str, words, stamp_ns: int = 0) -> None:
@@ -105,15 +106,16 @@ class ProcessImage:
         return None
 
     # -- the cycle's side -----------------------------------------------------------------------
-    def publish(self, record: ToPlc, stamp_ns: int = 0) -> None:
+    def publish(self, record: ToPlc, stamp_ns: int | None = None) -> None:
         """Publish one cycle's record (each register takes its value by name); never waits. The codec
-        packs the values straight into the free buffer (one struct call)."""
+        packs the values straight into the free buffer (one struct call). ``stamp_ns``: the cycle's
+        time (time.time_ns(), the default), for the FILETIME stamps of ADS notifications."""
         h = self._h
         b = (int(h[0]) + 1) & 1
         h[1 + b] += 1
         self._last_record = record
         self.out_codec.pack_into(self.shm.buf, self._off["to_plc"][b], self.out_codec.pick(record))
-        h[3 + b] = stamp_ns
+        h[3 + b] = time.time_ns() if stamp_ns is None else stamp_ns
         h[1 + b] += 1
         h[0] += 1
 

@@ -27,7 +27,7 @@ class IoSettings:
     """What the I/O process serves: the PLC role, and the optional ADS and monitoring sections."""
 
     plc: PlcSettings = field(default_factory=PlcSettings)
-    ads: Any = None                 # plc_interface.ads settings, or None (no ADS server)
+    ads: Any = None                 # plc_interface.ads.AdsSettings, or None (no ADS server)
     monitoring: Any = None          # monitoring settings, or None
     avoid_cpu: int | None = None    # keep the I/O process off the cycle's CPU when it is pinned
 
@@ -61,6 +61,8 @@ class IoServer:
                 await self._add(ModbusClient(self.image, s.plc.host, s.plc.port, s.plc.device_id,
                                              c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
                                              c.read_start))
+            if s.ads is not None and s.ads.enabled:
+                await self._add(_Ads(self.image, s.ads))
         except BaseException:
             await self.stop()
             raise
@@ -79,6 +81,27 @@ class IoServer:
 
     def part(self, kind: type) -> Any:
         return next((p for p in self.parts if isinstance(p, kind)), None)
+
+
+class _Ads:
+    """The ADS server as a part of the I/O server (a bind failure is a PlcError naming the address)."""
+
+    def __init__(self, image: ProcessImage, settings):
+        from .ads import AdsServer
+
+        self.settings = settings
+        self.server = AdsServer(image, settings)
+
+    async def start(self) -> None:
+        try:
+            await self.server.start()
+        except OSError as e:
+            raise PlcError(f"cannot serve ADS on {self.settings.host}:{self.settings.port}: {e}") from e
+        log.info("ADS server on %s:%d, AMS Net ID %s, port %d", self.settings.host, self.settings.port,
+                 self.settings.net_id, self.settings.ams_port)
+
+    async def stop(self) -> None:
+        await self.server.stop()
 
 
 async def _serve(server: IoServer, started: threading.Event | None, stop_requested) -> None:

@@ -138,9 +138,9 @@ class Service:
     def io_settings(self) -> IoSettings | None:
         """What the I/O process serves, or None when there is nothing to serve."""
         cfg = self.cfg
-        if cfg.plc.role == "none":
+        if cfg.plc.role == "none" and not cfg.ads.enabled:
             return None
-        return IoSettings(plc=cfg.plc, avoid_cpu=cfg.cycle.cpu)
+        return IoSettings(plc=cfg.plc, ads=cfg.ads, avoid_cpu=cfg.cycle.cpu)
 
     def start(self) -> None:
         self.image.publish(self.record, time.time_ns())
@@ -159,8 +159,10 @@ class Service:
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6)
         self.task.start()
         p = self.cfg.plc
-        log.info("service running: %.3f ms cycle, source %s, PLC %s", self.period * 1000, self.cfg.source.type,
-                 p.role if self.io is None else f"{p.role} {p.host}:{p.port} (I/O process)")
+        a = self.cfg.ads
+        log.info("service running: %.3f ms cycle, source %s, PLC %s%s", self.period * 1000, self.cfg.source.type,
+                 p.role if self.io is None else f"{p.role} {p.host}:{p.port}",
+                 f", ADS {a.host}:{a.port} ({a.net_id}:{a.ams_port})" if a.enabled else "")
 
     def stop(self) -> None:
         """Ask the cycle to ramp the correction to zero and end, publish the stopped state, stop the I/O.

@@ -20,6 +20,7 @@ COMMANDS = {
     "kcart": "tools.stiffness_cmd",
     "run": "tools.run_cmd",
     "registers": "tools.registers_cmd",
+    "symbols": "tools.symbols_cmd",
     "record": "tools.record_cmd",
     "payload": "tools.payload_cmd",
     "simulate": "tools.simulate_cmd",
