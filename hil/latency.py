@@ -36,7 +36,7 @@ from .sensor import serve_until
 CODES = 500
 OFFSET_N = 10.0
 # the service passes the sensor's numbers through unchanged
-TRANSPARENT = {"filter": {"type": "none", "spike": {"max_step_N": 5000.0, "max_step_Nm": 500.0}},
+TRANSPARENT = {"filter": {"type": "none", "spike": {"max_step_N": 5000.0, "max_step_Nm": 500.0}}, "cycle": {"realtime_priority": 50},
                "gravity": {"tool": {"mass_kg": 0.0, "cog_mm": [0.0, 0.0, 0.0]}, "bias": [0.0] * 6}}
 
 

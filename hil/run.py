@@ -90,6 +90,7 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
     source["can"]["channel"] = group
     source["can"].setdefault("options", {})["port"] = can_port
     data.setdefault("ads", {})["port"] = free_port()         # parallel runs never share ADS's 48898
+    data.setdefault("monitoring", {})["port"] = free_port()
     deep_update(data, overrides or {})
     path = folder / "service.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))

@@ -31,14 +31,15 @@ def free_port() -> int:
 
 
 def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml") -> Path:
-    """config/default.yaml with absolute paths and ``overrides`` merged in, written to ``folder``. ADS listens
-    on a free port (not 48898), so services of parallel tests never collide."""
+    """config/default.yaml with absolute paths and ``overrides`` merged in, written to ``folder``. ADS and
+    monitoring listen on free ports (not 48898 and 9020), so services of parallel tests never collide."""
     data = yaml.safe_load((CONFIG / "default.yaml").read_text())
     data["model"]["file"] = str(CONFIG / "models" / "kr125_6dof.yaml")
     data["plc"]["register_map"] = str(CONFIG / "registers.yaml")
     data["source"]["replay"]["file"] = str(CONFIG / "replay" / "demo_milling.blf")
     data["source"]["ati"]["dbc"] = str(CONFIG / "ati_netft_can.dbc")
     data["ads"]["port"] = free_port()
+    data["monitoring"]["port"] = free_port()
     deep_update(data, overrides or {})
     path = Path(folder) / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))

@@ -144,6 +144,10 @@ TO_PLC: tuple[Value, ...] = (
             f"signals.dq_deg[{i - 1}]", required=False) for i in _JOINTS),
     Value("tare_count", "uint16", "", "tares done since start (wraps at 65535)", "signals.tare_count",
           required=False),
+    Value("sensor_samples", "uint32", "", "good sensor samples since start", "signals.sensor_samples",
+          required=False),
+    Value("sample_age_ms", "float32", "ms", "age of the newest good sensor sample", "signals.sample_age_ms",
+          required=False),
 )
 
 FROM_PLC: tuple[Value, ...] = (

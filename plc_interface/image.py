@@ -34,6 +34,7 @@ from .contract import FromPlc, ToPlc, to_plc
 from .register_map import RegisterMap
 
 RETRIES = 3
+TIMING_RING = 8192      # cycles of (exec, jitter) kept for the I/O side's histograms (8 s at 1 ms)
 DIRECTIONS = ("to_plc", "from_plc")
 # header (int64): version, seq of buffer 0, seq of buffer 1, stamp (ns) of buffer 0, of buffer 1, per direction
 _H = {"to_plc": 0, "from_plc": 5}
@@ -53,7 +54,7 @@ class ProcessImage:
         self.out_codec, self.in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
         self.tables = {d: (b.table, b.start, b.size) for d, b in rmap.blocks.items()}
         sizes = {d: b.size for d, b in rmap.blocks.items()}
-        n_bytes = 8 * _HEADER + sum(2 * 2 * n for n in sizes.values())
+        n_bytes = 8 * _HEADER + sum(2 * 2 * n for n in sizes.values()) + 8 + 8 * TIMING_RING
         self._owner = _name is None
         self.shm = SharedMemory(name=_name, create=self._owner, size=n_bytes)
         self._h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
@@ -62,7 +63,11 @@ class ProcessImage:
             self._buf[d] = np.ndarray((2, sizes[d]), dtype=np.uint16, buffer=self.shm.buf, offset=off)
             self._off[d] = (off, off + 2 * sizes[d])      # byte offsets of the two buffers
             off += 4 * sizes[d]
+        # per-cycle timings: a count, then a ring of (last_exec_us, period_jitter_us) as float32 pairs
+        self._n_timing = np.ndarray((1,), dtype=np.int64, buffer=self.shm.buf, offset=off)
+        self._timing = np.ndarray((TIMING_RING, 2), dtype=np.float32, buffer=self.shm.buf, offset=off + 8)
         if self._owner:
+            self._n_timing[0] = 0
             self._h[:] = 0
             for d in DIRECTIONS:
                 self._buf[d][:] = 0
@@ -118,6 +123,9 @@ class ProcessImage:
         h[3 + b] = time.time_ns() if stamp_ns is None else stamp_ns
         h[1 + b] += 1
         h[0] += 1
+        n = int(self._n_timing[0])            # the previous cycle's timing, once per cycle, for the histograms
+        self._timing[n % TIMING_RING] = (record.last_exec_us, record.period_jitter_us)
+        self._n_timing[0] = n + 1
 
     def inputs(self) -> FromPlc:
         """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""
@@ -171,6 +179,13 @@ class ProcessImage:
             self._master = got[2]
         return self._master
 
+    def timings_since(self, n: int) -> tuple[int, np.ndarray]:
+        """(count now, the (exec_us, jitter_us) rows published since count ``n``, at most `TIMING_RING`)."""
+        now = int(self._n_timing[0])
+        k = max(n, now - TIMING_RING + 1)
+        idx = np.arange(k, now) % TIMING_RING
+        return now, self._timing[idx].copy()
+
     def read(self, table: str, address: int, count: int) -> list[int] | None:
         """Words at [address, address + count) of ``table``, or None if outside every block."""
         for d, (tab, start, size) in self.tables.items():
@@ -213,7 +228,7 @@ class ProcessImage:
     # -- life cycle -----------------------------------------------------------------------------
     def close(self) -> None:
         """Detach; the creating process also frees the memory."""
-        self._h = None
+        self._h = self._n_timing = self._timing = None
         self._buf = {}
         if self._owner:         # first: a view still alive (BufferError below) must not keep the name
             try:

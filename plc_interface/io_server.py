@@ -28,7 +28,7 @@ class IoSettings:
 
     plc: PlcSettings = field(default_factory=PlcSettings)
     ads: Any = None                 # plc_interface.ads.AdsSettings, or None (no ADS server)
-    monitoring: Any = None          # monitoring settings, or None
+    monitoring: Any = None          # plc_interface.settings.MonitoringSettings, or None
     avoid_cpu: int | None = None    # keep the I/O process off the cycle's CPU when it is pinned
 
 
@@ -45,6 +45,11 @@ class IoServer:
         self.image = image
         self.settings = settings
         self.parts: list[Any] = []
+        self.metrics = None
+        if settings.monitoring is not None and settings.monitoring.metrics:
+            from .metrics import ServiceMetrics
+
+            self.metrics = ServiceMetrics()
 
     async def start(self) -> None:
         """Start every part; on failure the parts already started are stopped and PlcError is raised."""
@@ -63,6 +68,10 @@ class IoServer:
                                              c.read_start))
             if s.ads is not None and s.ads.enabled:
                 await self._add(_Ads(self.image, s.ads))
+            if s.monitoring is not None and s.monitoring.enabled:
+                from .monitoring import Monitor
+
+                await self._add(Monitor(self.image, s.monitoring, self.metrics, parts=lambda: self.parts))
         except BaseException:
             await self.stop()
             raise
@@ -86,11 +95,17 @@ class IoServer:
 class _Ads:
     """The ADS server as a part of the I/O server (a bind failure is a PlcError naming the address)."""
 
+    protocol = "ads"
+
     def __init__(self, image: ProcessImage, settings):
         from .ads import AdsServer
 
         self.settings = settings
         self.server = AdsServer(image, settings)
+
+    @property
+    def clients(self) -> int:
+        return len(self.server.connections)
 
     async def start(self) -> None:
         try:

@@ -41,6 +41,8 @@ class ModbusServer:
         Told of every request (metrics).
     """
 
+    protocol = "modbus"
+
     def __init__(self, image: ProcessImage, host: str = "127.0.0.1", port: int = 5020, on_request=None):
         self.image = image
         self.host, self.port = host, port

@@ -31,3 +31,13 @@ class PlcSettings(Strict):
                                        min_length=6, max_length=6)
     enable_on_start: bool = False
     client: PlcClientSettings = Field(default_factory=PlcClientSettings)
+
+
+class MonitoringSettings(Strict):
+    """The I/O process's HTTP endpoint: /health always, /metrics (Prometheus) when ``metrics``."""
+
+    enabled: bool = True
+    host: str = "127.0.0.1"
+    port: int = Field(9020, ge=1, le=65535)
+    metrics: bool = False
+    health_max_exceed_rate: float = Field(0.05, ge=0.0, le=1.0)

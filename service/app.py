@@ -138,9 +138,9 @@ class Service:
     def io_settings(self) -> IoSettings | None:
         """What the I/O process serves, or None when there is nothing to serve."""
         cfg = self.cfg
-        if cfg.plc.role == "none" and not cfg.ads.enabled:
+        if cfg.plc.role == "none" and not cfg.ads.enabled and not cfg.monitoring.enabled:
             return None
-        return IoSettings(plc=cfg.plc, ads=cfg.ads, avoid_cpu=cfg.cycle.cpu)
+        return IoSettings(plc=cfg.plc, ads=cfg.ads, monitoring=cfg.monitoring, avoid_cpu=cfg.cycle.cpu)
 
     def start(self) -> None:
         self.image.publish(self.record, time.time_ns())

@@ -17,7 +17,7 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from plc_interface.ads.settings import AdsSettings
-from plc_interface.settings import PlcSettings
+from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
@@ -141,6 +141,7 @@ class ServiceConfig(Strict):
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
+    monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)
 
     # set by load_config: where the file was, for relative paths and messages
     path: Path = Field(default=Path("<config>"), exclude=True)

@@ -50,6 +50,8 @@ class Signals(NamedTuple):
     wrench_sensor: list[float]      # the same in sensor axes
     deflection: list[float]         # predicted TCP deflection, mm and deg, base axes
     tare_count: int
+    sensor_samples: int             # good samples since start
+    sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
 
 
 class Compensator:
@@ -79,6 +81,9 @@ class Compensator:
         self.correction = [0.0] * 6
         self.q_rad = np.zeros(6)
         self.tares = 0
+        self.samples = 0
+        self.sample_t: float | None = None
+        self.t_first: float | None = None
         self._tare_pending = False            # a tare edge waits for the next sample
 
     @classmethod
@@ -97,6 +102,8 @@ class Compensator:
         """
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
+        if self.t_first is None:
+            self.t_first = t
         pred = self.predictor
         if q_deg is not None:
             self.q_rad = np.array(q_deg) * DEG_TO_RAD
@@ -104,6 +111,8 @@ class Compensator:
         if tare:
             self._tare_pending = True
         if reading is not None:
+            self.samples += 1
+            self.sample_t = t
             x = self.spikes.update(reading.wrench)
             if not self.have_sample:
                 self.filter.state = self.filter.steady_state(x)
@@ -167,8 +176,10 @@ class Cycle:
     def signals(self) -> Signals:
         """The record of the last cycle."""
         c = self.compensator
+        since = c.sample_t if c.sample_t is not None else c.t_first
+        age_ms = 0.0 if since is None else (c.t_prev - since) * 1000.0
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
-                       c.wrench_sensor, c.deflection, c.tares)
+                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms)
 
     # what a test or a log reads of the last cycle (the signal path's values)
     correction = property(lambda self: self.compensator.correction)
