@@ -1,5 +1,9 @@
 """Hardware-in-the-loop: the service closed around virtual devices that speak the real protocols.
 
+virtual_sensor  a virtual ATI Net F/T sensor on any python-can bus (the real protocol)
+virtual_plc     a virtual PLC: a Modbus TCP client of the service on its own cycle
+demo_log        the synthetic milling log the replay source ships with
+testing         helpers the tests, HIL tests and benchmarks share (configs, free ports, leaks)
 scenario    the YAML of a run (config/hil/circle.yaml)
 path        the circle and its inverse kinematics (the PLC's joint references)
 milling     the process force of an end mill following the feed direction
