@@ -21,12 +21,13 @@ def health(port: int) -> tuple[int, dict]:
         return e.code, json.loads(e.read())
 
 
-def wait_for(pred, timeout=20.0):
+def wait_for_status(port: int, status: int, timeout: float = 20.0) -> dict | None:
+    """The first health answer with HTTP ``status`` within ``timeout`` s (a guard, not a timing check)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        got = pred()
-        if got:
-            return got
+        code, body = health(port)
+        if code == status:
+            return body
         time.sleep(0.05)
     return None
 
@@ -41,11 +42,11 @@ def test_health_follows_the_task_and_its_faults(tmp_path):
     s = Service(cfg)
     s.start()
     try:
-        ok = wait_for(lambda: (lambda r: r if r[0] == 200 else None)(health(port)))
-        assert ok is not None and ok[1]["healthy"] is True and ok[1]["cycle_count"] > 0
+        ok = wait_for_status(port, 200)
+        assert ok is not None and ok["healthy"] is True and ok["cycle_count"] > 0
         # the replay ends after 3 s: the sensor falls silent, sensor_timeout latches, health says so
-        bad = wait_for(lambda: (lambda r: r if r[0] == 503 else None)(health(port)))
-        assert bad is not None and bad[1]["healthy"] is False
-        assert "sensor_timeout" in bad[1]["reason"] and "sensor_timeout" in bad[1]["faults"]
+        bad = wait_for_status(port, 503)
+        assert bad is not None and bad["healthy"] is False
+        assert "sensor_timeout" in bad["reason"] and "sensor_timeout" in bad["faults"]
     finally:
         s.stop()
