@@ -153,6 +153,15 @@ class PlcConfig(_Strict):
     client: PlcClientConfig = Field(default_factory=PlcClientConfig)
 
 
+class MonitoringConfig(_Strict):
+    """Health and metrics over HTTP, served by the I/O process (docs/deploy.md)."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(9020, ge=1, le=65535)
+    metrics: bool = False
+    health_max_exceed_rate: float = Field(0.05, ge=0.0, le=1.0)
+
+
 class ServiceConfig(_Strict):
     cycle: CycleConfig = Field(default_factory=CycleConfig)
     model: ModelConfig
@@ -162,6 +171,7 @@ class ServiceConfig(_Strict):
     limits: LimitsConfig = Field(default_factory=LimitsConfig)
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
     plc: PlcConfig = Field(default_factory=PlcConfig)
+    monitoring: MonitoringConfig = Field(default_factory=MonitoringConfig)
 
     # set by load_config: where the file was, for relative paths and messages
     path: Path = Field(default=Path("<config>"), exclude=True)

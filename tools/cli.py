@@ -19,6 +19,7 @@ COMMANDS = {
     "fit": "tools.fit_cmd",
     "kcart": "tools.stiffness_cmd",
     "run": "tools.run_cmd",
+    "health": "tools.health_cmd",
     "registers": "tools.registers_cmd",
     "record": "tools.record_cmd",
     "payload": "tools.payload_cmd",
