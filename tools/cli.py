@@ -20,6 +20,7 @@ COMMANDS = {
     "kcart": "tools.stiffness_cmd",
     "run": "tools.run_cmd",
     "health": "tools.health_cmd",
+    "status": "tools.status_cmd",
     "registers": "tools.registers_cmd",
     "record": "tools.record_cmd",
     "payload": "tools.payload_cmd",
