@@ -25,12 +25,9 @@ from pathlib import Path
 
 import yaml
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from plc_interface.register_map import RegisterMap  # noqa: E402
-from service.testing import free_port  # noqa: E402
-from tools.status_cmd import BlockReader  # noqa: E402
+from plc_interface.register_map import RegisterMap
+from service.testing import ROOT, free_port
+from tools.status_cmd import BlockReader
 
 SITE = "/etc/stiffcomp"
 ADS_TCP_PORT = 48898
@@ -51,7 +48,7 @@ class Checks:
 
 
 def docker(*args: str, check: bool = True, timeout: float = 60) -> str:
-    r = subprocess.run(["docker", *args], capture_output=True, text=True, timeout=timeout)
+    r = subprocess.run(["docker", *args], check=False, capture_output=True, text=True, timeout=timeout)
     if check and r.returncode != 0:
         raise RuntimeError(f"docker {' '.join(args)}: {r.stderr.strip()}")
     return r.stdout.strip()
@@ -174,7 +171,8 @@ def main(argv: list[str] | None = None) -> int:
             checks.report("stop", *check_stop(name))
         finally:
             if checks.failed:
-                logs = subprocess.run(["docker", "logs", "--tail", "15", name], capture_output=True, text=True)
+                logs = subprocess.run(["docker", "logs", "--tail", "15", name], check=False, capture_output=True,
+                                      text=True)
                 print("---- last lines of the container's log ----\n" + (logs.stdout + logs.stderr).strip())
             docker("rm", "-f", name, check=False)
     print("image-test: " + ("all checks passed" if not checks.failed else f"FAILED: {', '.join(checks.failed)}"))
