@@ -32,9 +32,9 @@ walk: $(STAMP)
 	$(SC) fit out/6dof_backlash.yaml $(WALK_DATA) -o out/6dof_backlash_fitted.yaml
 	$(SC) compare out/6dof.yaml out/6dof_backlash_fitted.yaml $(WALK_DATA) --report out/compare
 
+# One table: cycle work, model speed, fit and diagnose, Modbus and ADS round trips (medians, percentiles)
 bench: $(STAMP)
-	$(PY) benchmarks/bench_model.py
-	$(PY) benchmarks/bench_diagnose.py
+	$(PY) benchmarks/bench_all.py
 
 # 60 s of the 1 ms service with 4 Modbus clients polling 32 registers at 500 Hz
 bench-service: $(STAMP)

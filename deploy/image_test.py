@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import socket
 import subprocess
 import sys
 import tempfile
@@ -27,11 +26,10 @@ import yaml
 
 from plc_interface.register_map import RegisterMap
 from service.testing import ROOT, free_port
+from tools.ads_probe import ADS_TCP_PORT, CYCLE_SYMBOL, open_ads, read_cycle_count
 from tools.status_cmd import BlockReader
 
 SITE = "/etc/stiffcomp"
-ADS_TCP_PORT = 48898
-CYCLE_SYMBOL = "TwinCAT_SystemInfoVarList._TaskInfo[1].CycleCount"
 
 
 class Checks:
@@ -104,22 +102,16 @@ def check_modbus(cfg: dict) -> tuple[bool, str]:
 
 
 def check_ads(cfg: dict) -> tuple[bool, str]:
-    where = f"127.0.0.1:{ADS_TCP_PORT}"
-    try:
-        import pyads
-    except ImportError:
-        return False, "pyads is not installed on the host (pip install -e '.[ads]')"
-    with socket.socket() as s:
-        s.settimeout(1.0)
-        if s.connect_ex(("127.0.0.1", ADS_TCP_PORT)) != 0:
-            return False, f"no ADS server at {where} (the I/O process's ADS server, issue 10)"
     ads = cfg.get("ads") or {}
-    conn = pyads.Connection(ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)), "127.0.0.1")
+    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)))
+    if conn is None:
+        return False, why
+    import pyads
+
     try:
-        conn.open()
-        return rises(lambda: conn.read_by_name(CYCLE_SYMBOL, pyads.PLCTYPE_UDINT), f"ADS {where} {CYCLE_SYMBOL}")
+        return rises(lambda: read_cycle_count(conn), f"ADS 127.0.0.1:{ADS_TCP_PORT} {CYCLE_SYMBOL}")
     except pyads.ADSError as e:
-        return False, f"ADS {where}: {e}"
+        return False, f"ADS 127.0.0.1:{ADS_TCP_PORT}: {e}"
     finally:
         conn.close()
 

@@ -12,7 +12,6 @@ import pty
 import re
 import select
 import signal
-import socket
 import struct
 import subprocess
 import sys
@@ -21,22 +20,11 @@ import time
 
 import pyte
 
-from service.testing import constant_log, free_port, write_config
+from service.testing import constant_log, free_port, wait_for_port, write_config
 from tools.cli import main
 
 COLS, ROWS = 110, 40
 CLI = [sys.executable, "-m", "tools.cli"]
-
-
-def wait_for_port(port: int, proc: subprocess.Popen, timeout_s: float = 40.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, "the service exited before it served Modbus"
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.1)
-    raise AssertionError(f"the service did not serve Modbus on {port} within {timeout_s} s")
 
 
 class Terminal:
