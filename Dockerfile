@@ -1,13 +1,38 @@
-# stiffcomp: the compensation service and the model tools in one image.
-#   docker build -t stiffcomp .
-#   docker run --rm -p 5020:5020 stiffcomp                      # the service, replay source, Modbus on 5020
-#   docker run --rm -v "$PWD:/data" stiffcomp fit config/models/kr125_6dof.yaml /data/campaign.csv --json
-# For the real-time cycle give the container a CPU of its own and permission to raise its priority:
-#   docker run --rm --cpuset-cpus 1 --cap-add SYS_NICE -p 5020:5020 stiffcomp run --config /data/site.yaml
-FROM python:3.11-slim
+# stiffcomp: the compensation service and the model tools in one image (docs/deploy.md).
+#
+#   make image                                # docker build --network=host -t stiffcomp .
+#   docker run -d --name stiffcomp --network host -v "$PWD/site:/etc/stiffcomp:ro" stiffcomp
+#
+# The service reads /etc/stiffcomp/service.yaml: mount your site's folder there. The image carries a
+# starting config at that path (config/default.yaml, paths absolute, servers on all interfaces):
+#   docker run --rm --entrypoint cat stiffcomp /etc/stiffcomp/service.yaml > site/service.yaml
+#
+# Without registry access, build from a local base made of Debian packages (docs/deploy.md):
+#   docker build --network=host --build-arg BASE=stiffcomp-base:bookworm -t stiffcomp .
+ARG BASE=python:3.11-slim
+FROM ${BASE}
 
-ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg
+# pip's index inside the build; empty means pypi.org. A site mirror: --build-arg PIP_INDEX_URL=...
+ARG PIP_INDEX_URL=
+ARG PIP_EXTRA_INDEX_URL=
+ARG PIP_TRUSTED_HOST=
+# optional extras of the project, e.g. "parquet" (pyarrow, for .parquet measurement files)
+ARG EXTRAS=parquet
+
+ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
+    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
 WORKDIR /opt/stiffcomp
+
+# Site CA certificates (*.crt) for a TLS-inspecting proxy between the build and the index: `make image`
+# copies them from CA_CERTS_DIR into deploy/ca-certificates/ (empty by default, never committed).
+COPY deploy/ca-certificates/ /usr/local/share/ca-certificates/stiffcomp/
+RUN if ls /usr/local/share/ca-certificates/stiffcomp/*.crt >/dev/null 2>&1; then update-ca-certificates; fi
+
+# pinocchio's wheels need OpenMP's runtime; python:3.11-slim lacks it (a Debian base made as in
+# docs/deploy.md includes it, so an offline build never reaches this apt-get)
+RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
+      apt-get update && apt-get install -y --no-install-recommends libgomp1 && rm -rf /var/lib/apt/lists/*; \
+    fi
 
 COPY pyproject.toml README.md ./
 COPY stiffness ./stiffness
@@ -17,12 +42,29 @@ COPY tools ./tools
 COPY hil ./hil
 COPY config ./config
 COPY examples ./examples
-# The service binds 127.0.0.1 by default; in a container it must listen on all interfaces.
-RUN pip install --no-cache-dir ".[parquet]" \
- && sed -i 's/^  host: 127.0.0.1/  host: 0.0.0.0/' config/default.yaml \
- && useradd --system --home-dir /opt/stiffcomp stiffcomp
+
+# A virtual environment works alike on python:3.11-slim and on Debian's python3 (which refuses
+# system-wide pip installs). Installed editable so that config/ stays beside the code: the package
+# finds config/default.yaml, the models and the register map where the source tree has them.
+# No compilers or test tools go into the image.
+RUN python3 -m venv "$VIRTUAL_ENV" \
+ && export PIP_CERT=/etc/ssl/certs/ca-certificates.crt PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
+           PIP_INDEX_URL="${PIP_INDEX_URL:-https://pypi.org/simple}" PIP_EXTRA_INDEX_URL PIP_TRUSTED_HOST \
+ && pip install --upgrade pip \
+ && pip install -e ".${EXTRAS:+[$EXTRAS]}" \
+ && mkdir -p /etc/stiffcomp \
+ && python3 -c "from pathlib import Path; from hil.testing import write_config; \
+write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0'}, 'monitoring': {'host': '0.0.0.0'}})" \
+ && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp \
+ && python3 -m compileall -q stiffness service plc_interface tools hil
 USER stiffcomp
 
-EXPOSE 5020
+# Modbus TCP, ADS (AMS/TCP), HTTP health + metrics
+EXPOSE 5020 48898 9020
+VOLUME ["/etc/stiffcomp"]
+HEALTHCHECK --interval=5s --timeout=3s --start-period=30s --retries=3 \
+    CMD ["stiffcomp", "health", "--config", "/etc/stiffcomp/service.yaml"]
+# `docker stop` sends SIGTERM: the service ramps the correction to zero and exits with code 0
+STOPSIGNAL SIGTERM
 ENTRYPOINT ["stiffcomp"]
-CMD ["run", "--config", "config/default.yaml"]
+CMD ["run", "--config", "/etc/stiffcomp/service.yaml"]

@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: install test run walk bench bench-service lint clean demo
+.PHONY: install test run walk bench bench-service lint clean demo image image-test
 
 install: $(STAMP)
 
@@ -33,9 +33,9 @@ walk: $(STAMP)
 	$(SC) fit out/6dof_backlash.yaml $(WALK_DATA) -o out/6dof_backlash_fitted.yaml
 	$(SC) compare out/6dof.yaml out/6dof_backlash_fitted.yaml $(WALK_DATA) --report out/compare
 
+# One table: cycle work, model speed, fit and diagnose, Modbus and ADS round trips (medians, percentiles)
 bench: $(STAMP)
-	$(PY) benchmarks/bench_model.py
-	$(PY) benchmarks/bench_diagnose.py
+	$(PY) benchmarks/bench_all.py
 
 # 60 s of the 1 ms service with 4 Modbus clients polling 32 registers at 500 Hz
 bench-service: $(STAMP)
@@ -45,6 +45,24 @@ bench-service: $(STAMP)
 # processes, without then with compensation; prints both path errors, writes out/hil/hil_circle.png.
 demo: $(STAMP)
 	$(SC) hil circle --report out/hil
+
+# The container (docs/deploy.md). BASE: any image with python3 >= 3.11 and venv, e.g. a local base
+# made from Debian packages where no registry is reachable. CA_CERTS_DIR: site CA certificates (*.crt)
+# the build needs to reach the package index; PIP_INDEX_URL etc. are taken from the environment.
+IMAGE        ?= stiffcomp
+BASE         ?= python:3.11-slim
+CA_CERTS_DIR ?=
+DOCKER_BUILD_ARGS ?=
+image:
+	rm -f deploy/ca-certificates/*.crt
+	$(if $(CA_CERTS_DIR),cp $(CA_CERTS_DIR)/*.crt deploy/ca-certificates/)
+	docker build --network=host --build-arg BASE=$(BASE) --build-arg PIP_INDEX_URL \
+		--build-arg PIP_EXTRA_INDEX_URL --build-arg PIP_TRUSTED_HOST $(DOCKER_BUILD_ARGS) -t $(IMAGE) .
+
+# Build, start, wait for healthy, read the cycle counter over Modbus and ADS, scrape the metrics,
+# stop with SIGTERM and expect exit code 0; one line per check.
+image-test: image $(STAMP)
+	$(PY) deploy/image_test.py --image $(IMAGE)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

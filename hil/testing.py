@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import socket
+import subprocess
 import threading
 import time
 from pathlib import Path
@@ -28,6 +29,23 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def wait_for_port(port: int, proc: subprocess.Popen | None = None, timeout_s: float = 40.0,
+                  host: str = "127.0.0.1") -> None:
+    """Wait until something accepts TCP connections on ``port`` (a service starting in ``proc``).
+
+    RuntimeError when ``proc`` exits first or ``timeout_s`` passes.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc is not None and proc.poll() is not None:
+            raise RuntimeError(f"the process exited with code {proc.returncode} before it served port {port}")
+        with socket.socket() as s:
+            if s.connect_ex((host, port)) == 0:
+                return
+        time.sleep(0.1)
+    raise RuntimeError(f"nothing served {host}:{port} within {timeout_s:g} s")
 
 
 def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml") -> Path:

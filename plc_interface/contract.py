@@ -77,6 +77,8 @@ class Fault(enum.IntFlag):
         return [f.kind for f in cls if word & f]
 
 
+FAULT_BITS: dict[str, int] = {f.kind: f.bit_length() - 1 for f in Fault}     # kind -> bit of fault_word
+
 SENSOR_FAULTS = (Fault.SENSOR_TIMEOUT | Fault.SENSOR_STATUS | Fault.SENSOR_SATURATED | Fault.VALUE_INVALID
                  | Fault.CAN_FRAME)
 

@@ -1,7 +1,7 @@
 """The I/O process: `IoServer` in a process of its own, so the cycle keeps an interpreter to itself.
 
 The child is started with the spawn method (nothing inherited from a threaded parent), is kept off
-the cycle's CPU when the cycle is pinned, logs through its own handlers to the parent's stderr, and
+the cycle's CPU when the cycle is pinned, logs to the parent's stderr in the parent's format, and
 stops when the parent sets its stop event (or dies: the child polls its parent).
 """
 
@@ -15,10 +15,11 @@ import os
 from .errors import PlcError
 from .image import ProcessImage
 from .io_server import IoServer, IoSettings, _serve
+from .log_format import configure_logging, current_format
 
 
-def _main(image: ProcessImage, settings: IoSettings, log_level: int, stop, ready) -> None:
-    logging.basicConfig(level=log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format: str, stop, ready) -> None:
+    configure_logging(log_level, log_format)
     if settings.avoid_cpu is not None:
         try:
             others = os.sched_getaffinity(0) - {settings.avoid_cpu}
@@ -52,7 +53,8 @@ class IoProcess:
         self._stop = ctx.Event()
         self._ready, self._child_end = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=_main, args=(image, settings, logging.getLogger().getEffectiveLevel(),
-                                                     self._stop, self._child_end), name="stiffcomp-io", daemon=True)
+                                                     current_format(), self._stop, self._child_end),
+                                 name="stiffcomp-io", daemon=True)
 
     def start(self, timeout: float = 60.0) -> None:
         self._proc.start()

@@ -49,7 +49,7 @@ class IoServer:
         if settings.monitoring is not None and settings.monitoring.metrics:
             from .metrics import ServiceMetrics
 
-            self.metrics = ServiceMetrics()
+            self.metrics = ServiceMetrics()      # fault kinds from the contract
 
     async def start(self) -> None:
         """Start every part; on failure the parts already started are stopped and PlcError is raised."""
@@ -58,7 +58,7 @@ class IoServer:
             if s.plc.role == "server":
                 from .modbus_server import ModbusServer
 
-                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port))
+                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port, self._count_modbus))
             elif s.plc.role == "client":
                 from .modbus_client import ModbusClient
 
@@ -75,6 +75,13 @@ class IoServer:
         except BaseException:
             await self.stop()
             raise
+
+    def _count_modbus(self, function_code: int, refused: str | None) -> None:
+        """Every Modbus request, for the metrics: by function, and refused ones by reason."""
+        if self.metrics is not None:
+            self.metrics.count_request("modbus", f"FC{function_code}")
+            if refused is not None:
+                self.metrics.count_refused("modbus", refused)
 
     async def _add(self, part) -> None:
         await part.start()

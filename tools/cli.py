@@ -19,6 +19,8 @@ COMMANDS = {
     "fit": "tools.fit_cmd",
     "kcart": "tools.stiffness_cmd",
     "run": "tools.run_cmd",
+    "health": "tools.health_cmd",
+    "status": "tools.status_cmd",
     "registers": "tools.registers_cmd",
     "symbols": "tools.symbols_cmd",
     "record": "tools.record_cmd",

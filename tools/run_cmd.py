@@ -6,11 +6,11 @@ until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly with exit code
 
 from __future__ import annotations
 
-import logging
 import signal
 import threading
 import time
 
+from plc_interface.log_format import FORMATTERS, configure_logging
 from service.config import DEFAULT_CONFIG, load_config
 
 
@@ -20,11 +20,13 @@ def register(sub) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--stats-json", default=None, metavar="FILE", help="write the task statistics on exit")
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    p.add_argument("--log-format", default="text", choices=sorted(FORMATTERS),
+                   help="text (default) or json: one JSON object per line, for a log collector")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    configure_logging(args.log_level, args.log_format)
     from service.app import Service
 
     cfg = load_config(args.config)

@@ -1,0 +1,148 @@
+"""`make bench`: every benchmark of the project in one table (a script, not a test).
+
+Rows: the model's batch speed and fit times (bench_model.py), diagnose (bench_diagnose.py), the 1 ms
+cycle's work and exceed rate while the service runs as `make run` starts it, and round trips of
+PLC-style reads of the to_plc block over Modbus and, when pyads and an ADS server are there, ADS.
+Every figure is a median, a percentile, a rate or a ratio; nothing passes or fails on an absolute
+time, because the machine decides those.
+
+    .venv/bin/python benchmarks/bench_all.py [--service-s 5] [--reads 1000] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_diagnose
+import bench_model
+
+from hil.testing import free_port, wait_for_port, write_config
+from plc_interface.register_map import RegisterMap
+from tools.ads_probe import open_ads, read_cycle_count
+from tools.status_cmd import BlockReader
+
+
+def pct(samples_s: list[float]) -> str:
+    us = np.asarray(samples_s) * 1e6
+    return f"p50 {np.percentile(us, 50):.0f} µs, p99 {np.percentile(us, 99):.0f} µs"
+
+
+def timed(fn, n: int) -> list[float]:
+    out = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def modbus_rtt(port: int, reads: int) -> list[float]:
+    reader = BlockReader(RegisterMap.from_yaml(ROOT / "config" / "registers.yaml"), "127.0.0.1", port)
+    try:
+        reader.read()                                   # connect outside the timing
+        return timed(reader.read, reads)
+    finally:
+        reader.close()
+
+
+def ads_rtt(reads: int) -> tuple[list[float] | None, str]:
+    """Round trips of a pyads read by name, or (None, why not)."""
+    conn, why = open_ads()
+    if conn is None:
+        return None, f"not available: {why}"
+    import pyads
+
+    try:
+        read_cycle_count(conn)
+        return timed(lambda: read_cycle_count(conn), reads), ""
+    except pyads.ADSError as e:
+        return None, f"not available: {e}"
+    finally:
+        conn.close()
+
+
+def service_rows(seconds: float, reads: int) -> list[tuple[str, str, str]]:
+    """Run the service as `make run` does (in its own process), read it, and read its task info."""
+    with tempfile.TemporaryDirectory() as tmp:
+        port = free_port()
+        cfg = write_config(Path(tmp), {"plc": {"port": port}, "monitoring": {"port": free_port()},
+                                       "cycle": {"stats_log_interval_s": 0}})
+        stats = Path(tmp) / "stats.json"
+        proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(cfg), "--duration",
+                                 str(seconds), "--stats-json", str(stats)], cwd=ROOT,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            wait_for_port(port, proc, 60.0)
+            mb = modbus_rtt(port, reads)
+            ads, why = ads_rtt(reads)
+        finally:
+            proc.wait(timeout=seconds + 60)
+        s = json.loads(stats.read_text())
+    ex = s["exec_us"]
+    return [
+        ("cycle work (1 ms task, `make run` set-up)", f"p50 {ex['p50']:.0f} µs, p99 {ex['p99']:.0f} µs",
+         f"{s['cycles']} cycles in {seconds:g} s; p99 = {ex['p99'] / 1000:.2f} of the period"),
+        ("cycles exceeded", f"{100 * s['exceed_count'] / max(s['cycles'], 1):.2f} %",
+         f"period jitter p99.9 {s['period_jitter_us']['p999']:.0f} µs"),
+        ("Modbus round trip (to_plc block, FC4)", pct(mb), f"{reads} reads, one client, while the cycle runs"),
+        ("ADS round trip (read by name)  [issue 10]", pct(ads) if ads else "—",
+         f"{reads} reads with pyads" if ads else why),
+    ]
+
+
+def model_rows() -> list[tuple[str, str, str]]:
+    m = bench_model.main()
+    d = bench_diagnose.main()
+    verdict = d["result"]
+    return [
+        ("model batch speed", f"{m['body_predictions_per_s']:,.0f} predictions/s",
+         f"{m['batch_prediction_rows']:,} rows, one core, kinematics precomputed"),
+        ("  … including kinematics", f"{m['body_predictions_per_s_including_kinematics']:,.0f} predictions/s",
+         f"ratio {m['body_predictions_per_s_including_kinematics'] / m['body_predictions_per_s']:.2f}"),
+        ("fit, 36 parameters, 5,355 rows", f"median {m['fit_reference_5355_rows_s']:.2f} s", ""),
+        ("fit, 6,426 rows", f"median {m['fit_6426_rows_s']:.2f} s",
+         f"ratio to 5,355 rows {m['fit_6426_rows_s'] / m['fit_reference_5355_rows_s']:.2f}"),
+        ("diagnose, hidden backlash", f"median {d['diagnose_s_median']:.2f} s",
+         f"{d['rows']} rows; found {verdict[1]} joint {verdict[2]}"),
+        ("  … the command with its HTML report", f"median {d['command_with_report_s_median']:.2f} s", ""),
+    ]
+
+
+def table(rows: list[tuple[str, str, str]]) -> str:
+    head = ("benchmark", "figure", "note")
+    w = [max(len(r[k]) for r in [head, *rows]) for k in range(3)]
+    line = "| " + " | ".join(f"{{:<{x}}}" for x in w) + " |"
+    return "\n".join([line.format(*head), "|" + "|".join("-" * (x + 2) for x in w) + "|",
+                      *(line.format(*r) for r in rows)])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--service-s", type=float, default=5.0, help="how long the service runs, s")
+    ap.add_argument("--reads", type=int, default=1000, help="round trips per protocol")
+    ap.add_argument("--json", default=None, metavar="FILE", help="also write the rows as JSON")
+    args = ap.parse_args(argv)
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    rows = service_rows(args.service_s, args.reads) + model_rows()
+    print(table(rows))
+    if args.json:
+        Path(args.json).write_text(json.dumps([dict(zip(("benchmark", "figure", "note"), r)) for r in rows],
+                                              indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

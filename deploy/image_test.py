@@ -1,0 +1,175 @@
+"""`make image-test`: start the built image and check it from the host as a plant would use it.
+
+Checks, one line each: the container starts with a site config from a mounted volume; Docker reports
+it healthy (its HEALTHCHECK runs `stiffcomp health`); the cycle counter rises when read over Modbus
+and over ADS (pyads, Beckhoff's AdsLib); the metrics endpoint answers text that prometheus-client's
+parser reads; `docker stop` (SIGTERM) ends it with exit code 0. Every check runs even when an
+earlier one failed, so one run shows everything that is missing. Exit code 0 only if all pass.
+
+The container runs with ``--network host`` (an engine started with ``--bridge=none`` offers nothing
+else), so the test picks free ports for Modbus and HTTP; ADS stays on 48898, the port AdsLib dials.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+import yaml
+
+from hil.testing import ROOT, free_port
+from plc_interface.register_map import RegisterMap
+from tools.ads_probe import ADS_TCP_PORT, CYCLE_SYMBOL, open_ads, read_cycle_count
+from tools.status_cmd import BlockReader
+
+SITE = "/etc/stiffcomp"
+
+
+class Checks:
+    """Prints one line per check and remembers whether all passed."""
+
+    def __init__(self) -> None:
+        self.failed: list[str] = []
+
+    def report(self, name: str, ok: bool, detail: str) -> bool:
+        print(f"{'PASS' if ok else 'FAIL'}  {name:<8} {detail}", flush=True)
+        if not ok:
+            self.failed.append(name)
+        return ok
+
+
+def docker(*args: str, check: bool = True, timeout: float = 60) -> str:
+    r = subprocess.run(["docker", *args], check=False, capture_output=True, text=True, timeout=timeout)
+    if check and r.returncode != 0:
+        raise RuntimeError(f"docker {' '.join(args)}: {r.stderr.strip()}")
+    return r.stdout.strip()
+
+
+def site_config(image: str, folder: Path) -> dict:
+    """The image's own starting config with free ports and metrics on, written to ``folder``."""
+    cfg = yaml.safe_load(docker("run", "--rm", "--entrypoint", "cat", image, f"{SITE}/service.yaml"))
+    cfg["plc"]["host"] = "127.0.0.1"
+    cfg["plc"]["port"] = free_port()
+    cfg["monitoring"].update(host="127.0.0.1", port=free_port(), metrics=True)
+    cfg["cycle"]["stats_log_interval_s"] = 0
+    path = folder / "service.yaml"
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    folder.chmod(0o755)                      # read by the image's non-root user
+    path.chmod(0o644)
+    return cfg
+
+
+def wait_healthy(name: str, timeout_s: float) -> tuple[bool, str]:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        state = json.loads(docker("inspect", "--format", "{{json .State}}", name))
+        health = state.get("Health") or {}
+        status = health.get("Status", "no healthcheck")
+        if not state.get("Running"):
+            return False, f"the container stopped (exit code {state.get('ExitCode')})"
+        if status == "healthy":
+            return True, "Docker reports healthy (stiffcomp health exit 0)"
+        if status == "unhealthy" or time.monotonic() > deadline:
+            last = (health.get("Log") or [{}])[-1]
+            out = (last.get("Output") or "no health check ran").strip().splitlines()
+            return False, f"Docker reports {status} after {timeout_s:g} s at most: {out[-1] if out else ''}"
+        time.sleep(1.0)
+
+
+def rises(read, what: str) -> tuple[bool, str]:
+    a = read()
+    time.sleep(0.5)
+    b = read()
+    return b > a, f"{what}: cycle count {a} -> {b} in 0.5 s" + ("" if b > a else " (not rising)")
+
+
+def check_modbus(cfg: dict) -> tuple[bool, str]:
+    rmap = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
+    reader = BlockReader(rmap, "127.0.0.1", cfg["plc"]["port"], timeout_s=1.0)
+    try:
+        return rises(lambda: int(reader.read()["cycle_count"]), f"Modbus 127.0.0.1:{cfg['plc']['port']}")
+    except ConnectionError as e:
+        return False, str(e)
+    finally:
+        reader.close()
+
+
+def check_ads(cfg: dict) -> tuple[bool, str]:
+    ads = cfg.get("ads") or {}
+    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)))
+    if conn is None:
+        return False, why
+    import pyads
+
+    try:
+        return rises(lambda: read_cycle_count(conn), f"ADS 127.0.0.1:{ADS_TCP_PORT} {CYCLE_SYMBOL}")
+    except pyads.ADSError as e:
+        return False, f"ADS 127.0.0.1:{ADS_TCP_PORT}: {e}"
+    finally:
+        conn.close()
+
+
+def check_metrics(cfg: dict) -> tuple[bool, str]:
+    from prometheus_client.parser import text_string_to_metric_families
+
+    url = f"http://127.0.0.1:{cfg['monitoring']['port']}/metrics"
+    try:
+        with urllib.request.urlopen(url, timeout=2.0) as r:
+            text = r.read().decode()
+    except OSError as e:
+        return False, f"no answer at {url} (the I/O process's metrics endpoint): {e}"
+    try:
+        families = {f.name: f for f in text_string_to_metric_families(text)}
+    except ValueError as e:
+        return False, f"{url}: prometheus-client's parser refused the text: {e}"
+    cycles = families.get("stiffcomp_cycles")
+    if cycles is None or not cycles.samples or cycles.samples[0].value <= 0:
+        return False, f"{url}: {len(families)} families, but no stiffcomp_cycles_total above 0"
+    return True, f"{url}: {len(families)} families, stiffcomp_cycles_total = {cycles.samples[0].value:.0f}"
+
+
+def check_stop(name: str) -> tuple[bool, str]:
+    t0 = time.monotonic()
+    docker("stop", "--time", "20", name, timeout=40)
+    code = int(docker("inspect", "--format", "{{.State.ExitCode}}", name))
+    return code == 0, f"docker stop (SIGTERM): exit code {code} after {time.monotonic() - t0:.1f} s"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--image", default="stiffcomp")
+    ap.add_argument("--healthy-timeout", type=float, default=60.0, metavar="S")
+    args = ap.parse_args(argv)
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # a refused connection is reported once, below
+    checks = Checks()
+    name = f"stiffcomp-image-test-{int(time.time())}"
+    with tempfile.TemporaryDirectory(prefix="stiffcomp-site-") as tmp:
+        cfg = site_config(args.image, Path(tmp))
+        try:
+            cid = docker("run", "-d", "--name", name, "--network", "host", "-v", f"{tmp}:{SITE}:ro", args.image)
+            checks.report("start", True, f"container {cid[:12]} from {args.image}, config {SITE}/service.yaml "
+                          f"(Modbus {cfg['plc']['port']}, HTTP {cfg['monitoring']['port']})")
+            checks.report("healthy", *wait_healthy(name, args.healthy_timeout))
+            checks.report("modbus", *check_modbus(cfg))
+            checks.report("ads", *check_ads(cfg))
+            checks.report("metrics", *check_metrics(cfg))
+            checks.report("stop", *check_stop(name))
+        finally:
+            if checks.failed:
+                logs = subprocess.run(["docker", "logs", "--tail", "15", name], check=False, capture_output=True,
+                                      text=True)
+                print("---- last lines of the container's log ----\n" + (logs.stdout + logs.stderr).strip())
+            docker("rm", "-f", name, check=False)
+    print("image-test: " + ("all checks passed" if not checks.failed else f"FAILED: {', '.join(checks.failed)}"))
+    return 1 if checks.failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
