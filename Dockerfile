@@ -54,7 +54,8 @@ RUN python3 -m venv "$VIRTUAL_ENV" \
  && pip install -e ".${EXTRAS:+[$EXTRAS]}" \
  && mkdir -p /etc/stiffcomp \
  && python3 -c "from pathlib import Path; from hil.testing import write_config; \
-write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0'}, 'monitoring': {'host': '0.0.0.0'}})" \
+write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, \
+  'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020}})" \
  && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp \
  && python3 -m compileall -q stiffness service plc_interface tools hil
 USER stiffcomp

@@ -7,7 +7,7 @@ parser reads; `docker stop` (SIGTERM) ends it with exit code 0. Every check runs
 earlier one failed, so one run shows everything that is missing. Exit code 0 only if all pass.
 
 The container runs with ``--network host`` (an engine started with ``--bridge=none`` offers nothing
-else), so the test picks free ports for Modbus and HTTP; ADS stays on 48898, the port AdsLib dials.
+else), so the test picks free ports for Modbus, ADS and HTTP.
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ def site_config(image: str, folder: Path) -> dict:
     cfg["plc"]["host"] = "127.0.0.1"
     cfg["plc"]["port"] = free_port()
     cfg["monitoring"].update(host="127.0.0.1", port=free_port(), metrics=True)
+    cfg["ads"].update(host="127.0.0.1", port=free_port())
     cfg["cycle"]["stats_log_interval_s"] = 0
     path = folder / "service.yaml"
     path.write_text(yaml.safe_dump(cfg, sort_keys=False))
@@ -103,7 +104,8 @@ def check_modbus(cfg: dict) -> tuple[bool, str]:
 
 def check_ads(cfg: dict) -> tuple[bool, str]:
     ads = cfg.get("ads") or {}
-    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)))
+    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)),
+                         int(ads.get("port", 48898)))
     if conn is None:
         return False, why
     import pyads
