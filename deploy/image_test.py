@@ -104,16 +104,16 @@ def check_modbus(cfg: dict) -> tuple[bool, str]:
 
 def check_ads(cfg: dict) -> tuple[bool, str]:
     ads = cfg.get("ads") or {}
-    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)),
-                         int(ads.get("port", 48898)))
+    port = int(ads.get("port", ADS_TCP_PORT))
+    conn, why = open_ads("127.0.0.1", ads.get("net_id", "127.0.0.1.1.1"), int(ads.get("ams_port", 851)), port)
     if conn is None:
         return False, why
     import pyads
 
     try:
-        return rises(lambda: read_cycle_count(conn), f"ADS 127.0.0.1:{ADS_TCP_PORT} {CYCLE_SYMBOL}")
+        return rises(lambda: read_cycle_count(conn), f"ADS 127.0.0.1:{port} {CYCLE_SYMBOL}")
     except pyads.ADSError as e:
-        return False, f"ADS 127.0.0.1:{ADS_TCP_PORT}: {e}"
+        return False, f"ADS 127.0.0.1:{port}: {e}"
     finally:
         conn.close()
 
