@@ -139,7 +139,7 @@ def run(seconds: float, modbus_clients: int, ads_clients: int, reference: Path |
             from plc_interface.ads.settings import AdsSettings  # noqa: F401 - present when ADS is installed
 
             ads = {"host": f"127.0.{port % 250 + 1}.1", "port": 48898}
-            over["ads"] = {"enabled": True, "host": ads["host"]}
+            over["ads"] = {"enabled": True, "host": ads["host"], "port": 48898}
         cfg = write_config(folder, over)
         stats = folder / "stats.json"
         service = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(cfg), "--stats-json",
