@@ -66,9 +66,10 @@ def test_every_bad_row_is_reported_with_its_line(tmp_path, robot):
 
 def test_missing_column_and_empty_file(tmp_path):
     header, rows = reference_rows()
-    k = header.index("rz_deg")
+    # a deflection column may be absent (issue 12: partial measurements); a required one may not
+    k = header.index("mz_Nm")
     write_rows(tmp_path / "m.csv", header[:k] + header[k + 1:], [r[:k] + r[k + 1:] for r in rows])
-    with pytest.raises(DataError, match="line 1: missing column.*rz_deg"):
+    with pytest.raises(DataError, match="line 1: missing column.*mz_Nm"):
         read_measurements(tmp_path / "m.csv")
     (tmp_path / "e.csv").write_text("")
     with pytest.raises(DataError, match="empty"):
