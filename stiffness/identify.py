@@ -76,6 +76,19 @@ class FitResult:
         rows = np.nonzero(self.outlier)[0]
         return [int(v) for v in (self.lines[rows] if self.lines is not None else rows + 2)]
 
+    def outliers(self) -> dict:
+        """The rows judged gross errors by file line: ``{"count": N, "lines": [...]}`` (the JSON form)."""
+        return {"count": int(self.outlier.sum()), "lines": self.outlier_lines}
+
+    def outlier_text(self, limit: int = 30) -> str:
+        """One line naming the rows judged gross errors by file line."""
+        o = self.outliers()
+        if not o["count"]:
+            return "outliers: none"
+        more = f" and {o['count'] - limit} more" if o["count"] > limit else ""
+        return (f"outliers: {o['count']} row(s) judged gross errors and left out, at line(s) "
+                + ", ".join(map(str, o["lines"][:limit])) + more)
+
     @property
     def rms_position_mm(self) -> float:
         return rms(self.residual[self.inlier, :3])
@@ -104,8 +117,9 @@ def solve_ls(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     solution in the scaled parameters: the directions the data cannot see get no step.
     """
     norms = np.linalg.norm(A, axis=0)
-    norms[norms == 0] = 1.0
-    An = A / norms
+    dead = norms <= 1e-12 * max(float(norms.max(initial=0.0)), 1e-300)   # rounding, not a signal
+    norms[dead] = 1.0
+    An = np.where(dead, 0.0, A / norms)
     M = An.T @ An
     try:
         if np.linalg.cond(M) > IDENT_TOL**-2:
