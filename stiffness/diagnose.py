@@ -335,10 +335,11 @@ def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple
         also = (f" ({nibblers[0].name} passes the tests but removes only {100 * nibblers[0].excess_explained:.0f} %"
                 " of the excess)") if nibblers else ""
         return "unexplained", (
-            f"The residual ({result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg; worst body "
+            f"The residual ({result.rms_text()}; worst body "
             f"{lof['worst_body']:.2f}x the noise of {lof['reference']}) holds structure that no effect in the "
             f"library explains{also}. See the residual patterns; the diagnosis does not guess.")
     return "no_missing_effect", (
-        f"The residual ({result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg) is at the noise "
-        f"of {lof['reference']} ({lof['position']:.2f}x, {lof['rotation']:.2f}x) and no library effect "
+        f"The residual ({result.rms_text()}) is at the noise of {lof['reference']} ("
+        + ", ".join(f"{lof[k]:.2f}x" for k in ("position", "rotation") if not np.isnan(lof[k]))
+        + ") and no library effect "
         "improves the model by more than one criterion: nothing is missing.")

@@ -89,6 +89,10 @@ class FitResult:
         return (f"outliers: {o['count']} row(s) judged gross errors and left out, at line(s) "
                 + ", ".join(map(str, o["lines"][:limit])) + more)
 
+    def rms_text(self) -> str:
+        """'0.0301 mm, 0.00201 deg' (a kind not measured: 'rotation not measured')."""
+        return rms_text(self.rms_position_mm, self.rms_rotation_deg)
+
     @property
     def rms_position_mm(self) -> float:
         return rms(self.residual[self.inlier, :3])
@@ -103,6 +107,13 @@ def rms(x: np.ndarray) -> float:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
+
+
+def rms_text(mm: float, deg: float) -> str:
+    """Position and rotation RMS for a sentence; a kind not measured (NaN) says so."""
+    pos = "position not measured" if np.isnan(mm) else f"{mm:.4f} mm"
+    rot = "rotation not measured" if np.isnan(deg) else f"{deg:.5f} deg"
+    return f"{pos}, {rot}"
 
 
 def weights(measured: np.ndarray, inlier: np.ndarray, sigma: np.ndarray) -> np.ndarray:

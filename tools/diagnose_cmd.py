@@ -43,7 +43,7 @@ def run(args) -> int:
         return 0
     print(f"verdict: {d.verdict}")
     print(f"  {d.message}")
-    print(f"  residual RMS {d.fit.rms_position_mm:.4f} mm, {d.fit.rms_rotation_deg:.5f} deg; worst body "
+    print(f"  residual RMS {d.fit.rms_text()}; worst body "
           f"{d.worst['body']}, component {d.worst['component']}, configuration {d.worst['config']}, "
           f"load {d.worst['load_range']}")
     print(f"  {d.fit.outlier_text()}")

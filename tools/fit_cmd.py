@@ -71,7 +71,7 @@ def run(args) -> int:
     result = fit(model, data, robust=args.robust)
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
-                  f"{result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg")
+                  f"{result.rms_text()}")
         result.model.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
         write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.json:
@@ -87,8 +87,7 @@ def run(args) -> int:
 
 def print_text(result: FitResult, args) -> None:
     print(f"fitted {args.model} to {args.data}")
-    print(f"  residual RMS: {result.rms_position_mm:.4f} mm (position), "
-          f"{result.rms_rotation_deg:.5f} deg (rotation), per component")
+    print(f"  residual RMS per component: {result.rms_text()}")
     print("  joint stiffness (N/m for x, y, z; Nm/rad for rx, ry, rz; - not in the model):")
     print("  joint " + "".join(f"{c:>12}" for c in COMPONENTS))
     for row in joint_stiffness(result):
