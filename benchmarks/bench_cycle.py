@@ -211,6 +211,7 @@ def main() -> int:
     ads_clients = args.ads_clients
     try:
         import pyads  # noqa: F401
+
         from plc_interface.ads.settings import AdsSettings  # noqa: F401
     except ImportError:
         print("note: pyads or the ADS server is not installed: the run has no ADS clients")

@@ -9,7 +9,8 @@ with e = measured - predicted:
     R^2  = 1 - sum e^2 / sum (y - ybar)^2,   ybar the mean of each component over the rows
 
 R^2 is 1 when the set has no spread and no error, and undefined (NaN, null in JSON) when it has no
-spread but some error. Per component, the same formulas use that one column.
+spread but some error. Per component, the same formulas use that one column. Only measured entries
+count (a laser tracker measures no rotation: its rotation metrics are NaN, null in JSON).
 
 The load direction of a reading is the dominant axis of the measured sensor force with its sign
 ("+x", "-x", ..., "-z"), or "none" when |F| is below 5 % of the campaign's largest |F|.
@@ -38,8 +39,12 @@ NOISE_FAR = 3.0
 def r2(y: np.ndarray, yhat: np.ndarray) -> float:
     """Coefficient of determination over all entries, each column centred on its own mean."""
     y = np.asarray(y, dtype=float).reshape(len(y), -1)
-    ss_res = float(np.sum(np.square(y - np.asarray(yhat).reshape(y.shape))))
-    ss_tot = float(np.sum(np.square(y - y.mean(axis=0))))
+    ok = np.isfinite(y)
+    if not ok.any():
+        return float("nan")
+    ss_res = float(np.nansum(np.square(y - np.asarray(yhat).reshape(y.shape))))
+    mean = np.array([np.nanmean(c) if np.isfinite(c).any() else 0.0 for c in y.T])
+    ss_tot = float(np.nansum(np.square(y - mean)))
     if ss_tot == 0.0:
         return 1.0 if ss_res == 0.0 else float("nan")
     return 1.0 - ss_res / ss_tot
@@ -53,7 +58,7 @@ def summary(y: np.ndarray, yhat: np.ndarray) -> dict[str, Any]:
         out[f"rms_{kind}_{unit}"] = rms(e)
     for kind, unit, sl in KINDS:
         e = y[:, sl] - yhat[:, sl]
-        out[f"max_{kind}_{unit}"] = float(np.abs(e).max()) if e.size else float("nan")
+        out[f"max_{kind}_{unit}"] = _max_abs(e)
     for kind, _, sl in KINDS:
         out[f"r2_{kind}"] = r2(y[:, sl], yhat[:, sl]) if len(y) else float("nan")
     out["n_rows"] = len(y)
@@ -65,9 +70,20 @@ def by_component(y: np.ndarray, yhat: np.ndarray) -> dict[str, dict[str, Any]]:
     out = {}
     for k, c in enumerate(COMPONENTS):
         e = y[:, k] - yhat[:, k]
-        out[c] = {"rms": rms(e), "max": float(np.abs(e).max()) if e.size else float("nan"),
+        out[c] = {"rms": rms(e), "max": _max_abs(e),
                   "r2": r2(y[:, k], yhat[:, k]), "unit": "mm" if k < 3 else "deg"}
     return out
+
+
+def _max_abs(e: np.ndarray) -> float:
+    """max |e| over the measured (finite) entries; NaN when there are none."""
+    e = np.abs(e[np.isfinite(e)])
+    return float(e.max()) if e.size else float("nan")
+
+
+def _noise_score(*terms: float) -> float:
+    """Sum of squared noise ratios over the kinds that were measured (NaN terms left out)."""
+    return float(sum(t**2 for t in terms if not np.isnan(t)))
 
 
 def load_direction(data: Dataset, fraction: float = NONE_FRACTION) -> tuple[np.ndarray, float]:
@@ -122,8 +138,8 @@ class Comparison:
     def better(self) -> str:
         """Name of the model with the smallest error, position and rotation each scaled by its noise."""
         def score(m: ModelResult) -> float:
-            return ((m.metrics["rms_position_mm"] / m.noise["position_mm"]) ** 2
-                    + (m.metrics["rms_rotation_deg"] / m.noise["rotation_deg"]) ** 2)
+            return _noise_score(m.metrics["rms_position_mm"] / m.noise["position_mm"],
+                                m.metrics["rms_rotation_deg"] / m.noise["rotation_deg"])
         return min(self.models, key=score).name
 
     def verdict(self) -> tuple[str, str]:
@@ -168,6 +184,7 @@ def _single_verdict(comp: Comparison, m: ModelResult) -> tuple[str, str]:
     text = (f"{m.name}: RMS error {mt['rms_position_mm']:.4g} mm and {mt['rms_rotation_deg']:.4g} deg per "
             f"component ({ratios[0]:.1f}x and {ratios[1]:.1f}x the expected noise of {m.noise['position_mm']:g} mm "
             f"and {m.noise['rotation_deg']:g} deg), R² {mt['r2_position']:.3f} and {mt['r2_rotation']:.3f}. ")
+    ratios = tuple(r for r in ratios if not np.isnan(r)) or (float("nan"),)
     if max(ratios) < NOISE_LEVEL:
         return text + "The model explains the data to the noise level.", "good"
     text += (f"Largest error at body {worst['by_body']}, configuration {worst['by_config']}, "
@@ -179,7 +196,7 @@ def _worst(groups: dict[str, dict], noise: dict[str, float]) -> str:
     """The group with the largest error, position and rotation RMS each scaled by its noise."""
     def score(k: str) -> float:
         g = groups[k]
-        return (g["rms_position_mm"] / noise["position_mm"]) ** 2 + (g["rms_rotation_deg"] / noise["rotation_deg"]) ** 2
+        return _noise_score(g["rms_position_mm"] / noise["position_mm"], g["rms_rotation_deg"] / noise["rotation_deg"])
     return max(groups, key=score) if groups else "-"
 
 

@@ -214,25 +214,35 @@ def folds_by_configuration(ctx: Context) -> np.ndarray:
     return np.repeat(fold_of_reading[ctx.row_reading], 6)
 
 
-def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
-    """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks."""
+def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool = True) -> Diagnosis:
+    """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks.
+
+    Only the measured components count. With ``robust`` (the default) the rows the fit judges gross
+    errors (`robust`) are left out of the fit and of every candidate's evidence; a missing effect
+    repeats in every reading of a load state and is not mistaken for them.
+    """
     say = progress or (lambda msg: None)
     need = 2 * (len(model.theta) + 6)          # the model and the largest candidate, twice over
-    if 6 * len(data) < need:
-        raise DataError(f"{data.source}: too few rows to diagnose ({len(data)} rows, {6 * len(data)} residuals); "
+    n_meas = int(data.measured.sum())
+    if n_meas < need:
+        raise DataError(f"{data.source}: too few rows to diagnose ({len(data)} rows, {n_meas} residuals); "
                         f"a model of {len(model.theta)} parameters and its candidates need at least {need}")
     say("fitting the model")
     ctx = model.context(data)
-    result = fit(model, ctx)
+    result = fit(model, ctx, robust=robust)
     fitted = result.model
     sigma = result.sigma
     resid = result.residual
-    y_w = (resid / sigma).reshape(-1)
-    A0 = (jacobian(fitted, ctx) / sigma[None, :, None]).reshape(len(y_w), -1)
+    # unmeasured entries and gross errors weigh nothing: they drop out of every Gram block
+    wt = result.weights
+    y_w = np.nan_to_num(resid * wt).reshape(-1)
+    J0 = jacobian(fitted, ctx)
+    A0 = (J0 * wt[:, :, None]).reshape(len(y_w), -1)
     gram = _Gram(A0, y_w, folds_by_configuration(ctx))
     M0, v0 = gram.G00, gram.b0
     rss0, sse0, _, _ = gram.rss_and_cv(M0, v0)
-    n, p0 = len(y_w), A0.shape[1]
+    n, p0 = int(np.count_nonzero(wt)), A0.shape[1]
+    use = result.inlier
     variants = candidate_variants(fitted, ctx)
     alpha = ALPHA / max(len(variants), 1)
     candidates = []
@@ -241,7 +251,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
         best = None
         for effect in group:
             X = candidate_columns(fitted, ctx, effect)
-            Xw = (X / sigma[None, :, None]).reshape(n, -1)
+            Xw = (X * wt[:, :, None]).reshape(len(y_w), -1)
             norm = _norms(Xw)
             M, v = gram.blocks(Xw / norm)
             rss1, sse1, x, cov = gram.rss_and_cv(M, v)
@@ -254,8 +264,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
         se = np.sqrt(np.clip(np.diag(cov)[p0:], 0, None) * s2) / norm
         # the deflection this effect explains, with the base parameters re-adjusted
         step0 = (x[:p0] / gram.norm0)
-        contribution = (np.einsum("nap,p->na", X, est)
-                        + (A0 @ step0).reshape(-1, 6) * sigma)
+        contribution = np.einsum("nap,p->na", X, est) + np.einsum("nap,p->na", J0, step0)
         after = resid - contribution
         drop = max(rss0 - rss1, 0.0)
         fstat = (drop / pc) / (rss1 / max(n - p0 - pc, 1)) if rss1 > 0 else np.inf
@@ -263,9 +272,9 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
         dbic = float(n * np.log(max(rss1, 1e-300) / rss0) + pc * np.log(n))
         cv_imp = float(np.clip(1.0 - sse1 / sse0, 0.0, 1.0)) if sse0 > 0 else 0.0
         criteria = {"cross_validation": cv_imp >= CV_MIN, "bic": dbic < -BIC_MIN, "f_test": p_value < alpha}
-        candidates.append(Candidate(effect, pc, rms(after[:, :3]), rms(after[:, 3:]), cv_imp, dbic, p_value,
+        candidates.append(Candidate(effect, pc, rms(after[use, :3]), rms(after[use, 3:]), cv_imp, dbic, p_value,
                                     criteria, est, se, contribution))
-    noise = pure_error(ctx, data.deflection)
+    noise = pure_error(ctx, np.where(use[:, None], data.deflection, np.nan))
     lof = _lack_of_fit(result, noise, model, ctx)
     structure_left = lof["worst_body"] > lof["threshold"]
     for c in candidates:
@@ -274,21 +283,28 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None) -> Diagnosis:
         c.explanation = describe(c, fitted, ctx, result)
     candidates.sort(key=lambda c: (-c.named, -c.significant, -c.cv_improvement, c.delta_bic))
     verdict, message = _verdict(candidates, lof, result)
-    return Diagnosis(result, ctx, worst(ctx, resid, sigma), noise, candidates, verdict, message, lof)
+    return Diagnosis(result, ctx, worst(ctx, np.where(use[:, None], resid, np.nan), sigma), noise, candidates,
+                     verdict, message, lof)
 
 
 def _lack_of_fit(result: FitResult, noise: dict | None, model: StiffnessModel, ctx: Context) -> dict:
     """Residual RMS over the noise, overall and for the worst body (position and rotation)."""
     ref = noise or {"position_mm": model.noise["position_mm"], "rotation_deg": model.noise["rotation_deg"]}
-    r = result.residual
-    per_body = [max(rms(r[ctx.body == b, :3]) / ref["position_mm"], rms(r[ctx.body == b, 3:]) / ref["rotation_deg"])
+    r = np.where(result.inlier[:, None], result.residual, np.nan)
+    per_body = [_nanmax(rms(r[ctx.body == b, :3]) / ref["position_mm"], rms(r[ctx.body == b, 3:]) / ref["rotation_deg"])
                 for b in np.unique(ctx.body)]
     return {"reference": "repeated readings" if noise else "the model's stated noise",
             "threshold": LACK_OF_FIT if noise else LACK_OF_FIT_STATED,
             "position_mm": ref["position_mm"], "rotation_deg": ref["rotation_deg"],
             "position": result.rms_position_mm / ref["position_mm"],
             "rotation": result.rms_rotation_deg / ref["rotation_deg"],
-            "worst_body": float(max(per_body))}
+            "worst_body": _nanmax(*per_body)}
+
+
+def _nanmax(*values: float) -> float:
+    """The largest of the values that are not NaN (a kind not measured gives NaN); NaN if none."""
+    v = [x for x in values if not np.isnan(x)]
+    return float(max(v)) if v else float("nan")
 
 
 def _excess_explained(result: FitResult, c: Candidate, lof: dict) -> float:
@@ -296,6 +312,8 @@ def _excess_explained(result: FitResult, c: Candidate, lof: dict) -> float:
     ex = expl = 0.0
     for before, after, ref in ((result.rms_position_mm, c.rms_position_mm_after, lof["position_mm"]),
                                (result.rms_rotation_deg, c.rms_rotation_deg_after, lof["rotation_deg"])):
+        if np.isnan(before):          # this kind was not measured
+            continue
         ex += max(before**2 - ref**2, 0.0) / ref**2
         expl += (before**2 - after**2) / ref**2
     return float(np.clip(expl / ex, 0.0, 1.0)) if ex > 0 else 1.0
@@ -308,7 +326,7 @@ def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple
         ref = lof["position"] / max(result.rms_position_mm, 1e-300)   # 1 / noise, per mm
         left = best.rms_position_mm_after * ref
         left_rot = best.rms_rotation_deg_after * lof["rotation"] / max(result.rms_rotation_deg, 1e-300)
-        if max(left, left_rot) > lof["threshold"]:
+        if _nanmax(left, left_rot) > lof["threshold"]:
             return "missing_effect", (best.explanation + f" Structure remains after it ({left:.2f}x / "
                                       f"{left_rot:.2f}x the noise): add it, fit, and diagnose again.")
         return "missing_effect", best.explanation
@@ -317,10 +335,11 @@ def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple
         also = (f" ({nibblers[0].name} passes the tests but removes only {100 * nibblers[0].excess_explained:.0f} %"
                 " of the excess)") if nibblers else ""
         return "unexplained", (
-            f"The residual ({result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg; worst body "
+            f"The residual ({result.rms_text()}; worst body "
             f"{lof['worst_body']:.2f}x the noise of {lof['reference']}) holds structure that no effect in the "
             f"library explains{also}. See the residual patterns; the diagnosis does not guess.")
     return "no_missing_effect", (
-        f"The residual ({result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg) is at the noise "
-        f"of {lof['reference']} ({lof['position']:.2f}x, {lof['rotation']:.2f}x) and no library effect "
+        f"The residual ({result.rms_text()}) is at the noise of {lof['reference']} ("
+        + ", ".join(f"{lof[k]:.2f}x" for k in ("position", "rotation") if not np.isnan(lof[k]))
+        + ") and no library effect "
         "improves the model by more than one criterion: nothing is missing.")

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .diagnose import Diagnosis
 from .diagnose_plots import axial_residual_vs_torque, evidence, residual_vs_force, residual_vs_time
 from .report import Report
 from .residuals import patterns
+from .robot import BODIES
 
 VERDICT_KIND = {"missing_effect": "warn", "no_missing_effect": "good", "unexplained": "bad"}
 
@@ -21,6 +24,8 @@ def to_dict(d: Diagnosis, top: int | None = None) -> dict[str, Any]:
         "rms_rotation_deg": d.fit.rms_rotation_deg,
         "noise": d.noise,
         "lack_of_fit": d.lack_of_fit,
+        "outliers": d.fit.outliers(),
+        "unidentifiable": d.fit.unidentifiable,
         "worst": {k: d.worst[k] for k in ("body", "component", "config", "load_range")},
         "candidates": [{
             "effect": c.name,
@@ -57,6 +62,7 @@ def build_report(d: Diagnosis, model_path: str, data_path: str, plots: bool = Tr
         ["position (mm)", d.fit.rms_position_mm, noise.get("position_mm"), d.lack_of_fit["position"]],
         ["rotation (deg)", d.fit.rms_rotation_deg, noise.get("rotation_deg"), d.lack_of_fit["rotation"]],
     ], caption="RMS per component; the ratio is against " + d.lack_of_fit["reference"])
+    _outliers(rep, d)
     rep.heading("Where the model fails")
     w = d.worst
     rep.paragraph(f"Worst body {w['body']}, component {w['component']}, configuration {w['config']}, "
@@ -90,3 +96,19 @@ def build_report(d: Diagnosis, model_path: str, data_path: str, plots: bool = Tr
                   "pattern; they are not effects.")
     rep.table(["pattern", "R²"], [[p["pattern"], p["r2"]] for p in pats], fmt="{:.3f}")
     return rep
+
+
+def _outliers(rep: Report, d: Diagnosis) -> None:
+    """The rows left out as gross errors, by file line, with the size of their residual."""
+    rep.heading("Gross errors")
+    rows = d.fit.outlier.nonzero()[0]
+    if not len(rows):
+        rep.paragraph("No row was judged a gross error (robust fit; see docs/measurement_format.md).")
+        return
+    r = d.fit.residual[rows]
+    rep.paragraph(d.fit.outlier_text() + ". They are left out of the fit and of every candidate's evidence; "
+                  "a gross error does not repeat across the readings of one load state, a missing effect does.")
+    rep.table(["line", "configuration", "body", "|position residual| (mm)", "|rotation residual| (deg)"],
+              [[int(d.ctx.data.line[i]), d.ctx.data.config[i], BODIES[d.ctx.data.body[i]],
+                float(np.linalg.norm(np.nan_to_num(e[:3]))), float(np.linalg.norm(np.nan_to_num(e[3:])))]
+               for i, e in zip(rows[:200], r[:200])], caption="At most 200 rows are listed.")

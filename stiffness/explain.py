@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .effects.joint_spring import JointSpring
@@ -57,10 +59,12 @@ def describe(c, model, ctx, result) -> str:
     passed = [k.replace("_", " ") for k, ok in c.criteria.items() if ok]
     verdict = "Missing" if c.named else ("Partial" if c.significant else "Not supported")
     folds = "by configuration" if len(ctx.config_labels) >= 2 else "over blocks of time (one configuration)"
+    change = [f"{before:.{d}f} -> {after:.{d}f} {unit}" for before, after, d, unit in (
+        (result.rms_position_mm, c.rms_position_mm_after, 4, "mm"),
+        (result.rms_rotation_deg, c.rms_rotation_deg_after, 5, "deg")) if not math.isnan(before)]
     return (f"{verdict}: {c.name}{where}, {size_text(c, model, ctx)}. It explains {pct:.0f} % of the "
-            f"remaining error under cross-validation {folds} (RMS {result.rms_position_mm:.4f} -> "
-            f"{c.rms_position_mm_after:.4f} mm, {result.rms_rotation_deg:.5f} -> "
-            f"{c.rms_rotation_deg_after:.5f} deg); criteria passed: {', '.join(passed) or 'none'}.")
+            f"remaining error under cross-validation {folds} (RMS {', '.join(change)}); "
+            f"criteria passed: {', '.join(passed) or 'none'}.")
 
 
 def e_loc(effect) -> str:

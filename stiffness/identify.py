@@ -11,6 +11,11 @@ evaluation (variable projection).
 
 The noise of each kind is re-estimated from the residuals between rounds, so position and rotation
 count by what the data show.
+
+Only the measured components count (a laser tracker gives the TCP position alone): an unmeasured
+entry has weight zero, and the parameters the measured components cannot determine at all are named
+(`identifiability`) and kept at their starting values. By default the fit is robust: rows judged
+gross errors (`robust`) get weight zero in the next round and are reported by line.
 """
 
 from __future__ import annotations
@@ -22,18 +27,26 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares
 
 from .context import Context
+from .identifiability import IDENT_TOL, unidentifiable
 from .measurements import Dataset
 from .model import StiffnessModel
+from .residuals import repeat_groups
+from .robot import BODIES
+from .robust import gross_errors, robust_scale
 
 T_DETERMINED = 3.0  # |estimate| / standard error below this: the data cannot tell it from zero
+ROBUST_EXTRA_ROUNDS = 3   # rounds a robust fit may add while its set of gross errors still changes
 
 
 @dataclass
 class FitResult:
-    """The outcome of a fit. ``converged`` is False when the optimiser stopped without converging."""
+    """The outcome of a fit. ``converged`` is False when the optimiser stopped without converging.
+
+    The RMS properties are over the rows used (not the gross errors) and the measured components.
+    """
 
     model: StiffnessModel
-    residual: np.ndarray                   # (N, 6) measured - predicted, mm / deg
+    residual: np.ndarray                   # (N, 6) measured - predicted, mm / deg; NaN where not measured
     sigma: np.ndarray                      # (6,) noise used as weights
     std_error: np.ndarray                  # (P,) SI
     t_value: np.ndarray                    # (P,)
@@ -41,33 +54,90 @@ class FitResult:
     converged: bool = True
     message: str = ""
     warnings: list[str] = field(default_factory=list)
+    unidentifiable: list[str] = field(default_factory=list)   # the data cannot determine these at all
+    outlier: np.ndarray | None = None      # (N,) bool: rows judged gross errors, weight zero
+    lines: np.ndarray | None = None        # (N,) the file line of each row
+
+    def __post_init__(self) -> None:
+        if self.outlier is None:
+            self.outlier = np.zeros(len(self.residual), dtype=bool)
+
+    @property
+    def inlier(self) -> np.ndarray:
+        return ~self.outlier
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(N, 6) the weight of each residual entry: 1 / sigma where measured and not a gross error."""
+        return weights(np.isfinite(self.residual), self.inlier, self.sigma)
+
+    @property
+    def outlier_lines(self) -> list[int]:
+        rows = np.nonzero(self.outlier)[0]
+        return [int(v) for v in (self.lines[rows] if self.lines is not None else rows + 2)]
+
+    def outliers(self) -> dict:
+        """The rows judged gross errors by file line: ``{"count": N, "lines": [...]}`` (the JSON form)."""
+        return {"count": int(self.outlier.sum()), "lines": self.outlier_lines}
+
+    def outlier_text(self, limit: int = 30) -> str:
+        """One line naming the rows judged gross errors by file line."""
+        o = self.outliers()
+        if not o["count"]:
+            return "outliers: none"
+        more = f" and {o['count'] - limit} more" if o["count"] > limit else ""
+        return (f"outliers: {o['count']} row(s) judged gross errors and left out, at line(s) "
+                + ", ".join(map(str, o["lines"][:limit])) + more)
+
+    def rms_text(self) -> str:
+        """'0.0301 mm, 0.00201 deg' (a kind not measured: 'rotation not measured')."""
+        return rms_text(self.rms_position_mm, self.rms_rotation_deg)
 
     @property
     def rms_position_mm(self) -> float:
-        return rms(self.residual[:, :3])
+        return rms(self.residual[self.inlier, :3])
 
     @property
     def rms_rotation_deg(self) -> float:
-        return rms(self.residual[:, 3:])
+        return rms(self.residual[self.inlier, 3:])
 
 
 def rms(x: np.ndarray) -> float:
-    """Root mean square over all entries (per component, not of the 3-D norm)."""
-    return float(np.sqrt(np.mean(np.square(x)))) if np.size(x) else float("nan")
+    """Root mean square over the measured (finite) entries (per component, not of the 3-D norm)."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
+
+
+def rms_text(mm: float, deg: float) -> str:
+    """Position and rotation RMS for a sentence; a kind not measured (NaN) says so."""
+    pos = "position not measured" if np.isnan(mm) else f"{mm:.4f} mm"
+    rot = "rotation not measured" if np.isnan(deg) else f"{deg:.5f} deg"
+    return f"{pos}, {rot}"
+
+
+def weights(measured: np.ndarray, inlier: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """(N, 6) residual weights: 1 / sigma for measured entries of rows in use, else 0."""
+    return (measured & inlier[:, None]) / np.asarray(sigma, dtype=float)[None, :]
 
 
 def solve_ls(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """min |A x - b| via normal equations on unit-norm columns (fast for tall A); lstsq if singular."""
+    """min |A x - b| via normal equations on unit-norm columns (fast for tall A).
+
+    When the columns are (nearly) dependent (singular value ratio below IDENT_TOL), the minimum-norm
+    solution in the scaled parameters: the directions the data cannot see get no step.
+    """
     norms = np.linalg.norm(A, axis=0)
-    norms[norms == 0] = 1.0
-    An = A / norms
+    dead = norms <= 1e-12 * max(float(norms.max(initial=0.0)), 1e-300)   # rounding, not a signal
+    norms[dead] = 1.0
+    An = np.where(dead, 0.0, A / norms)
     M = An.T @ An
     try:
-        if np.linalg.cond(M) > 1e12:
+        if np.linalg.cond(M) > IDENT_TOL**-2:
             raise LinAlgError
         x = cho_solve(cho_factor(M), An.T @ b)
     except LinAlgError:
-        x = np.linalg.lstsq(An, b, rcond=None)[0]
+        x = np.linalg.lstsq(An, b, rcond=IDENT_TOL)[0]
     return x / norms
 
 
@@ -122,7 +192,7 @@ def _param(model, k):
 
 
 def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 100,
-        sigma: np.ndarray | None = None) -> FitResult:
+        sigma: np.ndarray | None = None, robust: bool = True) -> FitResult:
     """Identify every parameter of ``model`` from ``data``; returns a fitted copy in the result.
 
     Parameters
@@ -133,53 +203,91 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     max_nfev : int
         Evaluations allowed to the nonlinear solver (only used when the model has nonlinear terms).
     sigma : (6,) array, optional
-        Starting noise per component; defaults to the model's ``noise`` section.
+        Starting noise per component (mm, deg); defaults to the model's ``noise`` section.
+    robust : bool
+        Give rows judged gross errors (`robust.gross_errors`) weight zero, re-judging after each
+        round; up to ROBUST_EXTRA_ROUNDS more rounds while that set still changes. False: plain
+        weighted least squares over every row.
     """
     model = model.copy()
     ctx = data if isinstance(data, Context) else model.context(data)
-    y = ctx.data.deflection
-    if sigma is None:
-        sigma = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
+    measured = ctx.data.measured
+    y = np.where(measured, ctx.data.deflection, 0.0)
+    stated = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
+    sigma = stated if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.array([p.scale for e in model.effects for p in e.params])
     lin = linear_index(model)
     nl = np.setdiff1d(np.arange(len(scale)), lin)
     converged, message = True, "closed-form least squares"
     theta = model.theta.copy()
-    for _ in range(max(1, rounds)):
+    inlier = np.ones(len(y), dtype=bool)
+    group = _repeat_key(ctx) if robust else None
+    n_rounds, k = max(1, rounds), 0
+    while k < n_rounds:
+        w = weights(measured, inlier, sigma)
         if len(nl):
-            theta, converged, message = _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev)
+            theta, converged, message = _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev)
         else:
-            theta = _solve_linear(model, ctx, y, sigma, theta, lin)
-        theta = _exact_step(model, ctx, y, sigma, scale, theta)
-        resid = y - model.predict(ctx, theta)
-        sigma = _noise_from_residual(resid, sigma)
+            theta = _solve_linear(model, ctx, y, w, theta, lin)
+        theta = _exact_step(model, ctx, y, w, scale, theta)
+        resid = np.where(measured, y - model.predict(ctx, theta), np.nan)
+        if robust:
+            flagged = ~gross_errors(resid, robust_scale(resid, stated), group)
+            if k == n_rounds - 1 and np.any(flagged != inlier) and n_rounds < rounds + ROBUST_EXTRA_ROUNDS:
+                n_rounds += 1
+            if k < n_rounds - 1:
+                inlier = flagged
+        sigma = _noise_from_residual(resid[inlier], sigma)
+        k += 1
     model.theta = theta
-    se, t = _standard_errors(jacobian(model, ctx, theta), resid, sigma, scale, theta)
-    undetermined = [lab for lab, tv in zip(model.param_labels(), t) if not tv >= T_DETERMINED]
+    w = weights(measured, inlier, sigma)
+    J = jacobian(model, ctx, theta)
+    blind = unidentifiable(_weighted(J, w) * scale)
+    se, t = _standard_errors(J, resid, w, scale, theta, blind)
+    labels = model.param_labels()
+    undetermined = [lab for lab, tv in zip(labels, t) if not tv >= T_DETERMINED]
     for e, sl in zip(model.effects, model.param_slices()):
         e.std_error = se[sl]
     warnings = []
+    unident = [lab for lab, b in zip(labels, blind) if b]
+    if unident:
+        warnings.append(f"{len(unident)} parameter(s) cannot be determined by the measured components at all "
+                        "(kept at their starting values): " + ", ".join(unident))
     if undetermined:
         warnings.append(f"{len(undetermined)} parameter(s) cannot be told from zero by these data "
                         f"(|estimate| < {T_DETERMINED:g} standard errors): " + ", ".join(undetermined))
-    return FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings)
+    result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
+                       ~inlier, ctx.data.line)
+    if result.outlier.any():
+        warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
+                        + ", ".join(map(str, result.outlier_lines[:20]))
+                        + (" ..." if result.outlier.sum() > 20 else ""))
+    return result
 
 
-def _weighted(X: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    return (X / sigma[None, :, None]).reshape(-1, X.shape[2])
+def _repeat_key(ctx: Context) -> np.ndarray:
+    """A repeat-group id per row: the same body in the readings of one load state."""
+    return repeat_groups(ctx)[ctx.row_reading] * len(BODIES) + ctx.body
 
 
-def _solve_linear(model, ctx, y, sigma, theta, lin):
-    """The linear parameters in closed form, the others held at ``theta``."""
+def _weighted(X: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Rows of X (N, 6, P) times the residual weights w (N, 6), stacked to (6N, P)."""
+    return (X * w[:, :, None]).reshape(-1, X.shape[2])
+
+
+def _solve_linear(model, ctx, y, w, theta, lin):
+    """The linear parameters in closed form (minimum-norm step from ``theta``), the others held."""
     theta = theta.copy()
+    start = theta[lin].copy()
     theta[lin] = 0.0
     rest = y - model.predict(ctx, theta, linear=True) if len(lin) < len(theta) else y
     X = design(model, ctx, model.frame_wrenches(ctx, theta), theta)
-    theta[lin] = solve_ls(_weighted(X, sigma), (rest / sigma).reshape(-1))
+    Xw = _weighted(X, w)
+    theta[lin] = start + solve_ls(Xw, (rest * w).reshape(-1) - Xw @ start)
     return theta
 
 
-def _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev):
+def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev):
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
@@ -188,9 +296,9 @@ def _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev):
     def inner(x):
         th = theta.copy()
         th[nl] = x * scale[nl]
-        th = _solve_linear(model, ctx, y, sigma, th, lin)
+        th = _solve_linear(model, ctx, y, w, th, lin)
         cache["theta"] = th
-        return ((y - model.predict(ctx, th, linear=True)) / sigma).reshape(-1)
+        return ((y - model.predict(ctx, th, linear=True)) * w).reshape(-1)
 
     x0 = np.clip(theta[nl] / scale[nl], lo, hi)
     sol = least_squares(inner, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev,
@@ -199,29 +307,33 @@ def _solve_projected(model, ctx, y, sigma, scale, theta, lin, nl, max_nfev):
     return cache["theta"], bool(sol.status > 0), sol.message
 
 
-def _exact_step(model, ctx, y, sigma, scale, theta):
+def _exact_step(model, ctx, y, w, scale, theta):
     """One Gauss-Newton step on the exact chain from the linearised optimum."""
     lo = np.array([p.bounds[0] for e in model.effects for p in e.params])
     hi = np.array([p.bounds[1] for e in model.effects for p in e.params])
-    J = _weighted(jacobian(model, ctx, theta), sigma) * scale
-    r = ((y - model.predict(ctx, theta)) / sigma).reshape(-1)
+    J = _weighted(jacobian(model, ctx, theta), w) * scale
+    r = ((y - model.predict(ctx, theta)) * w).reshape(-1)
     return np.clip(theta + solve_ls(J, r) * scale, lo, hi)
 
 
 def _noise_from_residual(resid: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    sp, sr = rms(resid[:, :3]), rms(resid[:, 3:])
-    out = np.array([sp] * 3 + [sr] * 3)
-    return np.where(out > 0, out, sigma)
+    """Noise per component: the RMS of the measured residuals of its kind (position, rotation)."""
+    out = np.array(sigma, dtype=float)
+    for sl in (slice(0, 3), slice(3, 6)):
+        s = rms(resid[:, sl])
+        if s > 0:
+            out[sl] = s
+    return out
 
 
-def _standard_errors(X, resid, sigma, scale, theta):
-    Xw = _weighted(X, sigma) * scale
-    n, p = Xw.shape
-    s2 = float(np.sum((resid / sigma) ** 2)) / max(n - p, 1)
+def _standard_errors(X, resid, w, scale, theta, blind):
+    Xw = _weighted(X, w) * scale
+    p = Xw.shape[1]
+    n = int(np.count_nonzero(w))
+    s2 = float(np.sum(np.nan_to_num(resid * w) ** 2)) / max(n - p, 1)
     cov = np.linalg.pinv(Xw.T @ Xw) * s2
     se = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale
-    null = np.linalg.norm(Xw, axis=0) < 1e-12 * max(np.linalg.norm(Xw), 1e-300)
-    se[null] = np.inf
+    se[blind] = np.inf
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.abs(theta) / se
     return se, np.nan_to_num(t, nan=0.0)

@@ -4,6 +4,10 @@ A reading is one load state at one configuration at one time: the joint angles, 
 measured (bias removed; force in N, moment about the sensor origin in Nm, sensor axes) and, for each
 measured body, its deflection: loaded minus unloaded position in base axes (mm) and the rotation
 vector log(R_loaded R_unloaded^T) in base axes (deg).
+
+A campaign may measure any subset of the six deflection components: a laser tracker gives the TCP
+position only. A component that was not measured is an absent column or an empty cell; in memory it
+is NaN (``Dataset.measured`` is False there). A NaN or inf written in the file stays an error.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH_COLS = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
 DEFLECTION_COLS = ("dx_mm", "dy_mm", "dz_mm", "rx_deg", "ry_deg", "rz_deg")
 COLUMNS = ("time_s", "config", *Q_COLS, *WRENCH_COLS, "body", *DEFLECTION_COLS)
+REQUIRED_COLS = ("time_s", "config", *Q_COLS, *WRENCH_COLS, "body")
 NUMERIC_COLS = ("time_s", *Q_COLS, *WRENCH_COLS, *DEFLECTION_COLS)
 COMPONENTS = ("dx", "dy", "dz", "rx", "ry", "rz")
 
@@ -37,7 +42,7 @@ class Dataset:
     q_deg : (N, 6) joint angles, deg
     wrench : (N, 6) sensor wrench [fx, fy, fz (N), mx, my, mz (Nm)] in sensor axes
     body : (N,) body index, 0..5 for A1..A6 and 6 for the TCP
-    deflection : (N, 6) [dx, dy, dz (mm), rx, ry, rz (deg)] in base axes
+    deflection : (N, 6) [dx, dy, dz (mm), rx, ry, rz (deg)] in base axes; NaN where not measured
     line : (N,) the file line (or parquet row + 2) each row came from
     """
 
@@ -63,6 +68,11 @@ class Dataset:
 
     def __len__(self) -> int:
         return len(self.time_s)
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(N, 6) bool: which deflection components each row measured (False where NaN)."""
+        return np.isfinite(self.deflection)
 
     def subset(self, mask: np.ndarray) -> Dataset:
         """The rows where ``mask`` (boolean or index array) selects."""
@@ -90,22 +100,30 @@ class Dataset:
         return first, inverse.reshape(-1)
 
     def to_csv(self, path: str | Path) -> None:
-        """Write the dataset in the measurement format."""
+        """Write the dataset in the measurement format.
+
+        A component measured in no row is left out of the header; one measured in some rows only is
+        an empty cell in the others.
+        """
+        keep = np.nonzero(self.measured.any(axis=0))[0]
+        digits = np.array([6, 6, 6, 7, 7, 7])
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(COLUMNS)
+            w.writerow([*REQUIRED_COLS, *(DEFLECTION_COLS[k] for k in keep)])
             for i in range(len(self)):
                 w.writerow([
                     _fmt(self.time_s[i], 4), self.config[i],
                     *(_fmt(v, 6) for v in self.q_deg[i]),
                     *(_fmt(v, 4) for v in self.wrench[i]),
                     BODIES[self.body[i]],
-                    *(_fmt(v, 6) for v in self.deflection[i, :3]),
-                    *(_fmt(v, 7) for v in self.deflection[i, 3:]),
+                    *(_fmt(self.deflection[i, k], digits[k]) for k in keep),
                 ])
 
 
 def _fmt(v: float, digits: int) -> str:
+    """A number for the file; NaN (not measured) is an empty cell."""
+    if math.isnan(v):
+        return ""
     return f"{v:.{digits}f}".rstrip("0").rstrip(".") if math.isfinite(v) else repr(v)
 
 
@@ -171,14 +189,18 @@ def _parquet_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
 
 def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[int],
               robot: Robot | None) -> Dataset:
-    missing = [c for c in COLUMNS if c not in header]
+    missing = [c for c in REQUIRED_COLS if c not in header]
     if missing:
         raise DataError(f"{path}: line 1: missing column(s) {', '.join(missing)}; "
-                        f"the format needs {', '.join(COLUMNS)}")
+                        f"the format needs {', '.join(REQUIRED_COLS)} and at least one of "
+                        f"{', '.join(DEFLECTION_COLS)}")
+    if not any(c in header for c in DEFLECTION_COLS):
+        raise DataError(f"{path}: line 1: no deflection column; give at least one of "
+                        f"{', '.join(DEFLECTION_COLS)} (a laser tracker: dx_mm, dy_mm, dz_mm)")
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: line 1: column(s) {', '.join(dup)} appear more than once")
-    idx = {c: header.index(c) for c in COLUMNS}
+    idx = {c: header.index(c) for c in COLUMNS if c in header}
     problems: list[str] = []
     n = len(rows)
     num = np.full((n, len(NUMERIC_COLS)), np.nan)
@@ -190,7 +212,9 @@ def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[
             problems.append(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
             continue
         for k, c in enumerate(NUMERIC_COLS):
-            text = row[idx[c]].strip()
+            text = row[idx[c]].strip() if c in idx else ""
+            if not text and c in DEFLECTION_COLS:
+                continue            # not measured in this row: stays NaN
             try:
                 v = float(text)
             except ValueError:
@@ -199,6 +223,9 @@ def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[
             if not math.isfinite(v):
                 problems.append(f"{path}: line {line}: {c} = {text!r} is not finite")
             num[r, k] = v
+        if not any(row[idx[c]].strip() for c in DEFLECTION_COLS if c in idx):
+            problems.append(f"{path}: line {line}: no deflection component is given; a row must "
+                            "measure at least one")
         config[r] = row[idx["config"]].strip()
         if not config[r]:
             problems.append(f"{path}: line {line}: config is empty")

@@ -17,15 +17,16 @@ MIN_NOISE_MM, MIN_NOISE_DEG = 1e-6, 1e-8   # below these the repeats are noise-f
 
 
 def normalised_rms(resid: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> float:
-    r = resid if mask is None else resid[mask]
-    return float(np.sqrt(np.mean((r / sigma) ** 2))) if len(r) else float("nan")
+    r = (resid if mask is None else resid[mask]) / sigma
+    r = r[np.isfinite(r)]
+    return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
 
 
 def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
     """The body, component, configuration and load range with the largest noise-normalised RMS."""
     data = ctx.data
     body_scores = {BODIES[b]: normalised_rms(resid, sigma, data.body == b) for b in np.unique(data.body)}
-    comp_scores = {c: float(np.sqrt(np.mean((resid[:, k] / sigma[k]) ** 2))) for k, c in enumerate(COMPONENTS)}
+    comp_scores = {c: normalised_rms(resid[:, k], sigma[k]) for k, c in enumerate(COMPONENTS)}
     cfg_scores = {c: normalised_rms(resid, sigma, data.config == c) for c in data.configs}
     fmag = np.linalg.norm(data.wrench[:, :3], axis=1)
     edges = np.linspace(0, max(fmag.max(), 1e-9), LOAD_BINS + 1)
@@ -34,7 +35,7 @@ def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
         m = (fmag >= edges[k]) & ((fmag < edges[k + 1]) | (k == LOAD_BINS - 1))
         if m.any():
             load_scores[f"{edges[k]:.0f}-{edges[k + 1]:.0f} N"] = normalised_rms(resid, sigma, m)
-    pick = lambda d: max(d, key=d.get)
+    pick = lambda d: max(d, key=lambda k: -np.inf if np.isnan(d[k]) else d[k])
     return {"body": pick(body_scores), "component": pick(comp_scores), "config": pick(cfg_scores),
             "load_range": pick(load_scores), "scores": {"body": body_scores, "component": comp_scores,
                                                        "config": cfg_scores, "load_range": load_scores}}
@@ -60,24 +61,35 @@ def repeat_groups(ctx: Context, tolerance: float = 0.01) -> np.ndarray:
 def pure_error(ctx: Context, y: np.ndarray) -> dict | None:
     """The measurement noise seen between repeated readings of one load state (model-free).
 
+    ``y`` (N, 6) is NaN where a component was not measured (or a row is left out); each component
+    counts its own measured repeats. A kind (position, rotation) not measured at all is NaN.
+
     Returns ``{"position_mm", "rotation_deg", "dof"}`` per component, or None when the repeats give
     fewer than MIN_PURE_ERROR_DOF degrees of freedom (the estimate would be looser than about 5 %)
     or show no scatter at all (noise-free data: there is no measured noise to judge against).
     """
     gid = repeat_groups(ctx)[ctx.row_reading]
     key = gid * len(BODIES) + ctx.body
-    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
-    dof = int(np.sum(counts - 1))
+    _, inv = np.unique(key, return_inverse=True)
+    inv = inv.reshape(-1)
+    ok = np.isfinite(y)
+    counts = np.zeros((inv.max() + 1, 6))
+    sums = np.zeros((inv.max() + 1, 6))
+    np.add.at(counts, inv, ok)
+    np.add.at(sums, inv, np.where(ok, y, 0.0))
+    dof_c = np.sum(np.clip(counts - 1, 0, None), axis=0)           # per component
+    dof = int(dof_c.max(initial=0))
     if dof < MIN_PURE_ERROR_DOF:
         return None
-    sums = np.zeros((inv.max() + 1, 6))
-    np.add.at(sums, inv, y)
-    dev = y - (sums / counts[:, None])[inv]
-    ss = np.sum(dev**2, axis=0) / dof
-    if ss[:3].mean() < MIN_NOISE_MM**2 or ss[3:].mean() < MIN_NOISE_DEG**2:
-        return None
-    return {"position_mm": float(np.sqrt(ss[:3].mean())), "rotation_deg": float(np.sqrt(ss[3:].mean())),
-            "dof": dof}
+    dev = np.where(ok, y - (sums / np.maximum(counts, 1))[inv], 0.0)
+    out = {}
+    for kind, sl, floor in (("position_mm", slice(0, 3), MIN_NOISE_MM), ("rotation_deg", slice(3, 6), MIN_NOISE_DEG)):
+        d = dof_c[sl].sum()
+        ss = float(np.sum(dev[:, sl] ** 2)) / d if d else float("nan")
+        if ss < floor**2:
+            return None
+        out[kind] = float(np.sqrt(ss))
+    return {**out, "dof": dof}
 
 
 def axial_residual(ctx: Context, resid: np.ndarray, sigma: np.ndarray, joint: int) -> np.ndarray:
@@ -87,8 +99,9 @@ def axial_residual(ctx: Context, resid: np.ndarray, sigma: np.ndarray, joint: in
     the noise) onto the deflection one unit of the joint's axial twist would cause; NaN where the
     reading holds no body that the joint moves.
     """
-    g = ctx.G[:, joint - 1, :, 5] / sigma                  # (N, 6) per rad
     r = resid / sigma
+    g = np.where(np.isfinite(r), ctx.G[:, joint - 1, :, 5] / sigma, 0.0)   # (N, 6) per rad
+    r = np.nan_to_num(r)
     num = np.bincount(ctx.row_reading, np.sum(g * r, axis=1), ctx.n_readings)
     den = np.bincount(ctx.row_reading, np.sum(g * g, axis=1), ctx.n_readings)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -102,7 +115,7 @@ def patterns(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> list[dict]:
     square, and the sensor force along each axis. They point a person at a pattern
     when no library effect explains it.
     """
-    rw = (resid / sigma)
+    rw = np.nan_to_num(resid / sigma)
     total = float(np.sum(rw**2))
     if total <= 0:
         return []

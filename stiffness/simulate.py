@@ -11,7 +11,8 @@ sensor measures that wrench as force and moment about its own origin in its own 
 
     W_s = A(T_0s, T_0p) [F; 0],     F = f e_a  (flange axes)
 
-Each load state is read ``readings.repeats`` times. The deflection of each measured body is the
+Each load state is read ``readings.repeats`` times; only the ``components`` the device measures are
+written (a laser tracker: dx, dy, dz of the TCP). The deflection of each measured body is the
 truth model's prediction for the *true* wrench (`StiffnessModel.predict`, with the campaign's time
 order, so time- and history-dependent effects see the readings as they were taken); then the
 optical system's noise (mm, deg per component) is added to the deflection and the F/T sensor's
@@ -32,7 +33,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from .errors import ConfigError
-from .measurements import Dataset
+from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 from .robot import BODIES, N_JOINTS, Robot
 from .spatial import transform, transport_wrench
@@ -106,12 +107,15 @@ class CampaignSpec(Strict):
     noise: NoiseSpec = Field(default_factory=NoiseSpec)
     bodies: list[Literal["A1", "A2", "A3", "A4", "A5", "A6", "TCP"]] = Field(
         default_factory=lambda: list(BODIES), min_length=1)
+    components: list[Literal["dx", "dy", "dz", "rx", "ry", "rz"]] = Field(
+        default_factory=lambda: list(COMPONENTS), min_length=1,
+        description="the deflection components the device measures (a laser tracker: dx, dy, dz)")
 
-    @field_validator("bodies")
+    @field_validator("bodies", "components")
     @classmethod
-    def _unique_bodies(cls, v: list[str]) -> list[str]:
+    def _unique(cls, v: list[str]) -> list[str]:
         if len(set(v)) != len(v):
-            raise ValueError("each body may appear once")
+            raise ValueError("each entry may appear once")
         return v
 
 
@@ -141,6 +145,7 @@ class Campaign:
         self.move_s, self.start_s = rs.move_s, rs.start_s
         self.noise = spec.noise.model_dump()
         self.bodies = np.array([BODIES.index(b) for b in spec.bodies])
+        self.components = np.isin(COMPONENTS, spec.components)
         names = [c.name for c in spec.configurations]
         q = [c.q_deg for c in spec.configurations]
         _check_limits(truth.robot, np.array(q).reshape(-1, N_JOINTS), "configurations", source)
@@ -206,6 +211,7 @@ class Campaign:
         data.deflection = self.truth.predict(data)
         if noise:
             add_noise(data, self.noise, np.random.default_rng(self.seed))
+        data.deflection[:, ~self.components] = np.nan        # not measured by the device
         return data
 
 

@@ -40,3 +40,16 @@ def test_compare_diagnose_add_fit_compare(tmp_path):
     assert after["rms_position_mm"] < 1.15 * 0.03
     again = json.loads(stiffcomp("diagnose", fitted, DATA, "--json").stdout)
     assert again["verdict"] == "no_missing_effect"
+
+
+def test_walk_starts_with_a_plan_that_simulate_runs(tmp_path):
+    """The README walk's first step: plan 4 configurations, rehearse the plan with simulate, fit it."""
+    plan = tmp_path / "plan.yaml"
+    out = json.loads(stiffcomp("plan", ROOT / "config/models/kr125_6dof.yaml", "--configurations", "4",
+                               "-o", plan, "--json").stdout)
+    assert len(out["configurations"]) == 4 and out["criterion"] < out["random_median"]
+    assert len(out["parameters"]) == 36
+    data = tmp_path / "plan.csv"
+    stiffcomp("simulate", plan, "-o", data)
+    fitted = json.loads(stiffcomp("fit", ROOT / "config/models/kr125_6dof.yaml", data, "--json").stdout)
+    assert fitted["outliers"]["count"] <= 2 and fitted["unidentifiable"] == []

@@ -28,6 +28,7 @@ COMMANDS = {
     "simulate": "tools.simulate_cmd",
     "compare": "tools.compare_cmd",
     "diagnose": "tools.diagnose_cmd",
+    "plan": "tools.plan_cmd",
     "model": "tools.model_cmd",
     "hil": "tools.hil_cmd",
 }

@@ -9,6 +9,7 @@ from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report, to_dict
 
 from .common import load, print_json, write_output
+from .fit_cmd import add_robust_option
 
 
 def register(sub) -> None:
@@ -18,6 +19,7 @@ def register(sub) -> None:
     p.add_argument("--report", metavar="DIR", help="write an HTML report with plots into DIR")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--top", type=int, default=None, help="list only the best N candidates")
+    add_robust_option(p)
     p.set_defaults(func=run)
 
 
@@ -29,7 +31,7 @@ def run(args) -> int:
         if tty:
             print(f"\r\033[Kdiagnose: {msg}", end="", file=sys.stderr, flush=True)
 
-    d = diagnose(model, data, progress)
+    d = diagnose(model, data, progress, robust=args.robust)
     if tty:
         print("\r\033[K", end="", file=sys.stderr)
     if args.report:
@@ -41,9 +43,12 @@ def run(args) -> int:
         return 0
     print(f"verdict: {d.verdict}")
     print(f"  {d.message}")
-    print(f"  residual RMS {d.fit.rms_position_mm:.4f} mm, {d.fit.rms_rotation_deg:.5f} deg; worst body "
+    print(f"  residual RMS {d.fit.rms_text()}; worst body "
           f"{d.worst['body']}, component {d.worst['component']}, configuration {d.worst['config']}, "
           f"load {d.worst['load_range']}")
+    print(f"  {d.fit.outlier_text()}")
+    if d.fit.unidentifiable:
+        print("  not determined by the measured components: " + ", ".join(d.fit.unidentifiable))
     print("  candidates (best first):")
     for c in d.candidates[:args.top or 8]:
         where = f"{c.effect.location_key} {c.joint}" if c.joint is not None else "global"

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.identify import FitResult, fit
 
@@ -16,7 +18,14 @@ def register(sub) -> None:
     p.add_argument("data", help="measurement campaign (CSV, or Parquet with pyarrow)")
     p.add_argument("-o", "--output", help="write the fitted model YAML here")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_robust_option(p)
     p.set_defaults(func=run)
+
+
+def add_robust_option(p) -> None:
+    """``--no-robust``: plain least squares, every row counts (shared by fit and diagnose)."""
+    p.add_argument("--no-robust", dest="robust", action="store_false",
+                   help="plain least squares: do not leave out rows judged gross errors (docs/measurement_format.md)")
 
 
 def joint_stiffness(result: FitResult) -> list[dict]:
@@ -44,18 +53,25 @@ def summary(result: FitResult) -> dict:
         "joint_stiffness": joint_stiffness(result),
         "parameters": params,
         "undetermined": result.undetermined,
-        "noise_estimate": {"position_mm": result.sigma[0], "rotation_deg": result.sigma[3]},
+        "unidentifiable": result.unidentifiable,
+        "outliers": result.outliers(),
+        "noise_estimate": {"position_mm": result.sigma[0] if _measured(result, 0) else None,
+                           "rotation_deg": result.sigma[3] if _measured(result, 3) else None},
         "converged": result.converged,
         "warnings": result.warnings,
     }
 
 
+def _measured(result: FitResult, k: int) -> bool:
+    return bool(np.isfinite(result.residual[:, k:k + 3]).any())
+
+
 def run(args) -> int:
     model, data = load(args.model, args.data)
-    result = fit(model, data)
+    result = fit(model, data, robust=args.robust)
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
-                  f"{result.rms_position_mm:.4f} mm, {result.rms_rotation_deg:.5f} deg")
+                  f"{result.rms_text()}")
         result.model.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
         write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.json:
@@ -71,12 +87,15 @@ def run(args) -> int:
 
 def print_text(result: FitResult, args) -> None:
     print(f"fitted {args.model} to {args.data}")
-    print(f"  residual RMS: {result.rms_position_mm:.4f} mm (position), "
-          f"{result.rms_rotation_deg:.5f} deg (rotation), per component")
+    print(f"  residual RMS per component: {result.rms_text()}")
     print("  joint stiffness (N/m for x, y, z; Nm/rad for rx, ry, rz; - not in the model):")
     print("  joint " + "".join(f"{c:>12}" for c in COMPONENTS))
     for row in joint_stiffness(result):
         cells = "".join(f"{row[c]:12.3g}" if row[c] is not None else f"{'-':>12}" for c in COMPONENTS)
         print(f"  {row['joint']:5d} {cells}")
+    if result.unidentifiable:
+        print("  not determined by the measured components (kept at the starting value): "
+              + ", ".join(result.unidentifiable))
+    print("  " + result.outlier_text())
     if args.output:
         print(f"  written: {args.output}")

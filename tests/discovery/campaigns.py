@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import yaml
 from stiffcomp_testlib import MODELS, ROOT
 
@@ -37,3 +38,23 @@ def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 
 
 def start_model(name: str = "kr125_6dof") -> StiffnessModel:
     return StiffnessModel.from_yaml(MODELS / f"{name}.yaml")
+
+
+def with_gross_errors(data, fraction: float = 0.01, size_mm: float = 0.4, seed: int = 0):
+    """A copy of ``data`` with ``fraction`` of its rows off by ``size_mm`` (position, a random
+    direction), as an occluded LED gives; returns the copy and the (sorted) rows made bad."""
+    rng = np.random.default_rng([seed, 99])
+    bad = np.sort(rng.choice(len(data), size=max(1, round(fraction * len(data))), replace=False))
+    out = data.subset(np.arange(len(data)))
+    d = rng.standard_normal((len(bad), 3))
+    out.deflection = out.deflection.copy()
+    out.deflection[bad, :3] += size_mm * d / np.linalg.norm(d, axis=1, keepdims=True)
+    return out, bad
+
+
+def tracker(data):
+    """What a laser tracker sees of ``data``: the TCP rows, position only (rotations not measured)."""
+    out = data.subset(data.body == 6)
+    out.deflection = out.deflection.copy()
+    out.deflection[:, 3:] = np.nan
+    return out

@@ -66,9 +66,10 @@ def test_every_bad_row_is_reported_with_its_line(tmp_path, robot):
 
 def test_missing_column_and_empty_file(tmp_path):
     header, rows = reference_rows()
-    k = header.index("rz_deg")
+    # a deflection column may be absent (issue 12: partial measurements); a required one may not
+    k = header.index("mz_Nm")
     write_rows(tmp_path / "m.csv", header[:k] + header[k + 1:], [r[:k] + r[k + 1:] for r in rows])
-    with pytest.raises(DataError, match="line 1: missing column.*rz_deg"):
+    with pytest.raises(DataError, match="line 1: missing column.*mz_Nm"):
         read_measurements(tmp_path / "m.csv")
     (tmp_path / "e.csv").write_text("")
     with pytest.raises(DataError, match="empty"):
@@ -99,3 +100,37 @@ def test_csv_write_read_round_trip(tmp_path, robot):
     e = read_measurements(tmp_path / "rt.csv", robot)
     np.testing.assert_allclose(e.deflection, d.deflection, atol=1e-7)
     np.testing.assert_allclose(e.wrench, d.wrench, atol=1e-4)
+
+
+def test_empty_cells_are_not_measured_and_round_trip(tmp_path):
+    """Issue 12: an empty cell is a component not measured in that row; NaN stays an error."""
+    header, rows = reference_rows()
+    i = {c: k for k, c in enumerate(header)}
+    rows[0][i["rx_deg"]] = ""                    # line 2: rotation x not measured
+    for r in rows[1:4]:                          # lines 3-5: position only
+        for c in ("rx_deg", "ry_deg", "rz_deg"):
+            r[i[c]] = ""
+    write_rows(tmp_path / "p.csv", header, rows)
+    d = read_measurements(tmp_path / "p.csv")
+    assert d.measured.sum() == 6 * len(rows) - 1 - 9
+    assert not d.measured[0, 3] and d.measured[0, [0, 1, 2, 4, 5]].all()
+    assert np.isnan(d.deflection[1:4, 3:]).all()
+    d.to_csv(tmp_path / "back.csv")
+    back = read_measurements(tmp_path / "back.csv")
+    np.testing.assert_array_equal(back.measured, d.measured)
+    np.testing.assert_allclose(back.deflection[d.measured], d.deflection[d.measured], atol=1e-6)
+
+
+def test_a_row_must_measure_something_and_a_file_must_have_a_deflection_column(tmp_path):
+    header, rows = reference_rows()
+    i = {c: k for k, c in enumerate(header)}
+    for c in ("dx_mm", "dy_mm", "dz_mm", "rx_deg", "ry_deg", "rz_deg"):
+        rows[2][i[c]] = ""                       # line 4
+    write_rows(tmp_path / "m.csv", header, rows)
+    with pytest.raises(DataError) as e:
+        read_measurements(tmp_path / "m.csv")
+    assert any("line 4: no deflection component" in p for p in e.value.problems)
+    keep = [k for k, c in enumerate(header) if not c.endswith(("_mm", "_deg")) or c.startswith("q")]
+    write_rows(tmp_path / "n.csv", [header[k] for k in keep], [[r[k] for k in keep] for r in rows])
+    with pytest.raises(DataError, match="line 1: no deflection column"):
+        read_measurements(tmp_path / "n.csv")
