@@ -20,6 +20,7 @@ from pymodbus.exceptions import ModbusException
 from .deadlines import Deadlines
 from .errors import PlcConnectionError
 from .image import ProcessImage
+from .io_server import cancel
 from .ratelog import RateLimitedLog
 
 log = logging.getLogger("stiffcomp.modbus")
@@ -59,12 +60,7 @@ class ModbusClient:
         log.info("Modbus TCP client to the PLC at %s:%d, every %.0f ms", self.host, self.port, self.period * 1e3)
 
     async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            try:
-                await self._task
-            except asyncio.CancelledError:
-                pass
+        await cancel(self._task)
         try:
             await self.exchange()            # the final state (stopped, zero correction) reaches the PLC
         except (ModbusException, OSError, PlcConnectionError):

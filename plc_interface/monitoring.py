@@ -26,6 +26,7 @@ from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 from .health import HealthMonitor
 from .image import ProcessImage
+from .io_server import cancel
 from .settings import MonitoringSettings
 
 log = logging.getLogger("stiffcomp.monitoring")
@@ -78,12 +79,7 @@ class Monitor:
         log.info("monitoring on http://%s:%d (/health%s)", s.host, s.port, ", /metrics" if self.metrics else "")
 
     async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            try:
-                await self._task
-            except asyncio.CancelledError:
-                pass
+        await cancel(self._task)
         if self._http is not None:
             self._http.shutdown()
             self._http.server_close()
