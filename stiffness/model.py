@@ -184,6 +184,19 @@ class StiffnessModel:
                 changed = True
         return ctx.wrenches_at_frames(w) if changed else ctx.frame_wrench
 
+    def input_map(self) -> np.ndarray:
+        """L (6, 6) with W_true = L W_measured: the model's input effects (e.g. sensor misalignment),
+        composed in the model's order, each evaluated by its own equation on the unit wrenches.
+
+        Input effects are linear in the wrench; the identity when the model has none. The service's
+        fast path folds L into the sensor's rotation; a virtual sensor reports L^-1 W_true.
+        """
+        L = np.eye(6)
+        for e in self.effects:
+            if e.kind == "input":
+                L = e.wrench(None, e.theta, L.T).T      # rows are wrenches: map each unit column
+        return L
+
     def twists(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
         """Total site twists (R, 12, 6) in m, rad."""
         theta = self.theta if theta is None else theta
