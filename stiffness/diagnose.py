@@ -132,7 +132,7 @@ def candidate_variants(model: StiffnessModel, ctx: Context) -> list[list[Effect]
         if not model.has("backlash", j):
             out.append([Backlash(j, 0.0, w * T, fit_width=False) for w in (0.005, 0.02, 0.06)])
         if not model.has("hysteresis", j):
-            out.append([Hysteresis(j)])
+            out.append([Hysteresis(j, 0.0, w * T, fit_transition=False) for w in (0.0, 0.03, 0.1)])
         if not model.has("nonlinear_stiffness", j):
             variants = [NonlinearStiffness(j, "cubic")]
             variants += [NonlinearStiffness(j, "two_slope", np.array([0.0, k * T]), fit_knee=False)

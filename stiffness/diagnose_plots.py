@@ -84,10 +84,9 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         tau = ctx.frame_wrench[:, j - 1, 5]
         order = np.argsort(tau)
         if e.name == "hysteresis":
-            from .effects.hysteresis import loading_direction
-            d = loading_direction(ctx, tau, e.threshold_fraction)
-            for val, lab, col in ((1, "torque rising", "C0"), (-1, "torque falling", "C1"), (0, "start", "0.5")):
-                mk = d == val
+            z = e.loading(ctx, ctx.frame_wrench, e.theta)
+            for mk, lab, col in ((z > 0.5, "torque rising", "C0"), (z < -0.5, "torque falling", "C1"),
+                                 (np.abs(z) <= 0.5, "between branches", "0.5")):
                 ax.plot(tau[mk], s[mk], ".", color=col, ms=4, label=f"residual, {lab}")
         else:
             ax.plot(tau, s, ".", ms=4, label="residual (each reading)")

@@ -25,7 +25,10 @@ def size_text(c, model, ctx) -> str:
         return (f"lost motion {est[0] * RAD_TO_DEG:.4f} deg (± {se[0] * RAD_TO_DEG:.4f}), "
                 f"smoothed over ±{e.fixed_width:.0f} Nm")
     if name == "hysteresis":
-        return f"offset {est[0] * RAD_TO_DEG:+.4f} deg (± {se[0] * RAD_TO_DEG:.4f}) by the direction the torque last moved"
+        smooth = (f", moving between branches over {e.fixed_transition:.0f} Nm" if e.fixed_transition
+                  else ", switching at once")
+        return (f"offset {est[0] * RAD_TO_DEG:+.4f} deg (± {se[0] * RAD_TO_DEG:.4f}) by the direction the torque "
+                f"last moved{smooth}")
     if name == "nonlinear_stiffness":
         c_ax = _axial_compliance(model, e.joint)
         if e.form == "cubic":

@@ -1,19 +1,37 @@
-"""Hysteresis: an axial offset that depends on the direction the joint torque last moved.
+"""Hysteresis: an axial offset that follows the loading direction, switching smoothly (Dahl).
 
 Equation (joint i, twist at DH frame i-1, added to rz):
 
-    delta_rz = h * s_i(t)
+    delta_rz = h * z_i
 
 h      offset (YAML: offset_deg, deg); friction in the gearbox makes the deflection lag the load,
        which is h < 0 with this sign convention
-s_i    the loading direction: +1 after the torque tau_i last rose, -1 after it last fell, 0 before it
-       first moved. It is read from the time order of the readings within each configuration; a
-       change counts when it exceeds `threshold_fraction` (YAML, default 0.02) of the largest |tau_i|
-       in that configuration, so repeated readings of one load state keep their direction.
+z_i    the loading state in [-1, 1], a first-order (Dahl-type) law in the torque:
+
+           dz/dtau = (sgn(dtau) - z) / tau_t
+
+       along a monotone stretch of the torque, so a move of the torque by Delta takes z to
+
+           z <- s + (z - s) exp(-|Delta| / tau_t),   s = sgn(Delta)
+
+       tau_t is the transition torque (YAML: transition_Nm, Nm, fitted by least squares, >= 0): after
+       the torque reverses, the deflection has moved 63 % of the way to the other branch once the
+       torque has moved by tau_t. tau_t = 0 is the instant switch, z = s.
+Noise:  a reversal counts once the torque has moved back by more than threshold_Nm (YAML, fixed,
+       default 2 Nm) from where it last turned; moves on in the same direction count at once. Chatter
+       below the threshold leaves z alone (Dahl's law alone would walk z to 0 on noise).
+Start:  z = 0 (the middle of the two branches: the history is unknown) with the first torque as the
+       reference. Offline the state starts at each configuration's first reading and carries across
+       its load sequences in time order; the service starts it at start-up, after a tare and after a
+       fault reset (docs/service.md).
+
+`LoadingState.update` is the one implementation of the law; the model's basis and the service's
+real-time term both call it.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -24,51 +42,116 @@ from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque
 from .base import Effect, Param, read_location, read_values
 
+DEFAULT_THRESHOLD_NM = 2.0
+DEFAULT_TRANSITION_NM = 20.0
 
-def loading_direction(ctx: Context, tau: np.ndarray, threshold_fraction: float) -> np.ndarray:
-    """s (R,) in {-1, 0, +1}: the direction tau last moved, in time order per configuration."""
-    s = np.zeros(len(tau))
+
+class LoadingState:
+    """The loading state z of one joint, updated torque by torque (in time order).
+
+    Parameters
+    ----------
+    threshold_Nm : float
+        A reversal smaller than this is noise.
+    transition_Nm : float
+        Dahl's transition torque tau_t (0: the instant switch).
+    """
+
+    __slots__ = ("direction", "ref", "threshold", "transition", "z")
+
+    def __init__(self, threshold_Nm: float, transition_Nm: float):
+        self.threshold = float(threshold_Nm)
+        self.transition = float(transition_Nm)
+        self.reset()
+
+    def reset(self) -> None:
+        """The defined start: z = 0, the next torque becomes the reference."""
+        self.z = 0.0
+        self.ref: float | None = None
+        self.direction = 0.0
+
+    def update(self, tau: float) -> float:
+        """Take the next torque (Nm); returns z."""
+        ref = self.ref
+        if ref is None:
+            self.ref = tau
+            return self.z
+        delta = tau - ref
+        if delta * self.direction > 0.0 or abs(delta) > self.threshold:
+            s = 1.0 if delta > 0.0 else -1.0
+            if self.transition > 0.0:
+                self.z = s + (self.z - s) * math.exp(-abs(delta) / self.transition)
+            else:
+                self.z = s
+            self.direction = s
+            self.ref = tau
+        return self.z
+
+
+def loading_state(ctx: Context, tau: np.ndarray, threshold_Nm: float, transition_Nm: float) -> np.ndarray:
+    """z (R,) in [-1, 1] for every reading, the law run in time order within each configuration."""
+    z = np.zeros(len(tau))
+    state = LoadingState(threshold_Nm, transition_Nm)
     for c in range(len(ctx.config_labels)):
         idx = np.nonzero(ctx.config == c)[0]
-        idx = idx[np.argsort(ctx.time[idx], kind="stable")]
-        thr = threshold_fraction * max(np.abs(tau[idx]).max(initial=0.0), 1e-9)
-        last_dir, ref = 0.0, tau[idx[0]] if len(idx) else 0.0
-        for n in idx:
-            if abs(tau[n] - ref) > thr:
-                last_dir = np.sign(tau[n] - ref)
-                ref = tau[n]
-            elif last_dir * (tau[n] - ref) > 0:
-                ref = tau[n]   # still moving the same way: follow it
-            s[n] = last_dir
-    return s
+        state.reset()
+        for n in idx[np.argsort(ctx.time[idx], kind="stable")]:
+            z[n] = state.update(float(tau[n]))
+    return z
 
 
 class Hysteresis(Effect):
     name = "hysteresis"
-    equation = "delta_rz,i = h s_i(t), s_i = direction tau_i last moved"
+    equation = "delta_rz,i = h z_i, dz/dtau = (sgn(dtau) - z) / tau_t"
 
-    def __init__(self, joint: int, offset_rad: float = 0.0, threshold_fraction: float = 0.02):
-        super().__init__([Param("offset_deg", "deg", 1e-4, yaml_factor=RAD_TO_DEG)], np.array([offset_rad]), joint)
-        self.threshold_fraction = threshold_fraction
+    def __init__(self, joint: int, offset_rad: float = 0.0, transition_Nm: float = DEFAULT_TRANSITION_NM,
+                 threshold_Nm: float = DEFAULT_THRESHOLD_NM, fit_transition: bool = True):
+        params = [Param("offset_deg", "deg", 1e-4, yaml_factor=RAD_TO_DEG)]
+        theta = [offset_rad]
+        if fit_transition:
+            params.append(Param("transition_Nm", "Nm", 10.0, nonlinear=True, bounds=(0.0, 1e4)))
+            theta.append(transition_Nm)
+        super().__init__(params, np.array(theta, dtype=float), joint)
+        self.fixed_transition = None if fit_transition else float(transition_Nm)
+        self.threshold_Nm = float(threshold_Nm)
 
     @classmethod
     def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Hysteresis:
         joint = read_location(section, "joint", cls.joints, where)
-        thr = section.get("threshold_fraction", 0.02)
-        if not isinstance(thr, (int, float)) or not 0 < thr < 1:
-            raise ConfigError(f"{where}: threshold_fraction = {thr!r} must be in (0, 1)")
-        theta = read_values(cls.name, section, cls(joint).params, where, ("joint", "threshold_fraction"))
-        return cls(joint, theta[0], float(thr))
+        if "threshold_fraction" in section:
+            raise ConfigError(f"{where}: threshold_fraction is no longer read: the threshold is a torque, "
+                              f"threshold_Nm (default {DEFAULT_THRESHOLD_NM:g} Nm), the same offline and in "
+                              "the service; replace it and fit again")
+        thr = section.get("threshold_Nm", DEFAULT_THRESHOLD_NM)
+        if isinstance(thr, bool) or not isinstance(thr, (int, float)) or not 0 <= thr < 1e4:
+            raise ConfigError(f"{where}: threshold_Nm = {thr!r} must be a number in [0, 1e4) Nm")
+        section = {"transition_Nm": DEFAULT_TRANSITION_NM, **section}
+        theta = read_values(cls.name, section, cls(joint).params, where, ("joint", "threshold_Nm"))
+        return cls(joint, theta[0], theta[1], float(thr))
 
     def to_config(self) -> dict[str, Any]:
-        return {**super().to_config(), "threshold_fraction": self.threshold_fraction}
+        out = super().to_config()
+        if self.fixed_transition is not None:
+            out["transition_Nm"] = float(f"{self.fixed_transition:.6g}")
+        out["threshold_Nm"] = self.threshold_Nm
+        return out
+
+    def transition(self, theta: np.ndarray) -> float:
+        return self.fixed_transition if self.fixed_transition is not None else float(theta[1])
+
+    def state(self, theta: np.ndarray | None = None) -> LoadingState:
+        """A fresh loading state with this effect's threshold and (frozen) transition torque."""
+        return LoadingState(self.threshold_Nm, self.transition(self.theta if theta is None else theta))
+
+    def loading(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """z (R,) of this joint for the frame wrenches W."""
+        key = ("loading_state", self.joint, self.threshold_Nm, self.transition(theta))
+        if W is ctx.frame_wrench and key in ctx.cache:
+            return ctx.cache[key]
+        z = loading_state(ctx, joint_torque(W, self.joint), self.threshold_Nm, self.transition(theta))
+        if W is ctx.frame_wrench:
+            ctx.cache[key] = z
+        return z
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        key = ("loading_direction", self.joint, self.threshold_fraction)
-        if W is ctx.frame_wrench and key in ctx.cache:
-            s = ctx.cache[key]
-        else:
-            s = loading_direction(ctx, joint_torque(W, self.joint), self.threshold_fraction)
-            if W is ctx.frame_wrench:
-                ctx.cache[key] = s
-        return axial_basis(ctx, self.joint, [s])
+        return axial_basis(ctx, self.joint, [self.loading(ctx, W, theta)])

@@ -112,3 +112,20 @@ def test_campaign_without_repeats_uses_the_stated_noise():
     hidden = campaign(truth_with([{"effect": "hysteresis", "joint": 3, "offset_deg": 0.005}]), 21, repeats=1)
     d = diagnose(start_model(), hidden)
     assert (d.verdict, d.best.name, d.best.joint) == ("missing_effect", "hysteresis", 3)
+
+
+@pytest.mark.parametrize("transition_Nm, seed", [(60.0, 22), (150.0, 23)])
+def test_smooth_hysteresis_fits_to_the_noise(transition_Nm, seed):
+    """Gearbox hysteresis that moves between its branches over a transition torque (Dahl): the
+    diagnosis names it first; added and fitted, the residual is within 10 % of the noise and the
+    offset and the transition torque come back."""
+    hidden = {"effect": "hysteresis", "joint": 4, "offset_deg": 0.006, "transition_Nm": transition_Nm}
+    data = campaign(truth_with([hidden]), seed)
+    d = diagnose(start_model(), data)
+    assert (d.verdict, d.best.name, d.best.joint) == ("missing_effect", "hysteresis", 4)
+    fixed = fit(add_effect(start_model(), "hysteresis", 4), data)
+    assert fixed.rms_position_mm <= 1.10 * NOISE_MM
+    assert fixed.rms_rotation_deg <= 1.10 * NOISE_DEG
+    h = fixed.model.effects[-1].to_config()
+    assert h["offset_deg"] == pytest.approx(0.006, rel=0.05)
+    assert h["transition_Nm"] == pytest.approx(transition_Nm, rel=0.2)

@@ -1,42 +1,130 @@
-"""hysteresis: delta_rz,i = h s_i(t), s_i the direction the torque last moved (time order)."""
+"""hysteresis: delta_rz,i = h z_i, z_i the loading state, dz/dtau = (sgn(dtau) - z) / tau_t (Dahl).
+
+Properties: the instant switch (tau_t = 0) is the direction the torque last moved; a monotone move
+taken in many small steps gives the state one step gives (the law is integrated exactly); z stays in
+[-1, 1]; chatter below the threshold leaves z alone; a small transition tends to the instant switch;
+the state carries across the load sequences of one configuration and restarts at the next.
+"""
 
 import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stiffness.context import Context
-from stiffness.effects.hysteresis import Hysteresis, loading_direction
+from stiffness.effects.hysteresis import Hysteresis, LoadingState, loading_state
+from stiffness.errors import ConfigError
 from stiffness.measurements import Dataset
 
+torques = st.lists(st.floats(-2000, 2000, allow_nan=False), min_size=1, max_size=60)
 
-def ramp_context(robot, levels, repeats=2):
-    """One configuration, the load ramped through ``levels`` (N along the sensor's x axis)."""
-    f = np.repeat(levels, repeats).astype(float)
+
+def ramp_context(robot, levels, repeats=2, configs=("C",)):
+    """Each configuration ramped through ``levels`` (N along the sensor's x axis), in time order."""
+    f = np.tile(np.repeat(levels, repeats).astype(float), len(configs))
     n = len(f)
     W = np.zeros((n, 6))
     W[:, 0] = f                                       # sensor x force
     W[:, 0] += np.tile([0.0, 0.3], n // 2 + 1)[:n]    # repeated readings differ by noise
-    data = Dataset(np.arange(n, dtype=float), np.array(["C"] * n), np.tile([10, -75, 90, 0, 75, 0], (n, 1)),
+    labels = np.repeat(configs, n // len(configs))
+    data = Dataset(np.arange(n, dtype=float), labels, np.tile([10, -75, 90, 0, 75, 0], (n, 1)),
                    W, np.full(n, 6), np.zeros((n, 6)))
     return Context(robot, data)
 
 
-def test_direction_follows_the_ramp(robot):
+def run(tau, threshold=2.0, transition=0.0):
+    s = LoadingState(threshold, transition)
+    return np.array([s.update(float(t)) for t in tau])
+
+
+def test_instant_switch_is_the_direction_the_torque_last_moved(robot):
     levels = [0, 300, 600, 300, 0, -300, -600, -300, 0]
     ctx = ramp_context(robot, levels)
     j = int(np.argmax(np.abs(ctx.frame_wrench[:, :6, 5]).max(axis=0)))   # the joint this load turns most
     tau = ctx.frame_wrench[:, j, 5]
     order = np.argsort(ctx.time)
-    s = loading_direction(ctx, tau, 0.02)[order]
-    sign = np.sign(tau[order][2] - tau[order][0])     # which way joint 1's torque goes with +F
+    z = loading_state(ctx, tau, 2.0, 0.0)[order]
+    sign = np.sign(tau[order][2] - tau[order][0])
     expected = np.repeat([0, 1, 1, -1, -1, -1, -1, 1, 1], 2) * sign
-    np.testing.assert_array_equal(s, expected)
+    np.testing.assert_array_equal(z, expected)
 
 
-def test_twist_is_offset_times_direction(robot):
+@settings(max_examples=200, deadline=None)
+@given(start=st.floats(-1000, 1000), moves=st.lists(st.floats(3.0, 400.0), min_size=1, max_size=5),
+       splits=st.integers(2, 40), transition=st.floats(0.5, 500.0), z0_up=st.booleans())
+def test_a_monotone_move_in_small_steps_equals_one_step(start, moves, splits, transition, z0_up):
+    """Exact integration: z after a monotone stretch depends on where it ends, not on the sampling."""
+    sign = 1.0 if z0_up else -1.0
+    coarse = [start] + list(start + sign * np.cumsum(moves))
+    fine = [start] + list(np.linspace(start, coarse[-1], splits + 1)[1:])
+    a, b = run(coarse, 2.0, transition), run(fine, 2.0, transition)
+    assert b[-1] == pytest.approx(a[-1], abs=1e-12)
+    assert b[-1] == pytest.approx(sign * (1 - np.exp(-abs(coarse[-1] - start) / transition)), abs=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(tau=torques, threshold=st.floats(0.0, 50.0), transition=st.floats(0.0, 1000.0))
+def test_state_stays_between_the_branches(tau, threshold, transition):
+    z = run(tau, threshold, transition)
+    assert np.all(np.abs(z) <= 1.0) and z[0] == 0.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(base=st.floats(-1000, 1000), noise=st.lists(st.floats(-0.99, 0.99), min_size=1, max_size=50),
+       transition=st.floats(0.0, 200.0))
+def test_chatter_below_the_threshold_leaves_a_settled_state(base, noise, transition):
+    """After a rise to ``base`` (settled on the upper branch), noise whose peak-to-peak is below the
+    threshold (2 Nm) never takes z off the upper branch; 2.5 Nm back does."""
+    s = LoadingState(2.0, transition)
+    for t in (base - 5000.0, base):
+        s.update(t)
+    z0 = s.z
+    for n in noise:
+        assert s.update(base + n) >= z0 - 1e-12
+    assert s.update(s.ref - 2.5) < z0
+
+
+@settings(max_examples=100, deadline=None)
+@given(tau=torques)
+def test_a_small_transition_tends_to_the_instant_switch(tau):
+    tau = np.round(np.asarray(tau))             # moves are >= 1 Nm or 0: e^(-1/1e-3) underflows
+    np.testing.assert_allclose(run(tau, 0.5, 1e-3), run(tau, 0.5, 0.0), atol=1e-12)
+
+
+def test_state_carries_across_sequences_and_restarts_per_configuration(robot):
+    levels = [0, 600, 0, -600, 0, 300]               # six per configuration: the same noise in each
+    ctx = ramp_context(robot, levels, repeats=1, configs=("A", "B"))
+    tau = ctx.frame_wrench[:, 1, 5]
+    z = loading_state(ctx, tau, 2.0, 200.0)
+    order = np.argsort(ctx.time)
+    za, zb = z[order][:6], z[order][6:]
+    np.testing.assert_array_equal(za, zb)          # B starts again at 0: the same torques, the same z
+    assert za[0] == 0.0
+    seq = run(tau[order][:6], 2.0, 200.0)
+    np.testing.assert_allclose(za, seq)            # within A: one state through the whole sequence
+    # readings 2 and 4 are both back at 0 N, coming from opposite sides: opposite branches, and
+    # neither reached (the 200 Nm transition is smooth), so each carries the state before it
+    assert np.sign(za[2]) == -np.sign(za[4]) != 0 and np.abs(za[1:]).max() < 1.0
+
+
+def test_twist_is_offset_times_state(robot):
     ctx = ramp_context(robot, [0, 500, 0, -500, 0])
     h = np.radians(-0.004)
-    e = Hysteresis(2, h)
+    e = Hysteresis(2, h, transition_Nm=80.0)
     tw = e.twists(ctx, e.theta, ctx.frame_wrench)
-    s = loading_direction(ctx, ctx.frame_wrench[:, 1, 5], 0.02)
-    assert set(np.unique(s)) == {-1.0, 0.0, 1.0}
-    np.testing.assert_allclose(tw[:, 1, 5], h * s)
+    z = loading_state(ctx, ctx.frame_wrench[:, 1, 5], 2.0, 80.0)
+    assert len(np.unique(np.round(z, 6))) > 3                    # smooth: more than three values
+    np.testing.assert_allclose(tw[:, 1, 5], h * z)
     assert np.abs(np.delete(tw.reshape(len(tw), -1), 6 + 5, axis=1)).max() == 0.0
+
+
+def test_yaml_round_trip_and_the_old_key(robot):
+    e = Hysteresis.from_config({"effect": "hysteresis", "joint": 3, "offset_deg": -0.004, "transition_Nm": 40,
+                                "threshold_Nm": 1.5}, robot, "m.yaml: effects[0]")
+    again = Hysteresis.from_config(e.to_config(), robot, "again")
+    assert again.to_config() == e.to_config() and again.transition(again.theta) == 40.0
+    with pytest.raises(ConfigError, match=r"m.yaml: effects\[0\]: threshold_fraction .* threshold_Nm"):
+        Hysteresis.from_config({"effect": "hysteresis", "joint": 3, "threshold_fraction": 0.02}, robot,
+                               "m.yaml: effects[0]")
+    with pytest.raises(ConfigError, match=r"transition_Nm = -1 is outside"):
+        Hysteresis.from_config({"effect": "hysteresis", "joint": 3, "transition_Nm": -1}, robot, "m.yaml")
