@@ -1,6 +1,7 @@
 """`make bench`: every benchmark of the project in one table (a script, not a test).
 
-Rows: the model's batch speed and fit times (bench_model.py), diagnose (bench_diagnose.py), the 1 ms
+Rows: the model's batch speed and fit times (bench_model.py), diagnose (bench_diagnose.py), the
+cycle's work with every library effect against the springs alone (bench_effects.py), the 1 ms
 cycle's work and exceed rate while the service runs as `make run` starts it, and round trips of
 PLC-style reads of the to_plc block over Modbus and, when pyads and an ADS server are there, ADS.
 Every figure is a median, a percentile, a rate or a ratio; nothing passes or fails on an absolute
@@ -27,6 +28,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_diagnose
+import bench_effects
 import bench_model
 
 from hil.testing import free_port, wait_for_port, write_config
@@ -106,8 +108,12 @@ def service_rows(seconds: float, reads: int) -> list[tuple[str, str, str]]:
 def model_rows() -> list[tuple[str, str, str]]:
     m = bench_model.main()
     d = bench_diagnose.main()
+    e = bench_effects.main(["--blocks", "10"])
     verdict = d["result"]
     return [
+        ("cycle work, every library effect  [issue 11]", f"ratio {e['every effect']['ratio']:.2f} to springs only",
+         (f"{e['every effect']['median_us']:.0f} µs against {e['springs only']['median_us']:.0f} µs; a sample and "
+          "new joints every cycle")),
         ("model batch speed", f"{m['body_predictions_per_s']:,.0f} predictions/s",
          f"{m['batch_prediction_rows']:,} rows, one core, kinematics precomputed"),
         ("  … including kinematics", f"{m['body_predictions_per_s_including_kinematics']:,.0f} predictions/s",

@@ -19,59 +19,30 @@ with J the TCP Jacobian [v; ω] in base axes and λ a small damping for wrist si
 ``refinement_iterations`` > 0, Newton steps on the full kinematics remove the linearisation error:
 δq += J(q+δq)^+ (X_target - X(q + δq)).
 
-Effects. `FAST_EFFECTS` says how each effect of the model enters this fast path. Joint springs add to
-the diagonal compliances; backlash and nonlinear stiffness are `AxialTerm`s, functions of the
-joint's axial moment tau_i = W_i[5] returning an extra axial twist (rad). An effect not in the table
-(hysteresis and drift depend on the load history; sensor misalignment and link bending are not
-ported yet) is refused at start-up (ModelUnsupportedError) rather than left out, so the service never
-sends a correction from a partial model. The tests check every supported effect against the model.
+Effects. Every effect of the model enters this path as `service.fast_effects` says (springs add to
+the compliances, axial effects and hysteresis to joint i's axial twist as functions of tau_i = W_i[rz],
+link bending as a compliance at its tip frame, sensor misalignment in the sensor's rotation; drift is
+ignored with one warning). An effect without a fast-path term is refused at start-up
+(ModelUnsupportedError) rather than left out, so the service never sends a correction from a partial
+model. The tests check every effect of the library against the model.
+
+History. Hysteresis keeps a loading state per joint in this predictor; `reset_history` restarts it at
+its defined start (z = 0, the next torque the reference). The compensator calls it at the first sample,
+after a tare and after a fault reset.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-
 import numpy as np
 import pinocchio as pin
 
-from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.model import StiffnessModel
+from stiffness.robot import BODIES
 from stiffness.spatial import damped_pinv_solve
 
-from .errors import ModelUnsupportedError
+from .fast_effects import fast_terms
 
-
-@dataclass
-class AxialTerm:
-    """An extra axial twist of joint ``joint`` (1..6): ``delta_rz = f(tau)`` with tau the axial moment (Nm)."""
-
-    joint: int
-    f: Callable[[float], float]
-
-
-def _spring_terms(effect: JointSpring, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
-    """joint_spring, joint_6dof: delta_i = C_i W_i, C_i diagonal (Eq. 1, 5)."""
-    for c, theta in zip(effect.components, effect.theta):
-        compliance[effect.joint - 1, COMPONENTS.index(c)] += theta
-
-
-def _axial_terms(effect, compliance: np.ndarray, axial: list[AxialTerm]) -> None:
-    """backlash, nonlinear_stiffness: delta_rz = f(tau), the effect's own equation
-    (`stiffness.effects.axial.AxialEffect.axial_twist`), with its parameters frozen at start-up."""
-    theta = effect.theta.copy()
-    axial.append(AxialTerm(effect.joint, lambda tau: float(effect.axial_twist(tau, theta))))
-
-
-# effect name -> how it enters the fast path: fn(effect, compliance (6, 6), axial terms list).
-# Effects that depend on the load history (hysteresis, drift) or act on the input wrench are not
-# here: a model holding one is refused at start-up.
-FAST_EFFECTS: dict[str, Callable[[object, np.ndarray, list[AxialTerm]], None]] = {
-    "joint_spring": _spring_terms,
-    "joint_6dof": _spring_terms,
-    "backlash": _axial_terms,
-    "nonlinear_stiffness": _axial_terms,
-}
+_BASE = np.eye(4)
 
 
 class FastPredictor:
@@ -90,27 +61,25 @@ class FastPredictor:
     """
 
     def __init__(self, model: StiffnessModel, damping: float = 1e-3, refinement_iterations: int = 0):
-        compliance = np.zeros((6, 6))
-        self.axial: list[AxialTerm] = []
-        for e in model.effects:
-            hook = FAST_EFFECTS.get(e.name)
-            if hook is None:
-                raise ModelUnsupportedError(
-                    f"{model.source}: effect {e.label} is not supported by the real-time predictor "
-                    f"(supported: {', '.join(sorted(FAST_EFFECTS))}); the service refuses to start rather "
-                    "than send a correction that leaves it out")
-            hook(e, compliance, self.axial)
-        self.compliance = compliance            # (joint, [x y z rx ry rz])
+        terms = fast_terms(model)
+        self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
+        self.axial = terms.axial
+        self.hysteresis = terms.hysteresis
+        self.bending = terms.bending
+        self.slow_bending = [b for b in self.bending if not b.constant]
+        self.R_in = terms.input_rotation
+        self.ignored = terms.ignored
         self.robot = model.robot
         self.pm = model.robot.pin_model
         self.pd = self.pm.createData()
-        self.spring_ids = [self.pm.getFrameId(n) for n in ("A1", "A2", "A3", "A4", "A5")]
+        self.frame_ids = [self.pm.getFrameId(b) for b in BODIES[:6]]   # DH frames 1 .. 6
         self.tcp_id = self.pm.getFrameId("TCP")
         self.sensor_id = self.pm.getFrameId("sensor")
         self.lam = float(damping)
         self.iterations = int(refinement_iterations)
         self.Ad = np.empty((6, 6, 6))
         self.Ad[0] = np.eye(6)                  # joint 1's spring sits in the base frame
+
         self._w = np.empty(6)
         self.J = np.zeros((6, 6))
         self.J_pinv = np.zeros((6, 6))
@@ -132,10 +101,13 @@ class FastPredictor:
         self.J = J = pin.getFrameJacobian(pm, pd, self.tcp_id, pin.LOCAL_WORLD_ALIGNED)
         self.J_pinv = damped_pinv_solve(J, self.lam)
         oMf, Ad = pd.oMf, self.Ad
-        for k, fid in enumerate(self.spring_ids):
-            Ad[k + 1] = oMf[fid].action
+        for k in range(5):                       # the springs of joints 2..6 sit in DH frames 1..5
+            Ad[k + 1] = oMf[self.frame_ids[k]].action
+        for b in self.slow_bending:              # a beam that changes with q (none on the KR 125)
+            pose = [_BASE] + [oMf[fid].homogeneous for fid in self.frame_ids]
+            b.C = b.compliance(pose[b.root], pose[b.tip], pose[b.frame])
         Ts = oMf[self.sensor_id]
-        self.R_s = Ts.rotation.tolist()          # rows, as lists: used on Python floats
+        self.R_s = (Ts.rotation @ self.R_in).tolist()   # the sensor's real axes; rows, as lists
         self.p_s = Ts.translation.tolist()
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
@@ -157,9 +129,18 @@ class FastPredictor:
         delta = local * self.compliance
         for term in self.axial:
             delta[term.joint - 1, 5] += term.f(float(local[term.joint - 1, 5]))
+        for h in self.hysteresis:
+            delta[h.joint - 1, 5] += h.offset * h.state.update(float(local[h.joint - 1, 5]))
+        for b in self.bending:
+            delta[b.frame] += b.C @ local[b.frame]
         vx, vy, vz, ox, oy, oz = (self.Ad @ delta[:, :, None]).sum(0)[:, 0].tolist()
         tx, ty, tz = self.p_tcp
         return np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
+
+    def reset_history(self) -> None:
+        """Restart every history-dependent term (hysteresis) at its defined state."""
+        for h in self.hysteresis:
+            h.state.reset()
 
     def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:
         """δq (rad) that moves the unloaded TCP by -dX (m, rad); `kinematics(q_rad)` must have run."""

@@ -94,11 +94,16 @@ class Compensator:
                    CorrectionLimiter.from_config(cfg.limits, period), faults)
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
-              hold: bool) -> list[float]:
+              hold: bool, reset: bool = False) -> list[float]:
         """One cycle at ``t`` (s); returns the limited joint correction (deg, six floats).
 
         ``q_deg``: new joint positions (None: unchanged); ``tare``: a tare edge (applied to the next
-        sample); ``hold``: the correction must ramp to zero (not enabled, or stopping).
+        sample); ``hold``: the correction must ramp to zero (not enabled, or stopping); ``reset``: the
+        faults were reset this cycle.
+
+        The model's history (hysteresis) restarts at its defined state at the first sample (what came
+        before was no measurement), when a tare is applied (the wrench jumps by the bias, not by a
+        load) and on a fault reset (the wrench before it is not trusted).
         """
         dt = 0.0 if self.t_prev is None else t - self.t_prev
         self.t_prev = t
@@ -110,6 +115,8 @@ class Compensator:
             pred.kinematics(self.q_rad)
         if tare:
             self._tare_pending = True
+        if reset:
+            pred.reset_history()
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -117,11 +124,13 @@ class Compensator:
             if not self.have_sample:
                 self.filter.state = self.filter.steady_state(x)
                 self.have_sample = True
+                pred.reset_history()
             filtered = self.filter.update(x)
             if self._tare_pending:
                 self._tare_pending = False
                 self.gravity.tare(filtered, pred.R_s)
                 self.tares += 1
+                pred.reset_history()
                 log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
             self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
@@ -165,7 +174,7 @@ class Cycle:
         """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats)."""
         s = self.supervisor.update(t, command, plc_heartbeat, q_deg, overrun, errors)
         comp = self.compensator
-        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping)
+        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset)
         word = self.faults.word
         self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
                             | (_RAMPING if comp.limiter.ramping else 0)

@@ -39,3 +39,18 @@ def with_deflection(data: Dataset, deflection: np.ndarray) -> Dataset:
     out.deflection = np.asarray(deflection, dtype=float)
     return out
 
+
+
+def pose_error(fp, q_rad: np.ndarray, dq: np.ndarray, dX: np.ndarray) -> float:
+    """Distance (m + rad) of the TCP at q + δq from the unloaded TCP at q moved by -dX, for a
+    `service.compensation.FastPredictor` ``fp`` (its pinocchio model and data)."""
+    import pinocchio as pin
+
+    def tcp(q):
+        pin.framesForwardKinematics(fp.pm, fp.pd, q)
+        return fp.pd.oMf[fp.tcp_id].homogeneous.copy()
+
+    T0, Tk = tcp(q_rad), tcp(q_rad + dq)
+    dp = Tk[:3, 3] - (T0[:3, 3] - dX[:3])
+    dr = pin.log3(Tk[:3, :3] @ (pin.exp3(-dX[3:]) @ T0[:3, :3]).T)
+    return float(np.linalg.norm(dp) + np.linalg.norm(dr))

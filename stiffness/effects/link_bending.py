@@ -41,8 +41,8 @@ class LinkBending(Effect):
         theta = read_values(cls.name, section, cls(link).params, where, ("link",))
         return cls(link, theta[0])
 
-    def tip_frame(self, ctx: Context) -> int:
-        F = ctx.F[0]
+    def tip_frame(self, F: np.ndarray) -> int:
+        """The DH frame of the beam's tip, from one reading's frames F (8, 4, 4)."""
         m = self.joint
         root = F[m - 1, :3, 3]
         if np.linalg.norm(F[m, :3, 3] - root) < MIN_LENGTH_M and m < 6:
@@ -50,18 +50,28 @@ class LinkBending(Effect):
         return m
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        tip = self.tip_frame(ctx)
-        Ft, Fr = ctx.F[:, tip], ctx.F[:, self.joint - 1]
-        axis_base = Ft[:, :3, 3] - Fr[:, :3, 3]
-        L = np.linalg.norm(axis_base, axis=1)
+        tip = self.tip_frame(ctx.F[0])
+        L, u = beam(ctx.F[:, self.joint - 1], ctx.F[:, tip])
         B = self.zeros(ctx, 1)
         if L.max(initial=0.0) < 1e-9:
             return B                      # a link of no length does not bend
-        u = np.einsum("rji,rj->ri", Ft[:, :3, :3], axis_base / L[:, None])   # in tip axes
-        f, m = W[:, tip, :3], W[:, tip, 3:]
-        f_perp = f - np.sum(f * u, axis=1)[:, None] * u
-        m_perp = m - np.sum(m * u, axis=1)[:, None] * u
-        t = (L**3 / 3)[:, None] * f_perp + (L**2 / 2)[:, None] * np.cross(m_perp, u)
-        r = (L**2 / 2)[:, None] * np.cross(u, f_perp) + L[:, None] * m_perp
-        B[:, 0, 5 + tip] = np.concatenate([t, r], axis=1)
+        B[:, 0, 5 + tip] = bending_twist(L, u, W[:, tip, :3], W[:, tip, 3:])
         return B
+
+
+def beam(root: np.ndarray, tip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Length L (R,) and unit axis u (R, 3) in the tip frame's axes, from the root and tip poses (R, 4, 4)."""
+    axis_base = tip[:, :3, 3] - root[:, :3, 3]
+    L = np.linalg.norm(axis_base, axis=1)
+    u = np.einsum("rji,rj->ri", tip[:, :3, :3], axis_base / np.maximum(L, 1e-300)[:, None])
+    return L, u
+
+
+def bending_twist(L: np.ndarray, u: np.ndarray, f: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """The cantilever's tip twist [t, r] (R, 6) per unit compliance 1/EI, for tip forces f and moments m
+    (R, 3) in the tip axes: the module's equation."""
+    f_perp = f - np.sum(f * u, axis=1)[:, None] * u
+    m_perp = m - np.sum(m * u, axis=1)[:, None] * u
+    t = (L**3 / 3)[:, None] * f_perp + (L**2 / 2)[:, None] * np.cross(m_perp, u)
+    r = (L**2 / 2)[:, None] * np.cross(u, f_perp) + L[:, None] * m_perp
+    return np.concatenate([t, r], axis=1)

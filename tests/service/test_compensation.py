@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from stiffcomp_testlib import pose_error
 
 from hil.testing import CONFIG
 from service.compensation import FastPredictor
@@ -57,20 +58,6 @@ def test_deflection_is_linear_in_the_load():
     np.testing.assert_allclose(d, 2 * fp.deflection(w1.tolist()) + 3 * fp.deflection(w2.tolist()), rtol=1e-10)
 
 
-def pose_error(fp: FastPredictor, q_rad: np.ndarray, dq: np.ndarray, dX: np.ndarray) -> float:
-    """Distance (m + rad) of the TCP at q + δq from the unloaded TCP at q moved by -dX."""
-    import pinocchio as pin
-
-    def tcp(q):
-        pin.framesForwardKinematics(fp.pm, fp.pd, q)
-        return fp.pd.oMf[fp.tcp_id].homogeneous.copy()
-
-    T0, Tk = tcp(q_rad), tcp(q_rad + dq)
-    dp = Tk[:3, 3] - (T0[:3, 3] - dX[:3])
-    dr = pin.log3(Tk[:3, :3] @ (pin.exp3(-dX[3:]) @ T0[:3, :3]).T)
-    return float(np.linalg.norm(dp) + np.linalg.norm(dr))
-
-
 def test_correction_moves_the_tcp_by_minus_the_deflection():
     model = StiffnessModel.from_yaml(MODELS / "kr125_6dof.yaml")
     q, w = random_cases(model.robot, 10, seed=5)
@@ -89,12 +76,16 @@ def test_correction_moves_the_tcp_by_minus_the_deflection():
     assert np.mean(errors[1]) < np.mean(errors[0])
 
 
-def test_unsupported_effect_is_refused_by_name():
+def test_an_effect_without_a_fast_path_term_is_refused_by_name(monkeypatch):
+    """A library effect that `service.fast_effects` does not know (as a new one would be) stops the start."""
+    from service import fast_effects
+
+    monkeypatch.delitem(fast_effects.FAST_EFFECTS, "hysteresis")
     data = {"name": "m", "robot": str(CONFIG / "robots" / "kr125.yaml"),
             "effects": [{"effect": "joint_spring", "joint": 1, "rz_rad_per_Nm": 2e-7},
                         {"effect": "hysteresis", "joint": 3}]}
     model = StiffnessModel.from_dict(data, source="m.yaml")
-    with pytest.raises(ModelUnsupportedError, match=r"hysteresis@joint3 is not supported"):
+    with pytest.raises(ModelUnsupportedError, match=r"m.yaml: effect hysteresis@joint3 is not supported"):
         FastPredictor(model)
 
 

@@ -7,7 +7,7 @@ from stiffness.effects.link_bending import LinkBending
 
 
 def tip_quantities(ctx, e):
-    tip = e.tip_frame(ctx)
+    tip = e.tip_frame(ctx.F[0])
     Ft, Fr = ctx.F[:, tip], ctx.F[:, e.joint - 1]
     axis = Ft[:, :3, 3] - Fr[:, :3, 3]
     L = np.linalg.norm(axis, axis=1)
