@@ -4,6 +4,10 @@ POSES.csv has one row per static pose, the robot at rest and nothing touching th
 ``q1_deg .. q6_deg, fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm`` (the sensor's reading, sensor axes).
 The poses must turn the sensor so that gravity points along three independent directions in its
 frame. Prints the result as a ``gravity`` section for config/default.yaml (or JSON).
+
+The sensor's orientation comes from the config's model as the service takes it: with a sensor
+misalignment in the model, the sensor's real axes (`service.fast_effects.input_rotation`), so the
+centre of gravity is found in the axes the service compensates gravity in.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import json
 import numpy as np
 
 from service.config import DEFAULT_CONFIG, load_config
+from service.fast_effects import input_rotation
 from service.payload import identify_payload, read_poses
 from stiffness.model import StiffnessModel
 
@@ -27,10 +32,11 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cfg = load_config(args.config)
-    robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
+    model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
+    robot = model.robot
     data = read_poses(args.poses)
     F = robot.frames(np.radians(data[:, :6]))
-    R = robot.sensor_pose(F)[:, :3, :3]
+    R = robot.sensor_pose(F)[:, :3, :3] @ input_rotation(model)
     fit = identify_payload(R, data[:, 6:], np.array(cfg.gravity.g_mps2))
     result = {"ok": bool(fit.ok), "message": fit.message, "mass_kg": float(fit.mass_kg), "cog_mm": (fit.cog_m * 1000).tolist(),
               "bias": fit.bias.tolist(), "residual_rms": fit.residual_rms.tolist(), "poses": len(data)}

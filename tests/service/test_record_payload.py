@@ -14,6 +14,7 @@ from service.config import load_config
 from service.gravity import GravityCompensator
 from service.sources.replay import ReplaySource, read_log
 from stiffness.model import StiffnessModel
+from stiffness.spatial import exp_so3
 from tools.cli import main
 
 
@@ -43,14 +44,16 @@ def test_record_refuses_an_unknown_log_type(tmp_path, capsys):
     assert "must be one of" in capsys.readouterr().err
 
 
-def synthetic_poses(path, mass, cog_m, bias, n=10, seed=0):
+def synthetic_poses(path, mass, cog_m, bias, n=10, seed=0, turned_deg=(0.0, 0.0, 0.0)):
+    """Static poses of a payload; the sensor's real axes turned by ``turned_deg`` (a rotation vector)
+    against the robot file's."""
     cfg = load_config()
     robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
     gc = GravityCompensator(mass, cog_m, bias, np.array(cfg.gravity.g_mps2))
     rng = np.random.default_rng(seed)
     lim = robot.limits_deg
     q = rng.uniform(lim[:, 0] * 0.8, lim[:, 1] * 0.8, size=(n, 6))
-    R = robot.sensor_pose(robot.frames(np.radians(q)))[:, :3, :3]
+    R = robot.sensor_pose(robot.frames(np.radians(q)))[:, :3, :3] @ exp_so3(np.radians(turned_deg))
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow([f"q{i}_deg" for i in range(1, 7)] + ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"])
@@ -68,6 +71,31 @@ def test_payload_recovers_mass_cog_and_bias(tmp_path, capsys):
     np.testing.assert_allclose(r["bias"], bias, atol=0.05)
     assert main(["payload", str(tmp_path / "poses.csv")]) == 0
     assert "gravity:" in capsys.readouterr().out
+
+
+def test_payload_takes_the_sensor_misalignment_of_the_model(tmp_path, capsys):
+    """A sensor turned by 3 degrees: with the misalignment in the config's model, the payload comes back
+    in the sensor's real axes (where the service compensates it); without it, the fit is visibly worse."""
+    import yaml
+
+    bias = np.array([5.0, -3.0, 8.0, 0.3, -0.2, 0.1])
+    synthetic_poses(tmp_path / "poses.csv", 11.0, [0.005, -0.01, 0.12], bias, turned_deg=(0.0, 0.0, 3.0))
+    cfg = load_config()
+    data = yaml.safe_load(cfg.resolve(cfg.model.file).read_text())
+    data["robot"] = str(cfg.resolve(cfg.model.file).parent / data["robot"])
+    data["effects"].append({"effect": "sensor_misalignment", "rz_deg": 3.0})
+    (tmp_path / "model.yaml").write_text(yaml.safe_dump(data))
+    results = {}
+    for name, model in (("aligned", cfg.resolve(cfg.model.file)), ("turned", tmp_path / "model.yaml")):
+        (tmp_path / name).mkdir()
+        path = write_config(tmp_path / name, {"model": {"file": str(model)}})
+        assert main(["payload", str(tmp_path / "poses.csv"), "--config", str(path), "--json"]) == 0
+        results[name] = json.loads(capsys.readouterr().out)
+    r = results["turned"]
+    assert abs(r["mass_kg"] - 11.0) < 0.02
+    np.testing.assert_allclose(r["cog_mm"], [5.0, -10.0, 120.0], atol=1.0)
+    np.testing.assert_allclose(r["bias"], bias, atol=0.05)
+    assert max(results["aligned"]["residual_rms"][:3]) > 10 * max(r["residual_rms"][:3])
 
 
 def test_payload_with_bad_file_is_a_user_error(tmp_path, capsys):
