@@ -232,11 +232,11 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         theta = _exact_step(model, ctx, y, w, scale, theta)
         resid = np.where(measured, y - model.predict(ctx, theta), np.nan)
         if robust:
-            flagged = ~gross_errors(resid, robust_scale(resid, stated), group)
-            if k == n_rounds - 1 and np.any(flagged != inlier) and n_rounds < rounds + ROBUST_EXTRA_ROUNDS:
-                n_rounds += 1
+            keep = ~gross_errors(resid, robust_scale(resid, stated), group)
+            if k == n_rounds - 1 and np.any(keep != inlier) and n_rounds < rounds + ROBUST_EXTRA_ROUNDS:
+                n_rounds += 1          # the set changed: fit once more without the rows now judged
             if k < n_rounds - 1:
-                inlier = flagged
+                inlier = keep
         sigma = _noise_from_residual(resid[inlier], sigma)
         k += 1
     model.theta = theta
