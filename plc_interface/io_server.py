@@ -77,7 +77,7 @@ class IoServer:
                                              c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
                                              c.read_start))
             if s.ads is not None and s.ads.enabled:
-                await self._add(_Ads(self.image, s.ads))
+                await self._add(_Ads(self.image, s.ads, self._count_ads))
             if s.monitoring is not None and s.monitoring.enabled:
                 from .monitoring import Monitor
 
@@ -88,10 +88,17 @@ class IoServer:
 
     def _count_modbus(self, function_code: int, refused: str | None) -> None:
         """Every Modbus request, for the metrics: by function, and refused ones by reason."""
+        self._count("modbus", f"FC{function_code}", refused)
+
+    def _count_ads(self, command: str, refused: str | None) -> None:
+        """Every ADS request, for the metrics: by command, and refused ones by reason."""
+        self._count("ads", command, refused)
+
+    def _count(self, protocol: str, function: str, refused: str | None) -> None:
         if self.metrics is not None:
-            self.metrics.count_request("modbus", f"FC{function_code}")
+            self.metrics.count_request(protocol, function)
             if refused is not None:
-                self.metrics.count_refused("modbus", refused)
+                self.metrics.count_refused(protocol, refused)
 
     async def _add(self, part) -> None:
         await part.start()
@@ -114,11 +121,11 @@ class _Ads:
 
     protocol = "ads"
 
-    def __init__(self, image: ProcessImage, settings):
+    def __init__(self, image: ProcessImage, settings, on_request=None):
         from .ads import AdsServer
 
         self.settings = settings
-        self.server = AdsServer(image, settings)
+        self.server = AdsServer(image, settings, on_request=on_request)
 
     @property
     def clients(self) -> int:

@@ -7,7 +7,8 @@ two tests never share counters) and turns what the I/O process sees into metrics
   1 ms period);
 - faults: trips by kind (counter) and the current fault word (gauge);
 - the sensor: sample rate and age of the newest sample;
-- the PLC side: Modbus and ADS clients connected, requests by function, refused requests by reason;
+- the PLC side: Modbus and ADS clients connected, requests by Modbus function (FC4 ...) and ADS
+  command (Read, ReadWrite ...), refused requests by reason (Modbus exception, ADS error code);
 - the six joint corrections and the wrench (gauges).
 
 Pure: no sockets, no threads, no clock. The I/O process feeds it and serves `render()`.

@@ -98,10 +98,14 @@ class AdsServer:
     port : ImagePort, the process image
     settings : AdsSettings
     logger : where protocol errors go (rate-limited), default ``stiffcomp.ads``
+    on_request : callable (command name, refused reason or None) -> None, optional
+        Told of every request that reached the server (the metrics count them by command).
     """
 
-    def __init__(self, port: ImagePort, settings: AdsSettings, logger: logging.Logger | None = None):
+    def __init__(self, port: ImagePort, settings: AdsSettings, logger: logging.Logger | None = None,
+                 on_request=None):
         self.port, self.settings = port, settings
+        self.on_request = on_request or (lambda command, reason: None)
         self.net_id = ams.net_id_bytes(settings.net_id)
         self.device = Device(port, settings.max_handles, settings.max_sum_requests, settings.max_frame_bytes)
         self.ratelog = RateLimitedLog(logger or log, settings.log_interval_s)
@@ -193,9 +197,12 @@ class AdsServer:
     def answer(self, conn: Connection, frame: bytes) -> bytes:
         """The reply frame to one AMS frame; raises Closing where no reply can be given."""
         h = ams.AmsHeader.parse(frame)
+        name = ams.COMMAND_NAMES.get(h.command, "unknown")
         if h.flags & ams.FLAG_RESPONSE:
+            self.on_request(name, "response_frame")
             raise Closing("a response frame sent to the server (closed)")
         if not self.settings.allows(conn.peer, ams.net_id_text(h.source)):
+            self.on_request(name, "no_route")
             raise Closing("no route for this AMS Net ID (closed)", f"Net ID {ams.net_id_text(h.source)}")
         error = 0
         if h.length != len(frame) - ams.AMS_HEADER_SIZE:
@@ -208,12 +215,17 @@ class AdsServer:
             error, reason = ams.ADSERR_SRV_NOT_SUPP, "unknown ADS command"
         if error:
             self.ratelog.report(conn.peer, reason)
+            self.on_request(name, f"ads_error_{error:#x}")
             return h.reply(b"", error)
         try:
-            return h.reply(self.command(conn, h, frame[ams.AMS_HEADER_SIZE:]))
+            payload = self.command(conn, h, frame[ams.AMS_HEADER_SIZE:])
         except Exception as e:  # noqa: BLE001 (a bug must cost one request, not the server)
             self._bug(e, f"ADS request {h.command:#x} from {conn.peer} failed", conn.peer)
+            self.on_request(name, "internal_error")
             return h.reply(b"", ams.ADSERR_DEVICE_ERROR)
+        result = int.from_bytes(payload[:4], "little") if len(payload) >= 4 else 0
+        self.on_request(name, f"ads_error_{result:#x}" if result else None)
+        return h.reply(payload)
 
     def _bug(self, e: Exception, what: str, client: str = "server") -> None:
         """Log an unexpected exception: its traceback once per kind, then rate-limited counts."""

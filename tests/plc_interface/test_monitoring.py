@@ -8,9 +8,13 @@ import time
 import urllib.error
 import urllib.request
 
+import pyads
+import pytest
+
 from hil.testing import constant_log, free_port, write_config
 from service.app import Service
 from service.config import load_config
+from tools.ads_probe import open_ads, read_cycle_count
 
 
 def health(port: int) -> tuple[int, dict]:
@@ -80,6 +84,15 @@ def test_metrics_parse_and_their_counters_rise(tmp_path):
             for _ in range(20):
                 c.read_input_registers(codec.start, count=codec.words)
             c.write_registers(0x0000, [1])                          # refused: outside the map
+        ads, why = open_ads(tcp_port=cfg.ads.port)
+        assert ads is not None, why
+        try:
+            for _ in range(5):
+                read_cycle_count(ads)                               # by name: handle, Read, release
+            with pytest.raises(pyads.ADSError):
+                ads.read_by_name("GVL_Comp.no_such_value", pyads.PLCTYPE_REAL)   # 0x710
+        finally:
+            ads.close()
         time.sleep(1.0)
         second = scrape(http)
     finally:
@@ -92,3 +105,7 @@ def test_metrics_parse_and_their_counters_rise(tmp_path):
                and ("protocol", "modbus") in labels]
     assert sum(refused) >= 1
     assert second[("stiffcomp_sensor_sample_rate_hertz", ())] > 100          # the replay at 1 kHz
+    # ADS requests by command, and the refused ones by their ADS error
+    assert second[("stiffcomp_requests_total", (("function", "Read"), ("protocol", "ads")))] >= 5
+    assert second[("stiffcomp_requests_total", (("function", "ReadWrite"), ("protocol", "ads")))] >= 6
+    assert second[("stiffcomp_requests_refused_total", (("protocol", "ads"), ("reason", "ads_error_0x710")))] >= 1
