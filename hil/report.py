@@ -24,7 +24,7 @@ def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
     grid = np.arange(world.t_start, world.t_end + GRID_S, GRID_S)
     F = stub.structural_load(grid, world.force(grid))
     F_t = np.stack([np.interp(t, grid, F[:, k]) for k in range(3)], axis=1)
-    p = stub.tcp(log["q_cmd"], F_t)
+    p = stub.tcp(log["q_cmd"], F_t, t)
     angle, err = world.path.radial_error(p)
     cut = (t >= 0.0) & (t <= world.path.duration)
     return {"t": t, "p": p, "angle": angle, "err_mm": err * 1000.0, "cut": cut, "force": F_t}

@@ -9,7 +9,18 @@ truth model's prediction (Eq. 4-7, the full loaded chain, every effect the truth
 W_s is the process force at the TCP seen through the arm's first mode: a critically damped
 second-order low-pass at ``structure_hz`` (the arm does not follow the 400 Hz tooth passing; 0 makes
 the deflection static). Nothing in the loop reads the actual pose (the PLC gets encoder values), so
-the stub evaluates a whole pass in one batch after it; `tcp` does the same for one cycle.
+the stub evaluates a whole pass in one batch after it.
+
+History. The truth sees a pass as one load history in time order: one configuration, the cycle times
+as the readings' times, so a history-dependent effect (hysteresis, `stiffness.effects.hysteresis`)
+carries its state along the pass from a defined start (the first cycle, before the cut, unloaded).
+A drift in the truth would grow from the pass's first cycle as a thermal drift does; the service
+ignores drift, so the HIL truths hold none.
+
+Input effects. The arm deflects under the true wrench W; a misaligned sensor only reports it turned,
+W_measured = L^-1 W with L = `StiffnessModel.input_map` (W_true = L W_measured, the model's
+convention; `World.sensor_wrench` reports the same). The stub hands the truth that measured wrench,
+and the truth's own input effects map it back to W.
 """
 
 from __future__ import annotations
@@ -36,6 +47,7 @@ class RobotStub:
         self.truth = truth
         self.robot = truth.robot
         self.structure_hz = float(structure_hz)
+        self.measured_from_true = np.linalg.inv(truth.input_map())          # L^-1
 
     def structural_load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The force (N, 3) the arm feels at times ``t`` (uniformly spaced, s) for the process force."""
@@ -46,15 +58,20 @@ class RobotStub:
         b, a = signal.bilinear([w * w], [1.0, 2 * w, w * w], fs)         # critically damped
         return signal.lfilter(b, a, force, axis=0)
 
-    def tcp(self, q_cmd_deg: np.ndarray, force_tcp: np.ndarray) -> np.ndarray:
-        """Actual TCP positions (m, base), (N, 3), for commanded joints (N, 6 deg) and TCP forces (N, 3 N)."""
+    def tcp(self, q_cmd_deg: np.ndarray, force_tcp: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Actual TCP positions (m, base), (N, 3), for commanded joints (N, 6 deg) and true TCP forces
+        (N, 3 N, base axes) at the cycle times ``t_s`` (N, s, strictly increasing: one load history)."""
         q = np.atleast_2d(np.asarray(q_cmd_deg, dtype=float))
         f = np.atleast_2d(np.asarray(force_tcp, dtype=float))
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
         n = len(q)
+        if len(t) != n or np.any(np.diff(t) <= 0):
+            raise ValueError(f"RobotStub.tcp needs one strictly increasing time per cycle ({n} cycles, "
+                             f"{len(t)} times)")
         F = self.robot.frames(np.radians(q))
         T_tcp_axes = transform(np.broadcast_to(np.eye(3), (n, 3, 3)), F[:, 7, :3, 3])
         W_tcp = np.concatenate([f, np.zeros_like(f)], axis=1)
         W_s = transport_wrench(W_tcp, T_tcp_axes, self.robot.sensor_pose(F))
-        data = Dataset(np.arange(n, dtype=float), np.array([f"c{k}" for k in range(n)]), q, W_s,
-                       np.full(n, 6), np.zeros((n, 6)))
+        data = Dataset(t, np.full(n, "pass"), q, W_s @ self.measured_from_true.T, np.full(n, 6),
+                       np.zeros((n, 6)))
         return F[:, 7, :3, 3] + self.truth.predict(data)[:, :3] / 1000.0

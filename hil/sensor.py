@@ -87,9 +87,12 @@ class HilSensor(VirtualAtiSensor):
 
 
 def sensor_main(scenario, robot, gravity, bus_kw: dict, ati: dict, go_value, ready, stop,
-                fault: tuple[str, float] | None = None) -> None:
-    """Process entry: run the sensor until ``stop`` is set (multiprocessing Events and a Value)."""
-    world = World(scenario, robot, gravity)
+                fault: tuple[str, float] | None = None, input_map: np.ndarray | None = None) -> None:
+    """Process entry: run the sensor until ``stop`` is set (multiprocessing Events and a Value).
+
+    ``input_map``: the truth's L (W_true = L W_measured), how the sensor is turned (None: aligned).
+    """
+    world = World(scenario, robot, gravity, input_map)
 
     def go() -> float | None:
         v = go_value.value

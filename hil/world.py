@@ -3,6 +3,10 @@
 Each device process builds its own `World` from the same scenario, so no state crosses processes
 except through the real protocols (CAN to the service, Modbus between the service and the PLC).
 Time ``t`` is in s since the cut started; before 0 the tool waits at the start point.
+
+A misaligned sensor (a truth with an input effect) reports the true wrench turned: with the truth's
+``L = StiffnessModel.input_map()`` (W_true = L W_measured), its gauges read L^-1 W_true, plus their
+bias. The arm itself deflects under W_true (`RobotStub`).
 """
 
 from __future__ import annotations
@@ -25,9 +29,11 @@ class World:
     scenario : Scenario
     robot : Robot
     gravity_section : the service config's ``gravity`` section (payload and bias the sensor reports)
+    input_map : (6, 6) the truth's L (W_true = L W_measured); None: a sensor aligned with its frame
     """
 
-    def __init__(self, scenario: Scenario, robot: Robot, gravity_section=None):
+    def __init__(self, scenario: Scenario, robot: Robot, gravity_section=None,
+                 input_map: np.ndarray | None = None):
         self.robot = robot
         self.path = CirclePath(robot, scenario.circle)
         self.milling = MillingForce(scenario.milling, scenario.circle.feed_mm_s, self.path.duration)
@@ -39,8 +45,11 @@ class World:
         T_s = robot.sensor_pose(F)[0]
         self._R_s = T_s[:3, :3]
         self._lever = F[0, 7, :3, 3] - T_s[:3, 3]           # sensor origin -> TCP, base axes
-        self._payload = (np.array(self.gravity.payload_wrench(self._R_s)) + self.gravity.bias
-                         if self.gravity is not None else np.zeros(6))
+        self._payload = (np.array(self.gravity.payload_wrench(self._R_s)) if self.gravity is not None
+                         else np.zeros(6))
+        self._bias = self.gravity.bias if self.gravity is not None else np.zeros(6)
+        L = np.eye(6) if input_map is None else np.asarray(input_map, dtype=float)
+        self.measured_from_true = np.linalg.inv(L)                 # L^-1
 
     def force(self, t: np.ndarray) -> np.ndarray:
         """Process force on the cutter (N, base axes), (N, 3) for times ``t``."""
@@ -50,12 +59,13 @@ class World:
                                   np.broadcast_to(self.axis_out, (len(t), 3)))
 
     def sensor_wrench(self, t: np.ndarray) -> np.ndarray:
-        """What the sensor's gauges see at times ``t``: the process force at the TCP, the payload's weight
-        and the bias, in sensor axes, moment about the sensor origin, (N, 6) in N, Nm.
+        """What the sensor's gauges see at times ``t``: L^-1 (the process force at the TCP plus the
+        payload's weight) plus the bias, in sensor axes, moment about the sensor origin, (N, 6) in N, Nm.
 
         The tool keeps its orientation along the circle, so the sensor's axes and its lever to the TCP
         are those at the circle's centre (the correction turns them by hundredths of a degree).
         """
         f = self.force(t)
         R_s = self._R_s
-        return np.concatenate([f @ R_s, np.cross(self._lever, f) @ R_s], axis=1) + self._payload
+        W_true = np.concatenate([f @ R_s, np.cross(self._lever, f) @ R_s], axis=1) + self._payload
+        return W_true @ self.measured_from_true.T + self._bias

@@ -21,11 +21,21 @@ OUT = RMAP.codecs["to_plc"].names
 FROM_PLC = {a for r in RMAP.registers if r.direction == "from_plc" for a in range(r.address, r.address + r.count)}
 
 
-def scenario(feed_mm_s: float | None = None) -> Scenario:
+def scenario(feed_mm_s: float | None = None, center_q_deg: list[float] | None = None) -> Scenario:
+    """config/hil/circle.yaml, with another feed or another pose at the circle's centre."""
     sc = load_scenario()
     if feed_mm_s is not None:
         sc.circle.feed_mm_s = feed_mm_s
+    if center_q_deg is not None:
+        sc.circle.center_q_deg = list(center_q_deg)
     return sc
+
+
+def truth_with(entry: dict) -> StiffnessModel:
+    """examples/truth_reference.yaml (its file, to the digit) plus one effect entry."""
+    d = yaml.safe_load((EXAMPLES / "truth_reference.yaml").read_text())
+    d["effects"].append(entry)
+    return StiffnessModel.from_dict(d, f"truth_reference + {entry['effect']}", EXAMPLES)
 
 
 def write_model(model: StiffnessModel, path: Path) -> Path:

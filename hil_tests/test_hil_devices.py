@@ -8,7 +8,7 @@ import time
 import can
 import numpy as np
 import pytest
-from hil_lib import EXAMPLES, RMAP, scenario
+from hil_lib import EXAMPLES, RMAP, scenario, truth_with
 
 from hil.robot_stub import RobotStub
 from hil.sensor import HilSensor
@@ -86,13 +86,61 @@ def test_references_put_the_unloaded_tcp_on_the_circle(world):
 # -- robot stub -------------------------------------------------------------------------------------
 def test_stub_without_load_is_the_kinematics_and_linear_in_the_load(world):
     stub = RobotStub(TRUTH)
-    q = np.array([world.path.q_ref_deg(x) for x in (0.5, 1.5, 3.0)])
+    t = np.array([0.5, 1.5, 3.0])
+    q = np.array([world.path.q_ref_deg(x) for x in t])
     nominal = TRUTH.robot.frames(np.radians(q))[:, 7, :3, 3]
-    np.testing.assert_allclose(stub.tcp(q, np.zeros((3, 3))), nominal, atol=1e-12)
+    np.testing.assert_allclose(stub.tcp(q, np.zeros((3, 3)), t), nominal, atol=1e-12)
     f = np.array([[300.0, -200.0, 150.0]] * 3)
-    d1, d2 = stub.tcp(q, f) - nominal, stub.tcp(q, 2 * f) - nominal
+    d1, d2 = stub.tcp(q, f, t) - nominal, stub.tcp(q, 2 * f, t) - nominal
     assert np.linalg.norm(d1, axis=1).min() > 1e-4
     np.testing.assert_allclose(d2, 2 * d1, rtol=1e-3)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        stub.tcp(q, f, t[::-1])
+
+
+def test_stub_sees_the_pass_as_one_load_history(world):
+    """At the same joints and the same force the arm stands apart between loading and unloading by the
+    truth's hysteresis: twice the offset h at joint 2 (the Dahl state near +-1 after 150 Nm of travel,
+    its transition being 40 Nm) times the TCP's lever about that joint; a truth without hysteresis does not."""
+    h_deg = -0.008
+    hysteretic = truth_with({"effect": "hysteresis", "joint": 2, "offset_deg": h_deg, "transition_Nm": 40})
+    n = 201
+    t = np.arange(n) * 0.004
+    q = np.tile(world.path.q_ref_deg(0.0), (n, 1))
+    up_down = 1.0 - np.abs(np.linspace(-1.0, 1.0, n))                    # 0 -> 1 -> 0
+    f = up_down[:, None] * [0.0, 0.0, 400.0]                             # 0 -> 400 N -> 0, up
+    rise, fall = n // 4, n - 1 - n // 4                                  # the same force, 200 N
+    np.testing.assert_allclose(f[rise], f[fall])
+    plain = RobotStub(TRUTH).tcp(q, f, t)
+    np.testing.assert_allclose(plain[rise], plain[fall], atol=1e-12)
+    p = RobotStub(hysteretic).tcp(q, f, t)
+    F = TRUTH.robot.frames(np.radians(q[:1]))[0]
+    axis, lever = F[1, :3, 2], F[7, :3, 3] - F[1, :3, 3]                # joint 2 turns about DH frame 1's z
+    shift = np.linalg.norm(np.cross(axis, lever)) * np.radians(abs(h_deg))
+    gap = np.linalg.norm(p[rise] - p[fall])
+    assert 1.9 * shift < gap < 2.0 * shift * (1 + 1e-3), (gap, shift)
+
+
+def test_misaligned_sensor_reports_the_true_wrench_turned_and_the_arm_deflects_under_the_true_one(world):
+    """The model's convention W_true = L W_measured (L = StiffnessModel.input_map) on both devices:
+    the sensor turned by 3 deg about its z reports L^-1 of the aligned sensor's wrench (bias apart),
+    and the stub of the misaligned truth deflects as the aligned truth's under the same true force."""
+    turned = truth_with({"effect": "sensor_misalignment", "rz_deg": 3.0})
+    L = turned.input_map()
+    sc = scenario()
+    seen = World(sc, TRUTH.robot, load_config(sc.resolve(sc.service)).gravity, L)
+    t = np.linspace(0.5, world.path.duration - 0.5, 41)                   # in the cut: a horizontal force
+    bias = world.gravity.bias
+    aligned, reported = world.sensor_wrench(t) - bias, seen.sensor_wrench(t) - bias
+    np.testing.assert_allclose(reported @ L.T, aligned, atol=1e-9)
+    for a, r in ((aligned[:, :3], reported[:, :3]), (aligned[:, 3:], reported[:, 3:])):
+        np.testing.assert_allclose(np.linalg.norm(r, axis=1), np.linalg.norm(a, axis=1), rtol=1e-12)
+        turn = np.degrees(np.arctan2(np.cross(r, a)[:, 2], np.sum(r[:, :2] * a[:, :2], axis=1)))
+        np.testing.assert_allclose(turn, 3.0, atol=1e-9)                   # turned back by +3 deg about z
+        np.testing.assert_allclose(r[:, 2], a[:, 2], atol=1e-9)
+    q = np.array([world.path.q_ref_deg(x) for x in t])
+    f = world.force(t)
+    np.testing.assert_allclose(RobotStub(turned).tcp(q, f, t), RobotStub(TRUTH).tcp(q, f, t), atol=1e-12)
 
 
 def test_structure_passes_a_steady_load_and_not_the_tooth_passing():
