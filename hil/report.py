@@ -30,6 +30,15 @@ def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
     return {"t": t, "p": p, "angle": angle, "err_mm": err * 1000.0, "cut": cut, "force": F_t}
 
 
+def evaluate_uncompensated(world: World, stub: RobotStub, period_s: float) -> dict[str, np.ndarray]:
+    """`evaluate` for a pass without compensation, from the world and the stub alone: the PLC would
+    command q_ref at every cycle (``period_s`` apart), which nothing in the service changes, so the
+    path error needs no process. The same figure as an uncompensated pass, without its jitter."""
+    t = np.arange(world.t_start, world.t_end, period_s)
+    q = np.array([world.path.q_ref_deg(x) for x in t])
+    return evaluate(world, stub, {"t": t, "q_cmd": q})
+
+
 def errors(ev: dict) -> tuple[float, float]:
     """(mean, max) absolute path error over the cut, mm."""
     e = np.abs(ev["err_mm"][ev["cut"]])

@@ -169,8 +169,8 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     procs = [sensor, plc]
     try:
         sensor.start()
+        plc.start()                          # both import while the service starts; the PLC retries its connect
         services[0].wait_running()
-        plc.start()
         _wait(sensor_ready, sensor, "sensor")
         _wait(plc_ready, plc, "PLC")
         t0 = time.monotonic() + 0.2

@@ -18,8 +18,11 @@ z_i    the loading state in [-1, 1], a first-order (Dahl-type) law in the torque
        the torque reverses, the deflection has moved 63 % of the way to the other branch once the
        torque has moved by tau_t. tau_t = 0 is the instant switch, z = s.
 Noise:  a reversal counts once the torque has moved back by more than threshold_Nm (YAML, fixed,
-       default 2 Nm) from where it last turned; moves on in the same direction count at once. Chatter
-       below the threshold leaves z alone (Dahl's law alone would walk z to 0 on noise).
+       default 10 Nm) from where it last turned; moves on in the same direction count at once. Chatter
+       below the threshold leaves z alone (Dahl's law alone would walk z to 0 on noise). The default
+       sits above the ripple of the torque the service computes while milling (what its low-pass
+       leaves of the tooth passing, times a lever of up to 2 m: a few Nm) and far below a campaign's
+       load steps (tens to hundreds of Nm).
 Start:  z = 0 (the middle of the two branches: the history is unknown) with the first torque as the
        reference. Offline the state starts at each configuration's first reading and carries across
        its load sequences in time order; the service starts it at start-up, after a tare and after a
@@ -42,7 +45,7 @@ from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque
 from .base import Effect, Param, read_location, read_values
 
-DEFAULT_THRESHOLD_NM = 2.0
+DEFAULT_THRESHOLD_NM = 10.0
 DEFAULT_TRANSITION_NM = 20.0
 
 
