@@ -21,7 +21,7 @@ with J the TCP Jacobian [v; ω] in base axes and λ a small damping for wrist si
 
 Effects. Every effect of the model enters this path as `service.fast_effects` says (springs add to
 the compliances, axial effects and hysteresis to joint i's axial twist as functions of tau_i = W_i[rz],
-link bending as a compliance at its tip frame, sensor misalignment in the sensor's rotation; drift is
+link bending as a compliance at the link's DH frame, sensor misalignment in the sensor's rotation; drift is
 ignored with one warning). An effect without a fast-path term is refused at start-up
 (ModelUnsupportedError) rather than left out, so the service never sends a correction from a partial
 model. The tests check every effect of the library against the model.
@@ -79,7 +79,6 @@ class FastPredictor:
         self.iterations = int(refinement_iterations)
         self.Ad = np.empty((6, 6, 6))
         self.Ad[0] = np.eye(6)                  # joint 1's spring sits in the base frame
-
         self._w = np.empty(6)
         self.J = np.zeros((6, 6))
         self.J_pinv = np.zeros((6, 6))
@@ -103,9 +102,10 @@ class FastPredictor:
         oMf, Ad = pd.oMf, self.Ad
         for k in range(5):                       # the springs of joints 2..6 sit in DH frames 1..5
             Ad[k + 1] = oMf[self.frame_ids[k]].action
-        for b in self.slow_bending:              # a beam that changes with q (none on the KR 125)
+        if self.slow_bending:                    # a beam that changes with q (none on the KR 125)
             pose = [_BASE] + [oMf[fid].homogeneous for fid in self.frame_ids]
-            b.C = b.compliance(pose[b.root], pose[b.tip], pose[b.frame])
+            for b in self.slow_bending:
+                b.C = b.compliance(pose[b.root], pose[b.tip], pose[b.frame])
         Ts = oMf[self.sensor_id]
         self.R_s = (Ts.rotation @ self.R_in).tolist()   # the sensor's real axes; rows, as lists
         self.p_s = Ts.translation.tolist()
@@ -120,7 +120,10 @@ class FastPredictor:
                 a * mx + b * my + c * mz, d * mx + e * my + f * mz, g * mx + h * my + i * mz]
 
     def deflection(self, w_base) -> np.ndarray:
-        """TCP deflection [dp (m), dr (rad)] in base axes for [F; M about the sensor origin] in base axes."""
+        """TCP deflection [dp (m), dr (rad)] in base axes for [F; M about the sensor origin] in base axes.
+
+        Call it once per cycle, in time order: it feeds this cycle's joint torques to the hysteresis
+        states (the same torque again leaves them as they are)."""
         fx, fy, fz, mx, my, mz = w_base
         x, y, z = self.p_s
         w = self._w
