@@ -8,7 +8,7 @@ up, and ``cycles + exceeded`` accounts for every deadline.
 
 The cycle task (`service.task.CyclicTask`), the virtual PLC, the Modbus client role, `stiffcomp
 record` and the benchmarks all use `Deadlines`; they differ only in how they wait (`sleep_until`,
-`wait_async`).
+`wait_async`). `cancel` stops such a loop when it runs as an asyncio task.
 """
 
 from __future__ import annotations
@@ -60,3 +60,13 @@ class Deadlines:
         delay = self.due - self.clock()
         if delay > 0:
             await asyncio.sleep(delay)
+
+
+async def cancel(task: asyncio.Task | None) -> None:
+    """Cancel a periodic task and wait until it has ended (the I/O parts' one way to stop one)."""
+    if task is not None:
+        task.cancel()
+        try:
+            await task
+        except asyncio.CancelledError:
+            pass

@@ -32,16 +32,6 @@ class IoSettings:
     avoid_cpu: int | None = None    # keep the I/O process off the cycle's CPU when it is pinned
 
 
-async def cancel(task: asyncio.Task | None) -> None:
-    """Cancel a periodic task of a part and wait until it has ended (the parts' one way to stop one)."""
-    if task is not None:
-        task.cancel()
-        try:
-            await task
-        except asyncio.CancelledError:
-            pass
-
-
 class IoServer:
     """Every protocol of the service on the running asyncio loop.
 

@@ -17,10 +17,9 @@ import logging
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from .deadlines import Deadlines
+from .deadlines import Deadlines, cancel
 from .errors import PlcConnectionError
 from .image import ProcessImage
-from .io_server import cancel
 from .ratelog import RateLimitedLog
 
 log = logging.getLogger("stiffcomp.modbus")

@@ -24,9 +24,9 @@ import time
 from typing import Any
 from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
+from .deadlines import cancel
 from .health import HealthMonitor
 from .image import ProcessImage
-from .io_server import cancel
 from .settings import MonitoringSettings
 
 log = logging.getLogger("stiffcomp.monitoring")
