@@ -83,13 +83,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--cycles", type=int, default=1000)
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
-    variants = {"springs only": []}
+    models = {"springs only": model([])}
     for e in EVERY_EFFECT:
-        label = e["effect"] + (f"@{next(iter(k for k in ('joint', 'link') if k in e))}"
-                               f"{e.get('joint', e.get('link'))}" if "joint" in e or "link" in e else "")
-        variants[f"+ {label}"] = [e]
-    variants["every effect"] = EVERY_EFFECT
-    runners = {k: Runner(model(v)) for k, v in variants.items()}
+        m = model([e])
+        models[f"+ {m.effects[-1].label}"] = m
+    models["every effect"] = model(EVERY_EFFECT)
+    runners = {k: Runner(m) for k, m in models.items()}
     for r in runners.values():
         r.run(200)                                            # warm up
     times: dict[str, list[float]] = {k: [] for k in runners}
