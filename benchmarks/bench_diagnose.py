@@ -19,8 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from discovery.campaigns import campaign, start_model, truth_with
+from discovery.campaigns import campaign, start_model
 
+from hil.testing import truth_with
 from stiffness.diagnose import diagnose
 
 

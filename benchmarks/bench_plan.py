@@ -23,8 +23,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-from discovery.campaigns import campaign, start_model, truth_with, with_gross_errors
+from discovery.campaigns import campaign, start_model, with_gross_errors
 
+from hil.testing import truth_with
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
 from stiffness.planning import Device, plan

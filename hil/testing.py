@@ -19,10 +19,12 @@ import yaml
 
 from service.ati import AtiProtocol
 from service.sources.replay import write_log
+from stiffness.model import StiffnessModel
 from stiffness.yamlio import deep_update
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"
+TRUTH = ROOT / "examples" / "truth_reference.yaml"
 
 
 def free_port() -> int:
@@ -62,6 +64,20 @@ def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: st
     path = Path(folder) / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:
+    """examples/truth_reference.yaml (read from its file, to the digit) plus the ``hidden`` effect
+    entries; with ``axial_except``, every joint but that one keeps only its axial spring (to hide a
+    joint_6dof)."""
+    d = yaml.safe_load(TRUTH.read_text())
+    if axial_except is not None:
+        d["effects"] = [e if e["joint"] == axial_except else
+                        {"effect": "joint_spring", "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
+                        for e in d["effects"]]
+    d["effects"] = d["effects"] + list(hidden)
+    label = " + ".join(["truth_reference", *(e["effect"] for e in hidden)])
+    return StiffnessModel.from_dict(d, label, TRUTH.parent)
 
 
 def constant_log(path: Path, wrench, seconds: float = 1.0, rate_hz: float = 1000.0,

@@ -31,13 +31,6 @@ def scenario(feed_mm_s: float | None = None, center_q_deg: list[float] | None = 
     return sc
 
 
-def truth_with(entry: dict) -> StiffnessModel:
-    """examples/truth_reference.yaml (its file, to the digit) plus one effect entry."""
-    d = yaml.safe_load((EXAMPLES / "truth_reference.yaml").read_text())
-    d["effects"].append(entry)
-    return StiffnessModel.from_dict(d, f"truth_reference + {entry['effect']}", EXAMPLES)
-
-
 def write_model(model: StiffnessModel, path: Path) -> Path:
     """The model as YAML with an absolute robot path (it may live anywhere)."""
     d = model.to_dict()

@@ -8,10 +8,11 @@ import time
 import can
 import numpy as np
 import pytest
-from hil_lib import EXAMPLES, RMAP, scenario, truth_with
+from hil_lib import EXAMPLES, RMAP, scenario
 
 from hil.robot_stub import RobotStub
 from hil.sensor import HilSensor
+from hil.testing import truth_with
 from hil.virtual_plc import PlcFaults, PlcLogic
 from hil.world import World
 from plc_interface.contract import Command
@@ -103,7 +104,7 @@ def test_stub_sees_the_pass_as_one_load_history(world):
     truth's hysteresis: twice the offset h at joint 2 (the Dahl state near +-1 after 150 Nm of travel,
     its transition being 40 Nm) times the TCP's lever about that joint; a truth without hysteresis does not."""
     h_deg = -0.008
-    hysteretic = truth_with({"effect": "hysteresis", "joint": 2, "offset_deg": h_deg, "transition_Nm": 40})
+    hysteretic = truth_with([{"effect": "hysteresis", "joint": 2, "offset_deg": h_deg, "transition_Nm": 40}])
     n = 201
     t = np.arange(n) * 0.004
     q = np.tile(world.path.q_ref_deg(0.0), (n, 1))
@@ -125,7 +126,7 @@ def test_misaligned_sensor_reports_the_true_wrench_turned_and_the_arm_deflects_u
     """The model's convention W_true = L W_measured (L = StiffnessModel.input_map) on both devices:
     the sensor turned by 3 deg about its z reports L^-1 of the aligned sensor's wrench (bias apart),
     and the stub of the misaligned truth deflects as the aligned truth's under the same true force."""
-    turned = truth_with({"effect": "sensor_misalignment", "rz_deg": 3.0})
+    turned = truth_with([{"effect": "sensor_misalignment", "rz_deg": 3.0}])
     L = turned.input_map()
     sc = scenario()
     seen = World(sc, TRUTH.robot, load_config(sc.resolve(sc.service)).gravity, L)

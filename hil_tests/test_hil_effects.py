@@ -16,10 +16,11 @@ the three effects moves the tool in the circle's plane.
 from __future__ import annotations
 
 import pytest
-from hil_lib import EXAMPLES, MODELS, compensated, mean_error, scenario, truth_with, write_model
+from hil_lib import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
 
 from hil.report import evaluate_uncompensated
 from hil.robot_stub import RobotStub
+from hil.testing import truth_with
 from hil.world import World
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
@@ -50,7 +51,7 @@ def reference_campaign(truth: StiffnessModel) -> Campaign:
 
 @pytest.mark.parametrize("entry, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
 def test_fitted_effect_compensates_better_than_springs_alone(entry, expected, tmp_path):
-    truth = truth_with(entry)
+    truth = truth_with([entry])
     data = reference_campaign(truth).run()
     d = diagnose(StiffnessModel.from_yaml(MODELS / "kr125_6dof.yaml"), data)
     assert d.verdict == "missing_effect", d.message

@@ -3,25 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-import yaml
-from stiffcomp_testlib import MODELS, ROOT
+from stiffcomp_testlib import MODELS
 
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign, CampaignSpec
-
-TRUTH = ROOT / "examples" / "truth_reference.yaml"
-
-
-def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:
-    """The reference truth plus ``hidden`` effects; with ``axial_except``, every joint but that one
-    keeps only its axial spring (to hide a joint_6dof)."""
-    d = yaml.safe_load(TRUTH.read_text())
-    if axial_except is not None:
-        d["effects"] = [e if e["joint"] == axial_except else
-                        {"effect": "joint_spring", "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
-                        for e in d["effects"]]
-    d["effects"] = d["effects"] + hidden
-    return StiffnessModel.from_dict(d, "truth", TRUTH.parent)
 
 
 def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2, step_N: float = 300,

@@ -10,7 +10,8 @@ per load state, optical noise 0.03 mm / 0.002 deg per component.
 import numpy as np
 import pytest
 
-from discovery.campaigns import campaign, start_model, truth_with
+from discovery.campaigns import campaign, start_model
+from hil.testing import truth_with
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
 from stiffness.identify import fit

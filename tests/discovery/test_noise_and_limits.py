@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from discovery.campaigns import campaign, start_model, truth_with
+from discovery.campaigns import campaign, start_model
+from hil.testing import truth_with
 from stiffness.diagnose import diagnose
 from stiffness.errors import DataError
 from stiffness.residuals import pure_error, repeat_groups

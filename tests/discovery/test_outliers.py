@@ -8,7 +8,8 @@ not taken for a cloud of outliers.
 import numpy as np
 import pytest
 
-from discovery.campaigns import campaign, start_model, truth_with, with_gross_errors
+from discovery.campaigns import campaign, start_model, with_gross_errors
+from hil.testing import truth_with
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
 from stiffness.identify import fit

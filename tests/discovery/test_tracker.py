@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from stiffcomp_testlib import MODELS
 
-from discovery.campaigns import campaign, start_model, tracker, truth_with
+from discovery.campaigns import campaign, start_model, tracker
+from hil.testing import truth_with
 from stiffness.compare import compare
 from stiffness.diagnose import diagnose
 from stiffness.identify import fit
