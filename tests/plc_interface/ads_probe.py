@@ -1,6 +1,6 @@
 """A TwinCAT-side script for issue 10's "Done when", run in its own process: a real pyads client.
 
-Against the running service it reads the task's cycle count twice, the GVL_Comp corrections (sum
+Against the running service it reads the task's cycle and exceed counts twice, the GVL_Comp corrections (sum
 read by name), collects notifications of the corrections, and asks for an unknown symbol before
 reading on the same connection. It prints one JSON document.
 Usage: python ads_probe.py HOST:PORT
@@ -22,10 +22,11 @@ CORR = [f"GVL_Comp.correction_q{i}" for i in range(1, 7)]
 def main() -> int:
     out: dict = {}
     with pyads.Connection("127.0.0.1.1.1", 851, sys.argv[1]) as plc:
-        c0, t0 = plc.read_by_name(TASK + "CycleCount", pyads.PLCTYPE_UDINT), time.monotonic()
+        counts = [TASK + "CycleCount", "GVL_Comp.exceed_count"]
+        (c0, e0), t0 = plc.read_list_by_name(counts).values(), time.monotonic()
         time.sleep(1.0)
-        c1, t1 = plc.read_by_name(TASK + "CycleCount", pyads.PLCTYPE_UDINT), time.monotonic()
-        out["cycles"], out["elapsed_s"] = [c0, c1], t1 - t0
+        (c1, e1), t1 = plc.read_list_by_name(counts).values(), time.monotonic()
+        out["cycles"], out["exceed"], out["elapsed_s"] = [c0, c1], [e0, e1], t1 - t0
         out["cycle_time_100ns"] = plc.read_by_name(TASK + "CycleTime", pyads.PLCTYPE_UDINT)
         out["corrections"] = list(plc.read_list_by_name(CORR).values())
         got, lock = [], threading.Lock()
