@@ -1,9 +1,16 @@
 """`stiffcomp status [--watch]`: a live view of the running service, read as a PLC reads it.
 
-Reads the to_plc block over Modbus TCP and looks every value up by name through the register map's
-codec (never by address), so it works against a service on another machine as well. Without
-``--watch`` it prints one screen and exits (exit code 1 when the service does not answer); with
-``--watch`` it redraws a few times a second, like ``top``, until Ctrl-C.
+Reads the to_plc registers by name, never by address, so it works against a service on another
+machine as well:
+
+* over Modbus TCP (the block in one read, decoded by the register map's codec) when the service is
+  a Modbus server (``plc.role: server``);
+* over ADS otherwise (``plc.role: client`` or ``none``): the registers' ``GVL_Comp`` symbols in one
+  sum read, with pyads, as a TwinCAT project reads them. ``--via`` chooses either.
+
+Without ``--watch`` it prints one screen and exits (exit code 1 when the service does not answer,
+2 when the config offers no way to read it); with ``--watch`` it redraws a few times a second, like
+``top``, until Ctrl-C.
 """
 
 from __future__ import annotations
@@ -18,9 +25,11 @@ from pymodbus.exceptions import ModbusException
 from rich.console import Console
 from rich.live import Live
 
+from plc_interface.ads.symbols import GVL
 from plc_interface.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, load_config
 
+from .ads_probe import open_ads
 from .status_view import StatusView
 
 POLL_S = 0.05          # readings for the exec-time samples and the rates
@@ -30,8 +39,11 @@ REDRAW_S = 0.25        # screen refreshes
 def register(sub) -> None:
     p = sub.add_parser("status", help="live view of the running service (task, faults, wrench, corrections)")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (register map, plc.host/port)")
-    p.add_argument("--host", default=None, help="the service's Modbus host (default: plc.host)")
-    p.add_argument("--port", type=int, default=None, help="the service's Modbus port (default: plc.port)")
+    p.add_argument("--via", choices=("auto", "modbus", "ads"), default="auto",
+                   help="modbus or ads (default: modbus when plc.role is server, else ads)")
+    p.add_argument("--host", default=None, help="the service's host (default: plc.host or ads.host)")
+    p.add_argument("--port", type=int, default=None, help="the service's Modbus or AMS/TCP port "
+                   "(default: plc.port or ads.port)")
     p.add_argument("--watch", action="store_true", help="redraw a few times a second until Ctrl-C")
     p.set_defaults(func=run)
 
@@ -64,20 +76,81 @@ class BlockReader:
         self.client.close()
 
 
+class AdsReader:
+    """The to_plc registers over ADS: their ``GVL_Comp`` symbols in one sum read, by name."""
+
+    def __init__(self, rmap: RegisterMap, host: str, port: int, net_id: str, ams_port: int,
+                 timeout_ms: int = 500):
+        try:
+            import pyads  # noqa: F401
+        except ImportError:
+            raise ValueError("reading over ADS needs pyads (pip install -e '.[ads]'); "
+                             "--via modbus reads a Modbus server") from None
+        self.names = rmap.codecs["to_plc"].names
+        self.symbols = [f"{GVL}.{n}" for n in self.names]
+        self.address = (host, net_id, ams_port, port)
+        self.timeout_ms = timeout_ms
+        self.where = f"{host}:{port}"
+        self.conn = None
+
+    def read(self) -> dict[str, float]:
+        """Values by name; ConnectionError naming the address when the service does not answer."""
+        import pyads
+
+        if self.conn is None:
+            self.conn, why = open_ads(*self.address)
+            if self.conn is None:
+                raise ConnectionError(f"no answer from the service over ADS: {why}")
+            self.conn.set_timeout(self.timeout_ms)
+        try:
+            values = self.conn.read_list_by_name(self.symbols)
+        except pyads.ADSError as e:
+            self.close()
+            raise ConnectionError(f"{self.where}: {e}") from e
+        bad = [s for s in self.symbols if not isinstance(values.get(s), (int, float))]
+        if bad:                 # a sum read answers per symbol: an error code string in place of a value
+            raise ConnectionError(f"{self.where} refused {bad[0]}: {values.get(bad[0])}")
+        return {n: float(values[s]) for n, s in zip(self.names, self.symbols)}
+
+    def close(self) -> None:
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
+
+
+def reader_for(cfg, via: str, host: str | None, port: int | None):
+    """The reader ``--via`` asks for, and its protocol's name; ValueError naming the keys when the config
+    serves neither protocol, or when pyads, which ADS needs, is missing."""
+    if via == "auto":
+        via = "modbus" if cfg.plc.role == "server" else "ads" if cfg.ads.enabled else ""
+        if not via:
+            raise ValueError(f"plc.role is {cfg.plc.role} and ads.enabled is false: the service serves "
+                             "neither Modbus nor ADS to read its status from (--via modbus --host H --port P "
+                             "reads another one)")
+    rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
+    local = {"0.0.0.0": "127.0.0.1"}
+    if via == "modbus":
+        return BlockReader(rmap, host or local.get(cfg.plc.host, cfg.plc.host), port or cfg.plc.port), via
+    return AdsReader(rmap, host or local.get(cfg.ads.host, cfg.ads.host), port or cfg.ads.port,
+                     cfg.ads.net_id, cfg.ads.ams_port), via
+
+
 def run(args) -> int:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the view shows a lost connection itself
     cfg = load_config(args.config)
-    host = args.host or {"0.0.0.0": "127.0.0.1"}.get(cfg.plc.host, cfg.plc.host)
-    reader = BlockReader(RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)), host,
-                         args.port or cfg.plc.port)
-    view = StatusView(f"modbus {reader.where}")
+    try:
+        reader, via = reader_for(cfg, args.via, args.host, args.port)
+    except ValueError as e:
+        print(f"stiffcomp status: {args.config}: {e}", file=sys.stderr)
+        return 2
+    view = StatusView(f"{via} {reader.where}")
     try:
         return watch(reader, view) if args.watch else once(reader, view)
     finally:
         reader.close()
 
 
-def poll(reader: BlockReader, view: StatusView) -> bool:
+def poll(reader: BlockReader | AdsReader, view: StatusView) -> bool:
     try:
         view.update(reader.read(), time.monotonic())
         return True
@@ -86,7 +159,7 @@ def poll(reader: BlockReader, view: StatusView) -> bool:
         return False
 
 
-def once(reader: BlockReader, view: StatusView) -> int:
+def once(reader: BlockReader | AdsReader, view: StatusView) -> int:
     """Two readings REDRAW_S apart (for the rates), printed once."""
     if not poll(reader, view):
         print(f"stiffcomp status: {view.error}", file=sys.stderr)
@@ -97,7 +170,7 @@ def once(reader: BlockReader, view: StatusView) -> int:
     return 0
 
 
-def watch(reader: BlockReader, view: StatusView) -> int:
+def watch(reader: BlockReader | AdsReader, view: StatusView) -> int:
     """Redraw every REDRAW_S until Ctrl-C or SIGTERM; exit code 0."""
     stop = []
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.append(True))

@@ -18,10 +18,14 @@ import sys
 import termios
 import time
 
+import numpy as np
 import pyte
 
 from hil.testing import constant_log, free_port, wait_for_port, write_config
+from service.app import Service
+from service.config import load_config
 from tools.cli import main
+from tools.status_cmd import reader_for
 
 COLS, ROWS = 110, 40
 CLI = [sys.executable, "-m", "tools.cli"]
@@ -112,3 +116,62 @@ def test_once_without_a_service_exits_1_naming_the_address(tmp_path, capsys):
     cfg = write_config(tmp_path, {"plc": {"port": port}})
     assert main(["status", "--config", str(cfg)]) == 1
     assert f"no answer from the service at 127.0.0.1:{port}" in capsys.readouterr().err
+
+
+LIVE = {"heartbeat", "cycle_count", "exceed_count", "last_exec_us", "period_jitter_us", "cycle_exceeded",
+        "sensor_samples", "sample_age_ms"}                  # registers that change from cycle to cycle
+
+
+def test_ads_and_modbus_readings_agree_by_name(tmp_path):
+    """The same service read both ways: every register that holds still between the two reads agrees
+    (to float32, the registers' type), and the live counters only move forward."""
+    log = constant_log(tmp_path / "w.csv", [40.0, -20.0, 120.0, 3.0, -1.0, 0.5], seconds=1.0)
+    cfg_path = write_config(tmp_path, {"plc": {"port": free_port(), "enable_on_start": True},
+                                       "source": {"replay": {"file": str(log)}},
+                                       "faults": {"overrun_trip_count": 1000, "plc_heartbeat_timeout_ms": 0}})
+    cfg = load_config(cfg_path)
+    s = Service(cfg)
+    s.start()
+    modbus, _ = reader_for(cfg, "modbus", None, None)
+    ads, _ = reader_for(cfg, "ads", None, None)
+    try:
+        time.sleep(1.5)                     # the correction ramps in and holds; the filter has settled
+        m = modbus.read()
+        a = ads.read()
+        m2 = modbus.read()
+    finally:
+        modbus.close(), ads.close()
+        s.stop()
+    assert set(a) == set(m) == set(s.rmap.codecs["to_plc"].names)
+    steady = [n for n in m if n not in LIVE and m[n] == m2[n]]
+    assert {"status_word", "task_state", "correction_q2", "wrench_fz", "deflection_dx"} <= set(steady)
+    assert abs(m["correction_q2"]) > 1e-4                   # the correction is active, not all zeros
+    for n in steady:
+        assert np.float32(a[n]) == np.float32(m[n]), n
+    assert m["cycle_count"] <= a["cycle_count"] <= m2["cycle_count"]
+
+
+def test_status_reads_over_ads_when_the_service_serves_no_modbus(tmp_path, capsys):
+    ads_port = free_port()
+    cfg = write_config(tmp_path, {"plc": {"role": "none", "port": free_port()}, "ads": {"port": ads_port}})
+    service = subprocess.Popen([*CLI, "run", "--config", str(cfg)], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    try:
+        wait_for_port(ads_port, service)
+        assert main(["status", "--config", str(cfg)]) == 0
+        out = capsys.readouterr().out
+        assert f"ads 127.0.0.1:{ads_port}" in out and "RUN" in out and (cycles(out) or 0) > 0
+        assert re.search(r"rate [\d,]+ /s", out) and all(f"q{i}" in out for i in range(1, 7))
+    finally:
+        service.send_signal(signal.SIGTERM)
+        service.wait(timeout=15)
+    # the service is gone: the same command names the address it tried, exit 1
+    assert main(["status", "--config", str(cfg)]) == 1
+    assert f"no answer from the service over ADS: no ADS server at 127.0.0.1:{ads_port}" in capsys.readouterr().err
+
+
+def test_a_config_serving_neither_protocol_names_both_keys(tmp_path, capsys):
+    cfg = write_config(tmp_path, {"plc": {"role": "client"}, "ads": {"enabled": False}})
+    assert main(["status", "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert str(cfg) in err and "plc.role is client" in err and "ads.enabled is false" in err
