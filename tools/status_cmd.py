@@ -38,7 +38,7 @@ REDRAW_S = 0.25        # screen refreshes
 
 def register(sub) -> None:
     p = sub.add_parser("status", help="live view of the running service (task, faults, wrench, corrections)")
-    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (register map, plc.host/port)")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (register map; plc and ads addresses)")
     p.add_argument("--via", choices=("auto", "modbus", "ads"), default="auto",
                    help="modbus or ads (default: modbus when plc.role is server, else ads)")
     p.add_argument("--host", default=None, help="the service's host (default: plc.host or ads.host)")
