@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from hil.circle import evaluate_pass
 from hil.report import errors
@@ -32,10 +31,8 @@ def scenario(feed_mm_s: float | None = None, center_q_deg: list[float] | None = 
 
 
 def write_model(model: StiffnessModel, path: Path) -> Path:
-    """The model as YAML with an absolute robot path (it may live anywhere)."""
-    d = model.to_dict()
-    d["robot"] = str(Path(model.robot.source).resolve())
-    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    """The model as YAML at ``path`` (its robot referred to from there); ``path``."""
+    model.to_yaml(path)
     return path
 
 

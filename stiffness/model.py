@@ -11,6 +11,7 @@ position in base axes (mm) and log(R'_k R_k^T) in base axes (deg).
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -121,8 +122,23 @@ class StiffnessModel:
         return out
 
     def to_yaml(self, path: str | Path, header: str = "") -> None:
-        text = yaml.safe_dump(self.to_dict(), sort_keys=False, width=110)
+        """The model as YAML at ``path``. A robot read from a file is referred to relative to ``path``'s
+        folder, so the written model loads from wherever it is written."""
+        d = self.to_dict()
+        d["robot"] = self.robot_ref_from(Path(path).resolve().parent)
+        text = yaml.safe_dump(d, sort_keys=False, width=110)
         Path(path).write_text((header + "\n" if header else "") + text)
+
+    def robot_ref_from(self, folder: Path) -> str | None:
+        """The robot reference as seen from ``folder``: relative to it when the robot came from a file
+        (absolute across drives), else the reference as read."""
+        robot_file = Path(self.robot.source)
+        if not robot_file.is_file():
+            return self.robot_ref
+        try:
+            return os.path.relpath(robot_file.resolve(), folder)
+        except ValueError:                      # another drive (Windows)
+            return str(robot_file.resolve())
 
     def copy(self) -> StiffnessModel:
         return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)

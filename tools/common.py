@@ -37,19 +37,6 @@ def write_output(path: str | Path, write: Callable[[Path], T]) -> T:
         raise OutputError(f"{path}: cannot write: {e.strerror or e}") from e
 
 
-def relative_robot(model_path: str, out_path: str, ref: str | None) -> str | None:
-    """The robot reference of a model, rewritten to stay valid from the output file's folder."""
-    if ref is None:
-        return None
-    import os
-
-    robot = (Path(model_path).parent / ref).resolve()
-    try:
-        return os.path.relpath(robot, Path(out_path).resolve().parent)
-    except ValueError:       # another drive (Windows): keep it absolute
-        return str(robot)
-
-
 def to_jsonable(x: Any) -> Any:
     if isinstance(x, dict):
         return {k: to_jsonable(v) for k, v in x.items()}

@@ -9,7 +9,7 @@ import numpy as np
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.identify import FitResult, fit
 
-from .common import load, print_json, relative_robot, write_output
+from .common import load, print_json, write_output
 
 
 def register(sub) -> None:
@@ -72,7 +72,6 @@ def run(args) -> int:
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
                   f"{result.rms_text()}")
-        result.model.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
         write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.json:
         print_json(summary(result))

@@ -6,7 +6,7 @@ from stiffness.edit import add_effect
 from stiffness.effects import EFFECTS
 from stiffness.model import StiffnessModel
 
-from .common import relative_robot, write_output
+from .common import write_output
 
 
 def register(sub) -> None:
@@ -25,7 +25,6 @@ def register(sub) -> None:
 def run_add(args) -> int:
     model = StiffnessModel.from_yaml(args.model)
     new = add_effect(model, args.effect, args.joint)
-    new.robot_ref = relative_robot(args.model, args.output, model.robot_ref)
     header = (f"# {args.model} with {args.effect} added" + (f" at {args.joint}" if args.joint else "")
               + "; fit it with `stiffcomp fit`")
     write_output(args.output, lambda p: new.to_yaml(p, header))

@@ -35,7 +35,6 @@ def softer(model: StiffnessModel, factor: float, name: str) -> StiffnessModel:
 
 
 def save(model: StiffnessModel, path) -> str:
-    model.robot_ref = str(ROBOT)
     model.to_yaml(path)
     return str(path)
 

@@ -1,5 +1,7 @@
 """The spring model's properties and the conformance check against the reference campaign."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -104,8 +106,9 @@ def test_fitted_model_yaml_round_trip(tmp_path, robot, model6):
     data = random_dataset(robot, 50, seed=8)
     data = with_deflection(data, model6.predict(data, random_compliances(model6, 9)))
     fitted = fit(model6, data).model
-    out = tmp_path / "fitted.yaml"
-    fitted.robot_ref = str(MODELS.parent / "robots" / "kr125.yaml")
+    out = tmp_path / "deeper" / "fitted.yaml"          # written far from config/models: the robot is found
+    out.parent.mkdir()
     fitted.to_yaml(out)
     again = StiffnessModel.from_yaml(out)
     np.testing.assert_allclose(again.theta, fitted.theta, rtol=1e-5)
+    assert Path(again.robot.source).resolve() == Path(model6.robot.source).resolve()
