@@ -26,21 +26,12 @@ import yaml
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from hil.testing import BEYOND_SPRINGS
 from plc_interface.contract import Command
 from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.model import StiffnessModel
-
-EVERY_EFFECT = [
-    {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.01, "width_Nm": 30.0},
-    {"effect": "hysteresis", "joint": 2, "offset_deg": -0.004, "transition_Nm": 40.0},
-    {"effect": "nonlinear_stiffness", "joint": 1, "form": "two_slope", "soft_rad_per_Nm": 5e-8, "knee_Nm": 300.0},
-    {"effect": "link_bending", "link": 2, "compliance_per_Nm2": 2e-7},
-    {"effect": "link_bending", "link": 3, "compliance_per_Nm2": 3e-7},
-    {"effect": "sensor_misalignment", "rz_deg": 3.0},
-    {"effect": "drift", "x_mm_per_min": 0.01},
-]
 
 
 def model(extra: list[dict]) -> StiffnessModel:
@@ -84,10 +75,10 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
     models = {"springs only": model([])}
-    for e in EVERY_EFFECT:
+    for e in BEYOND_SPRINGS:
         m = model([e])
         models[f"+ {m.effects[-1].label}"] = m
-    models["every effect"] = model(EVERY_EFFECT)
+    models["every effect"] = model(BEYOND_SPRINGS)
     runners = {k: Runner(m) for k, m in models.items()}
     for r in runners.values():
         r.run(200)                                            # warm up

@@ -7,7 +7,7 @@ import socket
 import pytest
 import yaml
 
-from hil.testing import free_port, write_config
+from hil.testing import BEYOND_SPRINGS, free_port, write_config
 from service.config import DEFAULT_CONFIG, load_config
 from service.errors import ServiceConfigError
 from tools.cli import main
@@ -64,12 +64,7 @@ def test_a_model_with_every_library_effect_runs(tmp_path, capsys):
     data = yaml.safe_load((DEFAULT_CONFIG.parent / "models" / "kr125_axial.yaml").read_text())
     data["robot"] = str(DEFAULT_CONFIG.parent / "robots" / "kr125.yaml")
     data["effects"] += [{"effect": "joint_6dof", "joint": 4, "x_m_per_N": 1e-8, "ry_rad_per_Nm": 2e-7},
-                        {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.01},
-                        {"effect": "hysteresis", "joint": 2, "offset_deg": -0.004, "transition_Nm": 40},
-                        {"effect": "nonlinear_stiffness", "joint": 1, "cubic_rad_per_Nm": 1e-8},
-                        {"effect": "link_bending", "link": 2, "compliance_per_Nm2": 2e-7},
-                        {"effect": "sensor_misalignment", "rz_deg": 3.0},
-                        {"effect": "drift", "x_mm_per_min": 0.01}]
+                        *BEYOND_SPRINGS]
     assert {e["effect"] for e in data["effects"]} == set(EFFECTS)
     model.write_text(yaml.safe_dump(data))
     path = write_config(tmp_path, {"model": {"file": str(model)}, "plc": {"port": free_port()}})
