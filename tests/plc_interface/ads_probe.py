@@ -1,8 +1,8 @@
 """A TwinCAT-side script for issue 10's "Done when", run in its own process: a real pyads client.
 
-Against the running service it reads the task's cycle and exceed counts twice, the GVL_Comp corrections (sum
-read by name), collects notifications of the corrections, and asks for an unknown symbol before
-reading on the same connection. It prints one JSON document.
+Against the running service it reads the task's cycle and exceed counts twice, the GVL_Comp
+corrections (sum read by name), collects notifications of the corrections, and asks for an unknown
+symbol before reading on the same connection. It prints one JSON document.
 Usage: python ads_probe.py HOST:PORT
 """
 
