@@ -21,24 +21,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from hil.testing import BEYOND_SPRINGS
+from hil.testing import BEYOND_SPRINGS, model_with
 from plc_interface.contract import Command
 from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.model import StiffnessModel
-
-
-def model(extra: list[dict]) -> StiffnessModel:
-    d = yaml.safe_load((ROOT / "config" / "models" / "kr125_6dof.yaml").read_text())
-    d["robot"] = str(ROOT / "config" / "robots" / "kr125.yaml")
-    d["effects"] += extra
-    return StiffnessModel.from_dict(d, source="bench")
 
 
 class Runner:
@@ -74,11 +66,11 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--cycles", type=int, default=1000)
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
-    models = {"springs only": model([])}
+    models = {"springs only": model_with(base="kr125_6dof")}
     for e in BEYOND_SPRINGS:
-        m = model([e])
+        m = model_with(e, base="kr125_6dof")
         models[f"+ {m.effects[-1].label}"] = m
-    models["every effect"] = model(BEYOND_SPRINGS)
+    models["every effect"] = model_with(*BEYOND_SPRINGS, base="kr125_6dof")
     runners = {k: Runner(m) for k, m in models.items()}
     for r in runners.values():
         r.run(200)                                            # warm up

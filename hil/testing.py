@@ -91,6 +91,16 @@ def truth_with(hidden: list[dict], axial_except: int | None = None) -> Stiffness
     return StiffnessModel.from_dict(d, label, TRUTH.parent)
 
 
+def model_with(*entries: dict, base: str | Path = "kr125_axial") -> StiffnessModel:
+    """A model of config/models (``base`` a name there, or a model file) plus the effect ``entries``,
+    on the same robot."""
+    m = StiffnessModel.from_yaml(base if isinstance(base, Path) else CONFIG / "models" / f"{base}.yaml")
+    d = m.to_dict()
+    d["effects"] = d["effects"] + list(entries)
+    label = " + ".join([m.name, *(e["effect"] for e in entries)])
+    return StiffnessModel.from_dict(d, label, robot=m.robot)
+
+
 def constant_log(path: Path, wrench, seconds: float = 1.0, rate_hz: float = 1000.0,
                  protocol: AtiProtocol | None = None, **kw) -> Path:
     """A log of a constant wrench (N, Nm), ``seconds`` long."""

@@ -5,9 +5,8 @@ from __future__ import annotations
 import socket
 
 import pytest
-import yaml
 
-from hil.testing import BEYOND_SPRINGS, free_port, write_config
+from hil.testing import BEYOND_SPRINGS, free_port, model_with, write_config
 from service.config import DEFAULT_CONFIG, load_config
 from service.errors import ServiceConfigError
 from tools.cli import main
@@ -61,12 +60,10 @@ def test_a_model_with_every_library_effect_runs(tmp_path, capsys):
     from stiffness.effects import EFFECTS
 
     model = tmp_path / "model.yaml"
-    data = yaml.safe_load((DEFAULT_CONFIG.parent / "models" / "kr125_axial.yaml").read_text())
-    data["robot"] = str(DEFAULT_CONFIG.parent / "robots" / "kr125.yaml")
-    data["effects"] += [{"effect": "joint_6dof", "joint": 4, "x_m_per_N": 1e-8, "ry_rad_per_Nm": 2e-7},
-                        *BEYOND_SPRINGS]
-    assert {e["effect"] for e in data["effects"]} == set(EFFECTS)
-    model.write_text(yaml.safe_dump(data))
+    every = model_with({"effect": "joint_6dof", "joint": 4, "x_m_per_N": 1e-8, "ry_rad_per_Nm": 2e-7},
+                       *BEYOND_SPRINGS)
+    assert {e.name for e in every.effects} == set(EFFECTS)
+    every.to_yaml(model)
     path = write_config(tmp_path, {"model": {"file": str(model)}, "plc": {"port": free_port()}})
     assert main(["run", "--config", str(path), "--duration", "1"]) == 0
     err = capsys.readouterr().err

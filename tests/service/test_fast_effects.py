@@ -23,17 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 from stiffcomp_testlib import pose_error
 
-from hil.testing import CONFIG
+from hil.testing import CONFIG, model_with
 from service.compensation import FastPredictor
 from service.fast_effects import FAST_EFFECTS
 from stiffness.effects import EFFECTS
 from stiffness.measurements import Dataset
-from stiffness.model import StiffnessModel
-
-BASE = CONFIG / "models" / "kr125_axial.yaml"
 
 # one or more entries per library effect, sized so each matters against the springs
 EXAMPLES: dict[str, list[dict]] = {
@@ -55,13 +51,6 @@ EXAMPLES: dict[str, list[dict]] = {
 IGNORED = {"drift"}
 CASES = [pytest.param(name, k, id=f"{name}-{k}") for name in sorted(EFFECTS)
          for k in range(max(1, len(EXAMPLES.get(name, []))))]
-
-
-def model_with(entries: list[dict]) -> StiffnessModel:
-    data = yaml.safe_load(BASE.read_text())
-    data["robot"] = str(CONFIG / "robots" / "kr125.yaml")
-    data["effects"] += entries
-    return StiffnessModel.from_dict(data, source="model.yaml")
 
 
 def load_sequences(robot, configs: int, steps: int, seed: int) -> Dataset:
@@ -96,12 +85,12 @@ def test_fast_path_agrees_with_the_model(name, k):
     assert name in FAST_EFFECTS, f"effect {name} has no fast-path term in service/fast_effects.py"
     assert EXAMPLES.get(name), f"effect {name} needs an example in this test"
     entry = EXAMPLES[name][k]
-    model = model_with([entry])
+    model = model_with(entry)
     steps = 12
     data = load_sequences(model.robot, 8, steps, seed=100 + 7 * k + len(name))
     fp = FastPredictor(model, damping=1e-6, refinement_iterations=3)
     got, dqs = run_fast(fp, data, steps, correct=True)
-    expected_model = model_with([]) if name in IGNORED else model
+    expected_model = model_with() if name in IGNORED else model
     assert fp.ignored == ([model.effects[-1].label] if name in IGNORED else [])
     linear, exact = expected_model.predict(data, linear=True), expected_model.predict(data)
     np.testing.assert_allclose(got, linear, rtol=1e-9, atol=1e-12)
@@ -113,7 +102,7 @@ def test_fast_path_agrees_with_the_model(name, k):
         qr = np.radians(data.q_deg[i])
         assert pose_error(fp, qr, dq, dX) <= 5e-3 * np.linalg.norm(dX)
     # and the effect does contribute (against the springs alone), except where it is ignored
-    springs, _ = run_fast(FastPredictor(model_with([])), data, steps)
+    springs, _ = run_fast(FastPredictor(model_with()), data, steps)
     moved = np.abs(got - springs).max(axis=1) > 1e-6 * np.abs(springs).max()
     assert moved.mean() == (0.0 if name in IGNORED else pytest.approx(1.0, abs=0.15))
 
@@ -125,7 +114,7 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
     from service.config import load_config
     from service.pipeline import Cycle
 
-    model = model_with([EXAMPLES["hysteresis"][0]])
+    model = model_with(EXAMPLES["hysteresis"][0])
     cfg = load_config(CONFIG / "default.yaml")
     cycle = Cycle.from_config(cfg, model)
     state = cycle.compensator.predictor.hysteresis[0].state
@@ -155,7 +144,7 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
 
 def test_bending_formed_per_kinematics_equals_the_constant_one():
     """A robot whose beam changes with q recomputes C at every kinematics; on the KR 125 both routes agree."""
-    model = model_with(EXAMPLES["link_bending"])
+    model = model_with(*EXAMPLES["link_bending"])
     fast, slow = FastPredictor(model), FastPredictor(model)
     assert all(b.constant for b in fast.bending)
     slow.slow_bending = list(slow.bending)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from hil.testing import write_config
+from hil.testing import model_with, write_config
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.gravity import GravityCompensator
@@ -76,15 +76,11 @@ def test_payload_recovers_mass_cog_and_bias(tmp_path, capsys):
 def test_payload_takes_the_sensor_misalignment_of_the_model(tmp_path, capsys):
     """A sensor turned by 3 degrees: with the misalignment in the config's model, the payload comes back
     in the sensor's real axes (where the service compensates it); without it, the fit is visibly worse."""
-    import yaml
-
     bias = np.array([5.0, -3.0, 8.0, 0.3, -0.2, 0.1])
     synthetic_poses(tmp_path / "poses.csv", 11.0, [0.005, -0.01, 0.12], bias, turned_deg=(0.0, 0.0, 3.0))
     cfg = load_config()
-    data = yaml.safe_load(cfg.resolve(cfg.model.file).read_text())
-    data["robot"] = str(cfg.resolve(cfg.model.file).parent / data["robot"])
-    data["effects"].append({"effect": "sensor_misalignment", "rz_deg": 3.0})
-    (tmp_path / "model.yaml").write_text(yaml.safe_dump(data))
+    model_with({"effect": "sensor_misalignment", "rz_deg": 3.0}, base=cfg.resolve(cfg.model.file)).to_yaml(
+        tmp_path / "model.yaml")
     results = {}
     for name, model in (("aligned", cfg.resolve(cfg.model.file)), ("turned", tmp_path / "model.yaml")):
         (tmp_path / name).mkdir()

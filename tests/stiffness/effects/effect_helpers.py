@@ -1,16 +1,7 @@
 """A small campaign and context for the effect tests."""
 
 import numpy as np
-from stiffcomp_testlib import MODELS, random_dataset
-
-from stiffness.model import StiffnessModel
-
-
-def model_with(*entries, base="kr125_axial"):
-    m = StiffnessModel.from_yaml(MODELS / f"{base}.yaml")
-    d = m.to_dict()
-    d["effects"] = d["effects"] + list(entries)
-    return StiffnessModel.from_dict(d, "test", robot=m.robot)
+from stiffcomp_testlib import random_dataset
 
 
 def context(robot, n=40, seed=0):

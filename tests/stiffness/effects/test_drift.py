@@ -1,8 +1,8 @@
 """drift: a base twist [v, w] (t - t0_config) growing within each configuration."""
 
 import numpy as np
-from effect_helpers import model_with
 
+from hil.testing import model_with
 from stiffness.measurements import Dataset
 
 

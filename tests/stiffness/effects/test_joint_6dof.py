@@ -1,8 +1,9 @@
 """joint_6dof: the off-axis springs added to an axial spring give the full 6-DoF spring."""
 
 import numpy as np
-from effect_helpers import model_with
 from stiffcomp_testlib import random_dataset
+
+from hil.testing import model_with
 
 
 def test_axial_plus_6dof_equals_the_full_spring(robot, model6):

@@ -2,8 +2,9 @@
 
 import numpy as np
 import pytest
-from effect_helpers import context, model_with, only
+from effect_helpers import context, only
 
+from hil.testing import model_with
 from stiffness.effects.nonlinear_stiffness import NonlinearStiffness
 from stiffness.errors import ConfigError
 

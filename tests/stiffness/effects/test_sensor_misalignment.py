@@ -1,8 +1,9 @@
 """sensor_misalignment: W_true = blockdiag(R(phi), R(phi)) W_measured."""
 
 import numpy as np
-from effect_helpers import context, model_with
+from effect_helpers import context
 
+from hil.testing import model_with
 from stiffness.effects.sensor_misalignment import SensorMisalignment
 from stiffness.spatial import exp_so3
 
