@@ -8,10 +8,9 @@ import sys
 
 from stiffness.compare import OVERALL, Comparison, build_report, change_text, compare
 from stiffness.errors import ConfigError
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 
-from .common import print_json
+from .common import load, print_json
 
 
 def register(sub) -> None:
@@ -31,11 +30,8 @@ def run(args) -> int:
     if len(args.files) not in (2, 3):
         raise ConfigError(f"compare takes MODEL [MODEL2] DATA: got {len(args.files)} file(s)")
     *model_paths, data_path = args.files
-    models = [StiffnessModel.from_yaml(p) for p in model_paths]
-    data = read_measurements(data_path, models[0].robot)
-    if data.ignored_columns:
-        print(f"note: {data_path}: column(s) {', '.join(data.ignored_columns)} are not part of the "
-              "format and were not used", file=sys.stderr)
+    first, data = load(model_paths[0], data_path)
+    models = [first, *(StiffnessModel.from_yaml(p) for p in model_paths[1:])]
     comp = compare(models, data)
     if args.json:
         print_json(comp.to_dict())
