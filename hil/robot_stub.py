@@ -14,8 +14,8 @@ the stub evaluates a whole pass in one batch after it.
 History. The truth sees a pass as one load history in time order: one configuration, the cycle times
 as the readings' times, so a history-dependent effect (hysteresis, `stiffness.effects.hysteresis`)
 carries its state along the pass from a defined start (the first cycle, before the cut, unloaded).
-A drift in the truth would grow from the pass's first cycle as a thermal drift does; the service
-ignores drift, so the HIL truths hold none.
+A drift in the truth grows from the pass's first cycle as a thermal drift does; the service ignores
+drift, so it stays in the compensated path error.
 
 Input effects. The arm deflects under the true wrench W; a misaligned sensor only reports it turned,
 W_measured = L^-1 W with L = `StiffnessModel.input_map` (W_true = L W_measured, the model's
