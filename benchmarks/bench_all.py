@@ -121,7 +121,7 @@ def model_rows() -> list[tuple[str, str, str]]:
         ("fit, 36 parameters, 5,355 rows", f"median {m['fit_reference_5355_rows_s']:.2f} s", ""),
         ("fit, 6,426 rows", f"median {m['fit_6426_rows_s']:.2f} s",
          f"ratio to 5,355 rows {m['fit_6426_rows_s'] / m['fit_reference_5355_rows_s']:.2f}"),
-        ("diagnose, hidden backlash", f"median {d['diagnose_s_median']:.2f} s",
+        ("diagnose, one hidden effect", f"median {d['diagnose_s_median']:.2f} s",
          f"{d['rows']} rows; found {verdict[1]} joint {verdict[2]}"),
         ("  … the command with its HTML report", f"median {d['command_with_report_s_median']:.2f} s", ""),
     ]

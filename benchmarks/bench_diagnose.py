@@ -15,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
@@ -23,10 +25,11 @@ from discovery.campaigns import campaign, start_model
 
 from hil.testing import truth_with
 from stiffness.diagnose import diagnose
+from stiffness.effects.backlash import Backlash
 
 
 def main() -> dict:
-    truth = truth_with([{"effect": "backlash", "joint": 3, "lost_motion_deg": 0.02, "width_Nm": 5}])
+    truth = truth_with([Backlash(3, np.radians(0.02), 5.0).to_config()])
     data = campaign(truth, seed=42, configs=6, repeats=3)
     model = start_model()
     times, verdict = [], None

@@ -19,23 +19,17 @@ import yaml
 
 from service.ati import AtiProtocol
 from service.sources.replay import write_log
+from stiffness.effects import EFFECTS
+from stiffness.effects.joint_spring import JointSpring
 from stiffness.model import StiffnessModel
 from stiffness.yamlio import deep_update
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
-# One entry of every library effect beyond the springs (joint_spring, joint_6dof), at sizes a KR 125
-# shows: the service's every-effect start-up test, the HIL circle of the CLI test and the benchmark.
-BEYOND_SPRINGS = [
-    {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.01, "width_Nm": 30.0},
-    {"effect": "hysteresis", "joint": 2, "offset_deg": -0.004, "transition_Nm": 40.0},
-    {"effect": "nonlinear_stiffness", "joint": 1, "form": "two_slope", "soft_rad_per_Nm": 5e-8, "knee_Nm": 300.0},
-    {"effect": "link_bending", "link": 2, "compliance_per_Nm2": 2e-7},
-    {"effect": "link_bending", "link": 3, "compliance_per_Nm2": 3e-7},
-    {"effect": "sensor_misalignment", "rz_deg": 3.0},
-    {"effect": "drift", "x_mm_per_min": 0.01},
-]
+# One entry of every library effect beyond the springs, at sizes a KR 125 shows (each effect's own
+# `examples`): the service's every-effect start-up test, the HIL circle of the CLI test and the benchmark.
+BEYOND_SPRINGS = [entry for cls in EFFECTS.values() for entry in cls.examples]
 
 
 def free_port() -> int:
@@ -84,7 +78,7 @@ def truth_with(hidden: list[dict], axial_except: int | None = None) -> Stiffness
     d = yaml.safe_load(TRUTH.read_text())
     if axial_except is not None:
         d["effects"] = [e if e["joint"] == axial_except else
-                        {"effect": "joint_spring", "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
+                        {"effect": JointSpring.name, "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
                         for e in d["effects"]]
     d["effects"] = d["effects"] + list(hidden)
     label = " + ".join(["truth_reference", *(e["effect"] for e in hidden)])

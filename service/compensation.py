@@ -19,16 +19,17 @@ with J the TCP Jacobian [v; ω] in base axes and λ a small damping for wrist si
 ``refinement_iterations`` > 0, Newton steps on the full kinematics remove the linearisation error:
 δq += J(q+δq)^+ (X_target - X(q + δq)).
 
-Effects. Every effect of the model enters this path as `service.fast_effects` says (springs add to
-the compliances, axial effects and hysteresis to joint i's axial twist as functions of tau_i = W_i[rz],
-link bending as a compliance at the link's DH frame, sensor misalignment in the sensor's rotation; drift is
-ignored with one warning). An effect without a fast-path term is refused at start-up
-(ModelUnsupportedError) rather than left out, so the service never sends a correction from a partial
-model. The tests check every effect of the library against the model.
+Effects. Every effect of the model enters this path through the terms it returns itself
+(`Effect.realtime`), which `service.fast_effects` assembles: diagonal compliances, functions of joint i's
+torque tau_i = W_i[rz] added to its axial twist, history terms (a state fed tau_i every cycle), 6x6
+compliances at a DH frame, and the input effects in the sensor's rotation; an ignored effect is logged
+once. An effect without a real-time term is refused at start-up (ModelUnsupportedError) rather than
+left out, so the service never sends a correction from a partial model. The tests check every effect of
+the library against the model.
 
-History. Hysteresis keeps a loading state per joint in this predictor; `reset_history` restarts it at
-its defined start (z = 0, the next torque the reference). The compensator calls it at the first sample,
-after a tare and after a fault reset.
+History. A history term (hysteresis' loading state) keeps its state in this predictor;
+`reset_history` restarts it at its defined start. The compensator calls it at the first sample, after a
+tare and after a fault reset.
 """
 
 from __future__ import annotations
@@ -64,9 +65,9 @@ class FastPredictor:
         terms = fast_terms(model)
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
-        self.hysteresis = terms.hysteresis
-        self.bending = terms.bending
-        self.slow_bending = [b for b in self.bending if not b.constant]
+        self.history = terms.history
+        self.frame_terms = terms.frame_terms
+        self.slow_frame_terms = [b for b in self.frame_terms if not b.constant]
         self.R_in = terms.input_rotation
         self.ignored = terms.ignored
         self.robot = model.robot
@@ -102,10 +103,10 @@ class FastPredictor:
         oMf, Ad = pd.oMf, self.Ad
         for k in range(5):                       # the springs of joints 2..6 sit in DH frames 1..5
             Ad[k + 1] = oMf[self.frame_ids[k]].action
-        if self.slow_bending:                    # a beam that changes with q (none on the KR 125)
-            pose = [_BASE] + [oMf[fid].homogeneous for fid in self.frame_ids]
-            for b in self.slow_bending:
-                b.C = b.compliance(pose[b.root], pose[b.tip], pose[b.frame])
+        if self.slow_frame_terms:                # e.g. a beam that changes with q (none on the KR 125)
+            poses = [_BASE] + [oMf[fid].homogeneous for fid in self.frame_ids]
+            for b in self.slow_frame_terms:
+                b.C = b.update(poses)
         Ts = oMf[self.sensor_id]
         self.R_s = (Ts.rotation @ self.R_in).tolist()   # the sensor's real axes; rows, as lists
         self.p_s = Ts.translation.tolist()
@@ -122,8 +123,8 @@ class FastPredictor:
     def deflection(self, w_base) -> np.ndarray:
         """TCP deflection [dp (m), dr (rad)] in base axes for [F; M about the sensor origin] in base axes.
 
-        Call it once per cycle, in time order: it feeds this cycle's joint torques to the hysteresis
-        states (the same torque again leaves them as they are)."""
+        Call it once per cycle, in time order: it feeds this cycle's joint torques to the history
+        states (the same torque again leaves a hysteresis state as it is)."""
         fx, fy, fz, mx, my, mz = w_base
         x, y, z = self.p_s
         w = self._w
@@ -132,17 +133,17 @@ class FastPredictor:
         delta = local * self.compliance
         for term in self.axial:
             delta[term.joint - 1, 5] += term.f(float(local[term.joint - 1, 5]))
-        for h in self.hysteresis:
-            delta[h.joint - 1, 5] += h.offset * h.state.update(float(local[h.joint - 1, 5]))
-        for b in self.bending:
+        for h in self.history:
+            delta[h.joint - 1, 5] += h.gain * h.state.update(float(local[h.joint - 1, 5]))
+        for b in self.frame_terms:
             delta[b.frame] += b.C @ local[b.frame]
         vx, vy, vz, ox, oy, oz = (self.Ad @ delta[:, :, None]).sum(0)[:, 0].tolist()
         tx, ty, tz = self.p_tcp
         return np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
 
     def reset_history(self) -> None:
-        """Restart every history-dependent term (hysteresis) at its defined state."""
-        for h in self.hysteresis:
+        """Restart every history term at its defined state."""
+        for h in self.history:
             h.state.reset()
 
     def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:

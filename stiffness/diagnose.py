@@ -33,15 +33,7 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from .context import Context
-from .effects import Effect
-from .effects.axial import torque_range
-from .effects.backlash import Backlash
-from .effects.drift import Drift
-from .effects.hysteresis import Hysteresis
-from .effects.joint_spring import Joint6Dof, JointSpring
-from .effects.link_bending import LinkBending
-from .effects.nonlinear_stiffness import NonlinearStiffness
-from .effects.sensor_misalignment import SensorMisalignment
+from .effects import EFFECTS, Effect
 from .errors import DataError
 from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
@@ -55,7 +47,6 @@ ALPHA = 0.01
 LACK_OF_FIT = 1.15     # residual RMS above this multiple of the repeat noise: structure is left
 EXCESS_MIN = 0.2       # with structure left, the share of the excess a named effect must explain
 LACK_OF_FIT_STATED = 1.5   # the same, against the model's stated noise when the data hold no repeats
-BENDING_LINKS = (2, 3)
 MAX_FOLDS = 10
 
 
@@ -121,31 +112,17 @@ def _with_theta(effect: Effect, theta: np.ndarray) -> Effect:
 
 # -- candidates ---------------------------------------------------------------------------------
 def candidate_variants(model: StiffnessModel, ctx: Context) -> list[list[Effect]]:
-    """Every library effect the model lacks, at every place it applies; each a list of shape variants."""
-    out: list[list[Effect]] = []
-    springs = {e.joint: set(e.components) for e in model.effects if isinstance(e, JointSpring)}
-    for j in range(1, 7):
-        missing = [c for c in Joint6Dof.allowed_components() if c not in springs.get(j, set())]
-        if missing and j in springs:
-            out.append([Joint6Dof(j, tuple(missing))])
-        T = torque_range(ctx, j)
-        if not model.has("backlash", j):
-            out.append([Backlash(j, 0.0, w * T, fit_width=False) for w in (0.005, 0.02, 0.06)])
-        if not model.has("hysteresis", j):
-            out.append([Hysteresis(j, 0.0, w * T, fit_transition=False) for w in (0.0, 0.03, 0.1)])
-        if not model.has("nonlinear_stiffness", j):
-            variants = [NonlinearStiffness(j, "cubic")]
-            variants += [NonlinearStiffness(j, "two_slope", np.array([0.0, k * T]), fit_knee=False)
-                         for k in (0.15, 0.3, 0.6)]
-            out.append(variants)
-    for link in BENDING_LINKS:
-        if not model.has("link_bending", link):
-            out.append([LinkBending(link)])
-    if not model.has("sensor_misalignment"):
-        out.append([SensorMisalignment()])
-    if not model.has("drift"):
-        out.append([Drift()])
-    return out
+    """Every library effect the model lacks, at every place it applies (each effect's `candidates`); each
+    a list of shape variants. In reading order: joint by joint, then the links, then the global effects."""
+    groups = [(k, g) for k, cls in enumerate(EFFECTS.values()) for g in cls.candidates(model, ctx)]
+
+    def order(item):
+        k, group = item
+        e = group[0]
+        place = 2 if e.joint is None else (0 if e.location_key == "joint" else 1)
+        return place, e.joint or 0, k
+
+    return [g for _, g in sorted(groups, key=order)]
 
 
 def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np.ndarray:

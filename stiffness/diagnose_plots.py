@@ -71,19 +71,20 @@ def residual_vs_force(ctx: Context, resid: np.ndarray) -> Figure:
 
 
 def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> Figure:
-    """The evidence plot for a candidate: for a joint's axial effect, its unexplained axial rotation
-    against torque with the fitted curve; otherwise the residual against the deflection the effect
-    predicts (points on the diagonal: the effect explains them)."""
+    """The evidence plot for a candidate, of the kind its effect names (`Effect.evidence_plot`): for a
+    joint's axial effect, its unexplained axial rotation against torque with the fitted curve (coloured
+    by the loading branch for "axial_branches"); otherwise the residual against the deflection the
+    effect predicts (points on the diagonal: the effect explains them)."""
     e = candidate.effect
     fig = Figure(figsize=(7.5, 5), layout="constrained")
     ax = fig.subplots()
-    if e.name in ("backlash", "hysteresis", "nonlinear_stiffness"):
+    if e.evidence_plot in ("axial", "axial_branches"):
         j = e.joint
         s = axial_residual(ctx, resid, sigma, j) * RAD_TO_DEG
         fit = axial_residual(ctx, candidate.contribution, sigma, j) * RAD_TO_DEG
         tau = ctx.frame_wrench[:, j - 1, 5]
         order = np.argsort(tau)
-        if e.name == "hysteresis":
+        if e.evidence_plot == "axial_branches":
             z = e.loading(ctx, ctx.frame_wrench, e.theta)
             for mk, lab, col in ((z > 0.5, "torque rising", "C0"), (z < -0.5, "torque falling", "C1"),
                                  (np.abs(z) <= 0.5, "between branches", "0.5")):

@@ -15,7 +15,7 @@ def register(sub) -> None:
     a = msub.add_parser("add", help="add a library effect to a model")
     a.add_argument("model", help="model YAML")
     a.add_argument("effect", choices=sorted(EFFECTS), help="effect name")
-    a.add_argument("--joint", "--link", type=int, dest="joint", help="joint 1..6 (link for link_bending)")
+    a.add_argument("--joint", "--link", type=int, dest="joint", help="joint 1..6, or the link for an effect placed on a link (`model effects` lists where each goes)")
     a.add_argument("-o", "--output", required=True, help="where to write the new model YAML")
     a.set_defaults(func=run_add)
     e = msub.add_parser("effects", help="list the effect library with each effect's equation")

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..context import Context
 from .base import Effect
+from .realtime import AxialTerm
 
 
 def joint_torque(W: np.ndarray, joint: int) -> np.ndarray:
@@ -37,6 +38,8 @@ class AxialEffect(Effect):
     real-time path both call it.
     """
 
+    evidence_plot = "axial"
+
     def shape(self, tau, theta: np.ndarray):
         """delta_rz per unit of the linear parameter theta[0], for torque tau (Nm, scalar or array)."""
         raise NotImplementedError
@@ -48,3 +51,8 @@ class AxialEffect(Effect):
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return axial_basis(ctx, self.joint, [self.shape(joint_torque(W, self.joint), theta)])
+
+    def realtime(self, robot) -> list[AxialTerm]:
+        """delta_rz = `axial_twist`(tau_i), the parameters frozen."""
+        theta = self.theta.copy()
+        return [AxialTerm(self.joint, lambda tau: float(self.axial_twist(tau, theta)))]

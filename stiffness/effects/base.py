@@ -9,6 +9,16 @@ of two places:
 Parameters are held in SI units in ``theta``; ``Param.unit``/``Param.yaml_factor`` convert to the
 units a person reads in the YAML. A site effect that is linear in its parameters provides
 ``basis(ctx, W)`` so that identification is a linear least-squares problem.
+
+Everything else about an effect lives in its own module too, so that a new effect is one file (and
+its test) plus its line in the registry (`stiffness.effects.EFFECTS`):
+
+* ``realtime(robot)``: the terms it adds to the service's 1 ms path (`stiffness.effects.realtime`);
+* ``candidates(model, ctx)``: where the diagnosis tries it, with its trial grid of shapes;
+* ``size_text(estimate, std_error, model)``: its estimated size in plain words;
+* ``evidence_plot``: how the diagnosis shows its evidence (``EVIDENCE_PLOTS``);
+* ``examples``: model entries at the sizes a KR 125 shows (the HIL, the start-up test, benchmarks);
+* a runnable example in its module's docstring, which the tests execute.
 """
 
 from __future__ import annotations
@@ -21,6 +31,12 @@ import numpy as np
 
 from ..context import N_SITES, Context
 from ..errors import ConfigError
+from .realtime import InputTerm, Term
+
+# "predicted": the residual against the deflection the effect predicts (points on the diagonal: explained);
+# "axial": joint i's unexplained axial rotation against its torque tau_i, with the fitted curve;
+# "axial_branches": the same, each reading coloured by the effect's ``loading(ctx, W, theta)`` in [-1, 1]
+EVIDENCE_PLOTS = ("predicted", "axial", "axial_branches")
 
 
 @dataclass(frozen=True)
@@ -46,6 +62,8 @@ class Effect(ABC):
     equation: ClassVar[str] = ""
     per_joint: ClassVar[bool] = True       # located at a joint (or link) number
     joints: ClassVar[tuple[int, ...]] = (1, 2, 3, 4, 5, 6)
+    evidence_plot: ClassVar[str] = "predicted"    # one of EVIDENCE_PLOTS
+    examples: ClassVar[tuple[dict[str, Any], ...]] = ()   # model entries at sizes a KR 125 shows
 
     def __init__(self, params: list[Param], theta: np.ndarray, joint: int | None = None):
         self.params = params
@@ -99,6 +117,23 @@ class Effect(ABC):
     @staticmethod
     def zeros(ctx: Context, n_params: int) -> np.ndarray:
         return np.zeros((ctx.n_readings, n_params, N_SITES, 6))
+
+    # -- the service, the diagnosis, the words ---------------------------------------------------
+    def realtime(self, robot: Any) -> list[Term] | None:
+        """The terms this effect adds to the service's 1 ms path, its parameters frozen
+        (`stiffness.effects.realtime`); None when it has none, and the service refuses the model.
+        An input effect is taken from `StiffnessModel.input_map`, with every other input effect."""
+        return [InputTerm(self.label)] if self.kind == "input" else None
+
+    @classmethod
+    def candidates(cls, model: Any, ctx: Context) -> list[list[Effect]]:
+        """Where the diagnosis tries this effect on ``model`` (which lacks it there): one list per place,
+        each holding the shape variants to try (the best is kept). None tried by default."""
+        return []
+
+    def size_text(self, estimate: np.ndarray, std_error: np.ndarray, model: Any) -> str:
+        """The size of this effect with parameters ``estimate`` (SI), in the units a person reads."""
+        return ", ".join(f"{p.key} = {v * p.yaml_factor:.4g}" for p, v in zip(self.params, estimate))
 
 
 def read_values(cls_name: str, section: dict[str, Any], params: list[Param], where: str,

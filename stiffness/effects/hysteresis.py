@@ -29,7 +29,16 @@ Start:  z = 0 (the middle of the two branches: the history is unknown) with the 
        fault reset (docs/service.md).
 
 `LoadingState.update` is the one implementation of the law; the model's basis and the service's
-real-time term both call it.
+real-time term (a `HistoryTerm`: delta_rz = h z, the state fed tau_i every cycle) both call it.
+
+Diagnosis: tried at every joint that has none, with tau_t fixed at 0, 3 % and 10 % of the joint's
+largest torque in the campaign.
+
+Example: a torque that rises, falls back by less than the threshold (noise), then reverses.
+
+>>> state = LoadingState(threshold_Nm=10.0, transition_Nm=0.0)
+>>> [state.update(tau) for tau in (0.0, 50.0, 45.0, 20.0)]
+[0.0, 1.0, 1.0, -1.0]
 """
 
 from __future__ import annotations
@@ -42,8 +51,9 @@ import numpy as np
 from ..context import Context
 from ..errors import ConfigError
 from ..units import RAD_TO_DEG
-from .axial import axial_basis, joint_torque
+from .axial import axial_basis, joint_torque, torque_range
 from .base import Effect, Param, read_location, read_values
+from .realtime import HistoryTerm
 
 DEFAULT_THRESHOLD_NM = 10.0
 DEFAULT_TRANSITION_NM = 20.0
@@ -106,6 +116,8 @@ def loading_state(ctx: Context, tau: np.ndarray, threshold_Nm: float, transition
 class Hysteresis(Effect):
     name = "hysteresis"
     equation = "delta_rz,i = h z_i, dz/dtau = (sgn(dtau) - z) / tau_t"
+    evidence_plot = "axial_branches"
+    examples = ({"effect": "hysteresis", "joint": 2, "offset_deg": -0.004, "transition_Nm": 40.0},)
 
     def __init__(self, joint: int, offset_rad: float = 0.0, transition_Nm: float = DEFAULT_TRANSITION_NM,
                  threshold_Nm: float = DEFAULT_THRESHOLD_NM, fit_transition: bool = True):
@@ -158,3 +170,17 @@ class Hysteresis(Effect):
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return axial_basis(ctx, self.joint, [self.loading(ctx, W, theta)])
+
+    def realtime(self, robot) -> list[HistoryTerm]:
+        return [HistoryTerm(self.joint, float(self.theta[0]), self.state())]
+
+    @classmethod
+    def candidates(cls, model, ctx) -> list[list[Hysteresis]]:
+        return [[cls(j, 0.0, w * torque_range(ctx, j), fit_transition=False) for w in (0.0, 0.03, 0.1)]
+                for j in cls.joints if not model.has(cls.name, j)]
+
+    def size_text(self, estimate, std_error, model) -> str:
+        tau_t = self.transition(estimate)
+        smooth = f", moving between branches over {tau_t:.0f} Nm" if tau_t else ", switching at once"
+        return (f"offset {estimate[0] * RAD_TO_DEG:+.4f} deg (± {std_error[0] * RAD_TO_DEG:.4f}) by the direction "
+                f"the torque last moved{smooth}")

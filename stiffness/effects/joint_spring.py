@@ -11,6 +11,16 @@ the joint (its gearbox and drive); the others are the bearings' tilt and transla
 `joint_spring` may hold any subset of the six components (``rz`` alone is the classic axial joint
 stiffness model). `joint_6dof` is the library effect that adds the five off-axis components to a
 joint that has only the axial one.
+
+Diagnosis: `joint_6dof` is tried at every joint whose spring lacks off-axis components. Service: a
+`JointCompliance`, the diagonal C_i.
+
+Example: an axial spring of 2e-7 rad/Nm under 1000 Nm about the joint's axis turns it by 2e-4 rad.
+
+>>> s = JointSpring(joint=2, components=("rz",), theta=np.array([2e-7]))
+>>> term, = s.realtime(robot=None)
+>>> print(f"{term.diagonal @ np.array([0, 0, 0, 0, 0, 1000.0]):.3g} rad")
+0.0002 rad
 """
 
 from __future__ import annotations
@@ -22,6 +32,7 @@ import numpy as np
 from ..context import Context
 from ..errors import ConfigError
 from .base import Effect, Param, read_location, read_values
+from .realtime import JointCompliance
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -67,6 +78,20 @@ class JointSpring(Effect):
             B[:, p, site, k] = W[:, site, k]
         return B
 
+    def realtime(self, robot) -> list[JointCompliance]:
+        diagonal = np.zeros(6)
+        for c, theta in zip(self.components, self.theta):
+            diagonal[COMPONENTS.index(c)] = theta
+        return [JointCompliance(self.joint, diagonal)]
+
+
+def axial_compliance(model, joint: int) -> float | None:
+    """Joint ``joint``'s axial compliance c_rz in ``model`` (rad/Nm), None when it has none."""
+    for e in model.effects:
+        if isinstance(e, JointSpring) and e.joint == joint and "rz" in e.components:
+            return float(e.theta[e.components.index("rz")])
+    return None
+
 
 class Joint6Dof(JointSpring):
     name = "joint_6dof"
@@ -77,3 +102,21 @@ class Joint6Dof(JointSpring):
     @classmethod
     def allowed_components(cls) -> tuple[str, ...]:
         return ("x", "y", "z", "rx", "ry")
+
+    @classmethod
+    def candidates(cls, model, ctx) -> list[list[Joint6Dof]]:
+        springs: dict[int, set[str]] = {}
+        for e in model.effects:
+            if isinstance(e, JointSpring):
+                springs.setdefault(e.joint, set()).update(e.components)
+        out = []
+        for j, have in sorted(springs.items()):
+            missing = tuple(c for c in cls.allowed_components() if c not in have)
+            if missing:
+                out.append([cls(j, missing)])
+        return out
+
+    def size_text(self, estimate, std_error, model) -> str:
+        parts = [f"{comp} {1 / val:.3g} {'N/m' if comp in 'xyz' else 'Nm/rad'}"
+                 for comp, val, s in zip(self.components, estimate, std_error) if val > 3 * s]
+        return "stiffness " + (", ".join(parts) if parts else "below the noise in every direction")

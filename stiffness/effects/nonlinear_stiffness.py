@@ -9,6 +9,15 @@ cubic      delta_rz = c3 * tau_i * (tau_i / tau_ref)^2
 two_slope  delta_rz = c_s * tau_k * tanh(tau_i / tau_k)
            an extra compliance c_s (YAML: soft_rad_per_Nm, rad/Nm) below the knee torque tau_k
            (YAML: knee_Nm, Nm, fitted by least squares): gearboxes are softer near zero torque.
+
+Diagnosis: tried at every joint that has none, as the cubic and as the two-slope form with the knee
+fixed at 15 %, 30 % and 60 % of the joint's largest torque in the campaign. Service: an `AxialTerm`.
+
+Example: the two-slope form is the soft compliance below the knee and levels off above it.
+
+>>> e = NonlinearStiffness(joint=1, form="two_slope", theta=[5e-8, 300.0])
+>>> print(f"{e.axial_twist(10.0) / 10.0:.3g} rad/Nm near 0, {e.axial_twist(3000.0):.3g} rad at 10 knees")
+5e-08 rad/Nm near 0, 1.5e-05 rad at 10 knees
 """
 
 from __future__ import annotations
@@ -18,8 +27,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .axial import AxialEffect
+from .axial import AxialEffect, torque_range
 from .base import Param, read_location, read_values
+from .joint_spring import axial_compliance
 
 FORMS = ("cubic", "two_slope")
 
@@ -27,6 +37,8 @@ FORMS = ("cubic", "two_slope")
 class NonlinearStiffness(AxialEffect):
     name = "nonlinear_stiffness"
     equation = "delta_rz,i = c3 tau (tau/tau_ref)^2  |  c_s tau_k tanh(tau/tau_k)"
+    examples = ({"effect": "nonlinear_stiffness", "joint": 1, "form": "two_slope", "soft_rad_per_Nm": 5e-8,
+                 "knee_Nm": 300.0},)
 
     def __init__(self, joint: int, form: str = "cubic", theta: np.ndarray | None = None,
                  reference_torque_Nm: float = 1000.0, fit_knee: bool = True):
@@ -74,3 +86,22 @@ class NonlinearStiffness(AxialEffect):
             return tau * (tau / self.reference_torque_Nm) ** 2
         k = self.knee(theta)
         return k * np.tanh(tau / k)
+
+    @classmethod
+    def candidates(cls, model, ctx) -> list[list[NonlinearStiffness]]:
+        out = []
+        for j in cls.joints:
+            if not model.has(cls.name, j):
+                T = torque_range(ctx, j)
+                out.append([cls(j, "cubic")] + [cls(j, "two_slope", np.array([0.0, k * T]), fit_knee=False)
+                                                for k in (0.15, 0.3, 0.6)])
+        return out
+
+    def size_text(self, estimate, std_error, model) -> str:
+        c_ax = axial_compliance(model, self.joint)
+        if self.form == "cubic":
+            rel = (f", {100 * estimate[0] / c_ax:+.0f} % of the axial compliance at {self.reference_torque_Nm:.0f} Nm"
+                   if c_ax else "")
+            return f"cubic compliance {estimate[0]:.3g} rad/Nm (± {std_error[0]:.2g}){rel}"
+        rel = f" ({100 * estimate[0] / c_ax:+.0f} % of the axial compliance)" if c_ax else ""
+        return f"extra compliance {estimate[0]:.3g} rad/Nm{rel} below a knee of {self.knee(estimate):.0f} Nm"

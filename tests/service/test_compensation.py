@@ -77,10 +77,11 @@ def test_correction_moves_the_tcp_by_minus_the_deflection():
 
 
 def test_an_effect_without_a_fast_path_term_is_refused_by_name(monkeypatch):
-    """A library effect that `service.fast_effects` does not know (as a new one would be) stops the start."""
-    from service import fast_effects
+    """A library effect without a real-time term (as a new one could be) stops the start."""
+    from stiffness.effects import Effect
+    from stiffness.effects.hysteresis import Hysteresis
 
-    monkeypatch.delitem(fast_effects.FAST_EFFECTS, "hysteresis")
+    monkeypatch.setattr(Hysteresis, "realtime", Effect.realtime)
     data = {"name": "m", "robot": str(CONFIG / "robots" / "kr125.yaml"),
             "effects": [{"effect": "joint_spring", "joint": 1, "rz_rad_per_Nm": 2e-7},
                         {"effect": "hysteresis", "joint": 3}]}

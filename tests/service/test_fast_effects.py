@@ -1,7 +1,7 @@
 """Every effect of the library runs in the service's fast path and agrees with `StiffnessModel.predict`.
 
 Parameterised over the effect registry (`stiffness.effects.EFFECTS`): a new effect without an example
-here, or without a fast-path term in `service.fast_effects.FAST_EFFECTS`, fails.
+here, or without a real-time term of its own (`Effect.realtime`), fails.
 
 Each case: the axial-spring model plus the effect, random configurations, and in each a random load
 sequence (a random walk of the wrench with reversals, in time order), the fast path stepped through it
@@ -27,8 +27,7 @@ from stiffcomp_testlib import pose_error
 
 from hil.testing import CONFIG, model_with
 from service.compensation import FastPredictor
-from service.fast_effects import FAST_EFFECTS
-from stiffness.effects import EFFECTS
+from stiffness.effects import EFFECTS, Effect
 from stiffness.measurements import Dataset
 
 # one or more entries per library effect, sized so each matters against the springs
@@ -82,7 +81,8 @@ def run_fast(fp: FastPredictor, data: Dataset, steps: int, correct: bool = False
 
 @pytest.mark.parametrize("name, k", CASES)
 def test_fast_path_agrees_with_the_model(name, k):
-    assert name in FAST_EFFECTS, f"effect {name} has no fast-path term in service/fast_effects.py"
+    assert EFFECTS[name].realtime is not Effect.realtime or EFFECTS[name].kind == "input", \
+        f"effect {name} has no real-time term (Effect.realtime)"
     assert EXAMPLES.get(name), f"effect {name} needs an example in this test"
     entry = EXAMPLES[name][k]
     model = model_with(entry)
@@ -117,7 +117,7 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
     model = model_with(EXAMPLES["hysteresis"][0])
     cfg = load_config(CONFIG / "default.yaml")
     cycle = Cycle.from_config(cfg, model)
-    state = cycle.compensator.predictor.hysteresis[0].state
+    state = cycle.compensator.predictor.history[0].state
     q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
     hb = 0
 
@@ -146,9 +146,9 @@ def test_bending_formed_per_kinematics_equals_the_constant_one():
     """A robot whose beam changes with q recomputes C at every kinematics; on the KR 125 both routes agree."""
     model = model_with(*EXAMPLES["link_bending"])
     fast, slow = FastPredictor(model), FastPredictor(model)
-    assert all(b.constant for b in fast.bending)
-    slow.slow_bending = list(slow.bending)
-    for b in slow.bending:
+    assert all(b.constant for b in fast.frame_terms)
+    slow.slow_frame_terms = list(slow.frame_terms)
+    for b in slow.frame_terms:
         b.C = np.full((6, 6), np.nan)               # only kinematics() can make it usable again
     data = load_sequences(model.robot, 6, 1, seed=3)
     for q, w in zip(data.q_deg, data.wrench):
