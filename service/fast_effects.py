@@ -24,8 +24,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stiffness.effects.realtime import (AxialTerm, FrameCompliance, HistoryTerm, Ignored, InputTerm,
-                                        JointCompliance)
+from stiffness.effects.realtime import (
+    AxialTerm,
+    FrameCompliance,
+    HistoryTerm,
+    Ignored,
+    InputTerm,
+    JointCompliance,
+)
 from stiffness.model import StiffnessModel
 
 from .errors import ModelUnsupportedError

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 
-
 def size_text(c, model, ctx) -> str:
     """The estimated size of the candidate's effect, in the units a person reads (the effect's own words)."""
     return c.effect.size_text(c.estimate, c.std_error, model)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from discovery.campaigns import campaign, start_model
+
 from hil.testing import CONFIG, truth_with
 from service.compensation import FastPredictor
 from service.config import load_config
