@@ -15,8 +15,12 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
+
+from stiffness.yamlio import Strict
 
 from .errors import CanFrameError
 
@@ -29,6 +33,16 @@ INT16_LIMITS = (-32768, 32767)
 
 _HALF = struct.Struct("<hhhh")
 _SECOND = struct.Struct("<hhHH")
+
+
+class AtiConfig(Strict):
+    """``source.ati``: the sensor's CAN identifiers, counts per unit, and what a foreign frame does."""
+
+    base_id: int = Field(0x020, ge=0, le=0x7F0)
+    counts_per_force: float = Field(10.0, gt=0)
+    counts_per_torque: float = Field(100.0, gt=0)
+    foreign_frames: Literal["fault", "ignore"] = "fault"
+    dbc: str = "ati_netft_can.dbc"
 
 
 @dataclass(frozen=True)
@@ -70,7 +84,7 @@ class AtiProtocol:
         self._first: tuple[int, int, int, int] | None = None
 
     @classmethod
-    def from_config(cls, section) -> AtiProtocol:
+    def from_config(cls, section: AtiConfig) -> AtiProtocol:
         return cls(section.base_id, section.counts_per_force, section.counts_per_torque, section.foreign_frames)
 
     # -- requests -------------------------------------------------------------------------------

@@ -36,14 +36,24 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+from pydantic import Field
 
 from stiffness.model import StiffnessModel
 from stiffness.robot import BODIES
 from stiffness.spatial import damped_pinv_solve
+from stiffness.yamlio import Strict
 
 from .fast_effects import fast_terms
 
 _BASE = np.eye(4)
+
+
+class ModelConfig(Strict):
+    """``model``: the model file (relative to the config file) and how the correction is solved."""
+
+    file: str
+    refinement_iterations: int = Field(0, ge=0, le=10)
+    damping: float = Field(1e-3, ge=0.0, le=1.0)
 
 
 class FastPredictor:
@@ -89,7 +99,7 @@ class FastPredictor:
         self.p_tcp = [0.0, 0.0, 0.0]
 
     @classmethod
-    def from_config(cls, section, model: StiffnessModel) -> FastPredictor:
+    def from_config(cls, section: ModelConfig, model: StiffnessModel) -> FastPredictor:
         return cls(model, section.damping, section.refinement_iterations)
 
     # -- per cycle ------------------------------------------------------------------------------

@@ -9,8 +9,31 @@ than a threshold, for at most ``max_held`` samples (a longer step is a real chan
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
+from pydantic import Field
 from scipy import signal
+
+from stiffness.yamlio import Strict
+
+
+class SpikeConfig(Strict):
+    """``filter.spike``: a jump larger than these is a spike, held for at most ``max_held`` samples."""
+
+    max_step_N: float = Field(300.0, gt=0)
+    max_step_Nm: float = Field(30.0, gt=0)
+    max_held: int = Field(3, ge=0, le=100)
+
+
+class FilterConfig(Strict):
+    """``filter``: the low-pass (its cut-off below half the cycle rate, checked with ``cycle``) and the
+    spike rejector."""
+
+    type: Literal["butterworth", "bessel", "none"] = "butterworth"
+    order: int = Field(2, ge=1, le=8)
+    cutoff_hz: float = Field(100.0, gt=0)
+    spike: SpikeConfig = Field(default_factory=SpikeConfig)
 
 
 class SosLowPass:
@@ -43,7 +66,7 @@ class SosLowPass:
         return cls(signal.iirfilter(order, cutoff_hz, btype="low", ftype=ftype, fs=rate_hz, output="sos"))
 
     @classmethod
-    def from_config(cls, section, period_s: float) -> SosLowPass:
+    def from_config(cls, section: FilterConfig, period_s: float) -> SosLowPass:
         return cls.design(section.type, section.order, section.cutoff_hz, 1.0 / period_s)
 
     def zero_state(self) -> list[list[list[float]]]:
@@ -102,7 +125,7 @@ class SpikeRejector:
         self.rejected = 0
 
     @classmethod
-    def from_config(cls, section) -> SpikeRejector:
+    def from_config(cls, section: SpikeConfig) -> SpikeRejector:
         return cls([section.max_step_N] * 3 + [section.max_step_Nm] * 3, section.max_held)
 
     def update(self, x: list[float]) -> list[float]:

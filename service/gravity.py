@@ -18,8 +18,29 @@ The offline identification of m, c and b from static poses is `service.payload`.
 from __future__ import annotations
 
 import numpy as np
+from pydantic import Field
+
+from stiffness.yamlio import Strict
 
 BODIES = ("sensor", "tool", "fixture", "workpiece")
+
+
+class BodyConfig(Strict):
+    """One body the sensor carries: its mass and its centre of gravity in the sensor frame."""
+
+    mass_kg: float = Field(0.0, ge=0.0, le=1000.0)
+    cog_mm: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
+
+
+class GravityConfig(Strict):
+    """``gravity``: the gravity vector in base axes, the bodies the sensor carries, the sensor's bias."""
+
+    g_mps2: list[float] = Field(default_factory=lambda: [0.0, 0.0, -9.81], min_length=3, max_length=3)
+    sensor: BodyConfig = Field(default_factory=BodyConfig)
+    tool: BodyConfig = Field(default_factory=BodyConfig)
+    fixture: BodyConfig = Field(default_factory=BodyConfig)
+    workpiece: BodyConfig = Field(default_factory=BodyConfig)
+    bias: list[float] = Field(default_factory=lambda: [0.0] * 6, min_length=6, max_length=6)
 
 
 class GravityCompensator:
@@ -42,7 +63,7 @@ class GravityCompensator:
         self._mg = (self.mass * self.g).tolist()
 
     @classmethod
-    def from_config(cls, section) -> GravityCompensator:
+    def from_config(cls, section: GravityConfig) -> GravityCompensator:
         masses = np.array([getattr(section, b).mass_kg for b in BODIES])
         cogs = np.array([getattr(section, b).cog_mm for b in BODIES]) / 1000.0
         m = masses.sum()

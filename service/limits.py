@@ -9,6 +9,29 @@ Each cycle the output moves toward its target by at most ``rate * dt`` per joint
 
 from __future__ import annotations
 
+from pydantic import Field, field_validator
+
+from stiffness.yamlio import Strict
+
+
+def _six_or_one(v: float | list[float]) -> list[float]:
+    vals = [float(v)] * 6 if isinstance(v, (int, float)) else [float(x) for x in v]
+    if len(vals) != 6:
+        raise ValueError(f"needs one value or six (one per joint), got {len(vals)}")
+    if any(not x > 0 for x in vals):
+        raise ValueError("every value must be > 0")
+    return vals
+
+
+class LimitsConfig(Strict):
+    """``limits``: the largest correction and its rate per joint (one value or six), the fault ramp."""
+
+    max_correction_deg: float | list[float] = 0.5
+    max_rate_deg_s: float | list[float] = 5.0
+    fault_ramp_s: float = Field(0.2, gt=0.0, le=10.0)
+
+    _check = field_validator("max_correction_deg", "max_rate_deg_s")(_six_or_one)
+
 
 class CorrectionLimiter:
     """Rate- and magnitude-limited joint correction (deg), on six Python floats.
@@ -34,7 +57,7 @@ class CorrectionLimiter:
         self._ramp_rate = [0.0] * 6
 
     @classmethod
-    def from_config(cls, section, period_s: float) -> CorrectionLimiter:
+    def from_config(cls, section: LimitsConfig, period_s: float) -> CorrectionLimiter:
         """From the ``limits`` section; steps are capped at two periods of ``period_s`` (s)."""
         return cls(section.max_correction_deg, section.max_rate_deg_s, section.fault_ramp_s, 2.0 * period_s)
 

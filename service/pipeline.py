@@ -22,12 +22,12 @@ from stiffness.model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 
 from .ati import Reading
-from .compensation import FastPredictor
+from .compensation import FastPredictor, ModelConfig
 from .errors import SensorError
 from .faults import FaultMonitor
-from .filters import SosLowPass, SpikeRejector
-from .gravity import GravityCompensator
-from .limits import CorrectionLimiter
+from .filters import FilterConfig, SosLowPass, SpikeRejector
+from .gravity import GravityCompensator, GravityConfig
+from .limits import CorrectionLimiter, LimitsConfig
 from .supervision import Supervisor
 
 log = logging.getLogger("stiffcomp.service")
@@ -87,11 +87,12 @@ class Compensator:
         self._tare_pending = False            # a tare edge waits for the next sample
 
     @classmethod
-    def from_config(cls, cfg, model: StiffnessModel, faults: FaultMonitor) -> Compensator:
-        period = cfg.cycle.period_ms / 1000.0
-        return cls(FastPredictor.from_config(cfg.model, model), SosLowPass.from_config(cfg.filter, period),
-                   SpikeRejector.from_config(cfg.filter.spike), GravityCompensator.from_config(cfg.gravity),
-                   CorrectionLimiter.from_config(cfg.limits, period), faults)
+    def from_config(cls, model_section: ModelConfig, filter_section: FilterConfig, gravity: GravityConfig,
+                    limits: LimitsConfig, period_s: float, model: StiffnessModel, faults: FaultMonitor) -> Compensator:
+        """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``."""
+        return cls(FastPredictor.from_config(model_section, model), SosLowPass.from_config(filter_section, period_s),
+                   SpikeRejector.from_config(filter_section.spike), GravityCompensator.from_config(gravity),
+                   CorrectionLimiter.from_config(limits, period_s), faults)
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
               hold: bool, reset: bool = False) -> list[float]:
@@ -165,9 +166,11 @@ class Cycle:
 
     @classmethod
     def from_config(cls, cfg, model: StiffnessModel) -> Cycle:
+        """The cycle as the service config composes it: each part is handed its own section."""
         faults = FaultMonitor()
-        return cls(Supervisor.from_config(cfg, faults, model.robot.limits_deg),
-                   Compensator.from_config(cfg, model, faults))
+        return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.plc.enable_on_start),
+                   Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.cycle.period_ms / 1000.0,
+                                           model, faults))
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
              plc_heartbeat: int, q_deg: list[float], overrun: bool = False) -> list[float]:

@@ -19,14 +19,25 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from pydantic import Field
 
 from plc_interface.contract import Command, Fault
+from stiffness.yamlio import Strict
 
 from .errors import SensorError
 from .faults import FaultMonitor
 
 # the command bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
 _ENABLE, _TARE, _RESET = int(Command.ENABLE), int(Command.TARE), int(Command.RESET)
+
+
+class FaultsConfig(Strict):
+    """``faults``: when the sensor, the PLC's heartbeat and exceeded cycles trip a fault (the sensor
+    timeout is read by the sources; both longer than the cycle, checked with ``cycle``)."""
+
+    sensor_timeout_ms: float = Field(10.0, gt=0)
+    plc_heartbeat_timeout_ms: float = Field(200.0, ge=0)
+    overrun_trip_count: int = Field(10, ge=1, le=1000)
 
 
 class Supervision(NamedTuple):
@@ -68,9 +79,11 @@ class Supervisor:
         self._q_last: list[float] | None = None
 
     @classmethod
-    def from_config(cls, cfg, faults: FaultMonitor, joint_limits_deg: np.ndarray) -> Supervisor:
-        return cls(faults, joint_limits_deg, cfg.faults.plc_heartbeat_timeout_ms / 1000.0,
-                   cfg.faults.overrun_trip_count, cfg.plc.enable_on_start)
+    def from_config(cls, section: FaultsConfig, faults: FaultMonitor, joint_limits_deg: np.ndarray,
+                    enable_on_start: bool) -> Supervisor:
+        """From the ``faults`` section; ``enable_on_start`` is the PLC's (``plc.enable_on_start``)."""
+        return cls(faults, joint_limits_deg, section.plc_heartbeat_timeout_ms / 1000.0,
+                   section.overrun_trip_count, enable_on_start)
 
     def update(self, t: float, command: int, plc_heartbeat: int, q_deg: list[float], overrun: bool,
                errors: list[SensorError]) -> Supervision:

@@ -22,10 +22,23 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from pydantic import Field
 
 from plc_interface.deadlines import Deadlines
+from stiffness.yamlio import Strict
 
 log = logging.getLogger("stiffcomp.task")
+
+
+class CycleConfig(Strict):
+    """``cycle``: the period, the statistics, and how the task is scheduled (priority, CPU, spin)."""
+
+    period_ms: float = Field(1.0, ge=0.1, le=100.0)
+    stats_log_interval_s: float = Field(10.0, ge=0.0)
+    history: int = Field(600_000, ge=1000, le=10_000_000)
+    realtime_priority: int = Field(0, ge=0, le=99)
+    cpu: int | None = Field(None, ge=0, le=1023)
+    spin_us: float = Field(0.0, ge=0.0, le=1000.0)
 
 
 class TaskInfo:

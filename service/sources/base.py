@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from pathlib import Path
 
 import numpy as np
 
@@ -51,14 +52,14 @@ class FtSource(ABC):
 
     @classmethod
     @abstractmethod
-    def from_config(cls, cfg) -> FtSource:
-        """Build from the whole service config (reads ``source`` and ``faults.sensor_timeout_ms``)."""
+    def from_config(cls, section, timeout_s: float, resolve: Callable[[str], Path]) -> FtSource:
+        """Build from the ``source`` section; ``timeout_s`` is ``faults.sensor_timeout_ms`` in s and
+        ``resolve`` turns a path written in the config into a file."""
 
     @staticmethod
-    def common_args(cfg) -> dict:
-        s = cfg.source
-        return {"protocol": AtiProtocol.from_config(s.ati), "timeout_s": cfg.faults.sensor_timeout_ms / 1000.0,
-                    "max_force_N": s.max_force_N, "max_torque_Nm": s.max_torque_Nm}
+    def common_args(section, timeout_s: float) -> dict:
+        return {"protocol": AtiProtocol.from_config(section.ati), "timeout_s": timeout_s,
+                "max_force_N": section.max_force_N, "max_torque_Nm": section.max_torque_Nm}
 
     # -- the hook -------------------------------------------------------------------------------
     @abstractmethod

@@ -10,6 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import can
+from pydantic import Field
+
+from stiffness.yamlio import Strict
 
 from ..errors import SourceError
 from .base import Frame, FtSource
@@ -27,6 +30,16 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, **options
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
         raise SourceError(f"cannot open CAN interface {interface!r} channel {channel!r}: {e}") from e
 
+
+
+class CanConfig(Strict):
+    """``source.can``: the python-can bus the sensor is on (interface, channel, bitrate, options)."""
+
+    interface: str = "virtual"
+    channel: str = "ati0"
+    bitrate: int | None = Field(1_000_000, gt=0)
+    request_each_cycle: bool = True
+    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
 
 class CanSource(FtSource):
     """F/T samples from a live bus.
@@ -47,10 +60,10 @@ class CanSource(FtSource):
         self._request = can.Message(arbitration_id=arb, data=data, is_extended_id=False)
 
     @classmethod
-    def from_config(cls, cfg) -> CanSource:
-        c = cfg.source.can
+    def from_config(cls, section, timeout_s: float, resolve) -> CanSource:
+        c = section.can
         bus = open_bus(c.interface, c.channel, c.bitrate, **c.options)
-        return cls(bus, c.request_each_cycle, **cls.common_args(cfg))
+        return cls(bus, c.request_each_cycle, **cls.common_args(section, timeout_s))
 
     def _frames(self, t: float) -> Iterable[Frame]:
         out: list[Frame] = []

@@ -11,9 +11,12 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Literal
 
 import can
 import numpy as np
+
+from stiffness.yamlio import Strict
 
 from ..ati import AtiProtocol
 from ..errors import SourceError
@@ -66,6 +69,14 @@ def write_log(path: str | Path, wrench: np.ndarray, rate_hz: float = 1000.0, pro
                 log(can.Message(timestamp=t + 6e-4, arbitration_id=arb, data=data, is_extended_id=False))
 
 
+
+class ReplayConfig(Strict):
+    """``source.replay``: the CAN log to replay (relative to the config file), its pacing, and looping."""
+
+    file: str
+    pacing: Literal["realtime", "fast"] = "realtime"
+    loop: bool = True
+
 class ReplaySource(FtSource):
     """F/T samples from a recorded CAN log.
 
@@ -102,10 +113,10 @@ class ReplaySource(FtSource):
         self.exhausted = False
 
     @classmethod
-    def from_config(cls, cfg) -> ReplaySource:
-        r = cfg.source.replay
-        path = cfg.resolve(r.file)
-        return cls(read_log(path), r.pacing, r.loop, name=str(path), **cls.common_args(cfg))
+    def from_config(cls, section, timeout_s: float, resolve) -> ReplaySource:
+        r = section.replay
+        path = resolve(r.file)
+        return cls(read_log(path), r.pacing, r.loop, name=str(path), **cls.common_args(section, timeout_s))
 
     def _frames(self, t: float) -> Iterable[Frame]:
         out: list[Frame] = []
