@@ -6,6 +6,10 @@ snapshot's version every ``notify_poll_s`` (1 ms) from the server's own task, on
 has a notification; `on_cycle` does the same at once for an I/O process that knows when a cycle was
 published. Both send each cycle's samples once.
 
+The same AMS Net ID answers on AMS port 10000 as TwinCAT's system service does (`system_command`):
+its state (RUN while the server serves), its device info, and no writes; ads-client reads that state
+before it talks to the PLC runtime and every second after.
+
 Malformed input (docs/ads.md): a frame with a usable AMS header gets an error reply (wrong length,
 target or command); one without (short header, nonzero AMS/TCP reserved field, announced length over
 the limit), a response sent to the server, or a request from an unknown route closes the connection.
@@ -28,7 +32,6 @@ from .settings import AdsSettings
 
 log = logging.getLogger("stiffcomp.ads")
 VERSION = (0, 1, 0)       # ReadDeviceInfo: major, minor, build
-TASK_STATES = {0: ams.ADSSTATE_INIT, 1: ams.ADSSTATE_RUN, 2: ams.ADSSTATE_STOP}
 
 
 class Closing(Exception):
@@ -209,7 +212,7 @@ class AdsServer:
             error, reason = ams.ERR_INVALID_AMS_LENGTH, "AMS length disagrees with the frame"
         elif h.target != self.net_id:
             error, reason = ams.ERR_TARGET_MACHINE_NOT_FOUND, "wrong target AMS Net ID"
-        elif h.target_port != self.settings.ams_port:
+        elif h.target_port not in (self.settings.ams_port, ams.SYSTEM_SERVICE_PORT):
             error, reason = ams.ERR_TARGET_PORT_NOT_FOUND, "wrong target AMS port"
         elif h.command not in ams.COMMANDS:
             error, reason = ams.ADSERR_SRV_NOT_SUPP, "unknown ADS command"
@@ -218,7 +221,8 @@ class AdsServer:
             self.on_request(name, f"ads_error_{error:#x}")
             return h.reply(b"", error)
         try:
-            payload = self.command(conn, h, frame[ams.AMS_HEADER_SIZE:])
+            payload = (self.system_command if h.target_port == ams.SYSTEM_SERVICE_PORT else self.command)(
+                conn, h, frame[ams.AMS_HEADER_SIZE:])
         except Exception as e:  # noqa: BLE001 (a bug must cost one request, not the server)
             self._bug(e, f"ADS request {h.command:#x} from {conn.peer} failed", conn.peer)
             self.on_request(name, "internal_error")
@@ -234,15 +238,33 @@ class AdsServer:
             log.error("%s", what, exc_info=e)
         self.ratelog.report(client, f"internal error: {type(e).__name__}")
 
+    def _device_info(self) -> bytes:
+        return ams.DEVICE_INFO_RES.pack(0, *VERSION, self.settings.device_name.encode("latin-1", "replace"))
+
+    def system_command(self, conn: Connection, h: ams.AmsHeader, payload: bytes) -> bytes:
+        """The response payload of a request to the system service (AMS port 10000)."""
+        cmd = h.command
+        if cmd == ams.READ_DEVICE_INFO:
+            return self._device_info()
+        if cmd == ams.READ_STATE:                  # the system runs while it answers; the PLC's state is 0xF100
+            return ams.STATE_RES.pack(0, ams.ADSSTATE_RUN, 0)
+        if cmd == ams.WRITE_CONTROL:                # no client switches the service to config mode or restarts it
+            return ams.result_response(ams.ADSERR_SRV_NOT_SUPP)
+        if cmd == ams.DEL_NOTIFICATION:
+            return ams.result_response(ams.ADSERR_NOTIFY_HANDLE_INVALID)
+        if cmd == ams.ADD_NOTIFICATION:
+            return ams.ADD_NOTE_RES.pack(ams.ADSERR_INVALID_GROUP, 0)
+        if cmd == ams.WRITE:
+            return ams.result_response(ams.ADSERR_INVALID_GROUP)
+        return ams.read_response(ams.ADSERR_INVALID_GROUP)      # Read, ReadWrite: it serves no index group
+
     def command(self, conn: Connection, h: ams.AmsHeader, payload: bytes) -> bytes:
-        """The response payload of one well-addressed request."""
+        """The response payload of one well-addressed request to the PLC runtime (``ams_port``)."""
         s, cmd = conn.session, h.command
         if cmd == ams.READ_DEVICE_INFO:
-            name = self.settings.device_name.encode("latin-1", "replace")
-            return ams.DEVICE_INFO_RES.pack(0, *VERSION, name)
+            return self._device_info()
         if cmd == ams.READ_STATE:
-            state = self.device.view().values().get("task_state", 1)
-            return ams.STATE_RES.pack(0, TASK_STATES.get(int(state), ams.ADSSTATE_RUN), 0)
+            return ams.STATE_RES.pack(0, self.device.view().ads_state, 0)
         if cmd == ams.WRITE_CONTROL:
             return ams.result_response(ams.ADSERR_SRV_NOT_SUPP)    # the service's state is not the client's
         if cmd == ams.DEL_NOTIFICATION:

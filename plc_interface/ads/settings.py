@@ -8,7 +8,7 @@ from pydantic import Field, field_validator
 
 from stiffness.yamlio import Strict
 
-from .ams import net_id_bytes
+from .ams import SYSTEM_SERVICE_PORT, net_id_bytes
 
 
 def _check_net_id(v: str) -> str:
@@ -70,6 +70,13 @@ class AdsSettings(Strict):
     device_name: str = Field("stiffcomp", max_length=15)
 
     _net_id = field_validator("net_id")(_check_net_id)
+
+    @field_validator("ams_port")
+    @classmethod
+    def _not_system(cls, v: int) -> int:
+        if v == SYSTEM_SERVICE_PORT:
+            raise ValueError(f"{v} is the system service's AMS port; the PLC runtime needs another (851)")
+        return v
 
     def allows(self, peer_ip: str, net_id: str | None = None) -> bool:
         """Whether ``peer_ip`` (and, once known, the source ``net_id`` it sends) is a known route."""
