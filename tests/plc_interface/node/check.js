@@ -36,6 +36,8 @@ async function waitFor(what, pred, timeoutMs = 20000) {
 async function main() {
   const out = {};
   const client = new Client(settings());
+  const stateNotified = [];      // set only by ads-client's own subscription of 0xF100 until readPlcRuntimeState
+  client.on("plcRuntimeStateChange", (state) => stateNotified.push(state.adsStateStr));
   const conn = await client.connect();
   const md = client.metaData;
   out.connect = {
@@ -101,6 +103,7 @@ async function main() {
   const h = await client.createVariableHandle("GVL_Comp.q1");
   out.handle = { size: h.size, type: h.dataType, value: (await client.readRawByHandle(h)).readFloatLE(0) };
   await client.deleteVariableHandle(h);
+  out.state_notified = [...stateNotified];
   out.states = { system: (await client.readTcSystemState()).adsStateStr,
                  plc: (await client.readPlcRuntimeState()).adsStateStr,
                  symbol_version: await client.readPlcSymbolVersion() };
