@@ -22,6 +22,7 @@ import asyncio
 import itertools
 import logging
 
+from ..client_table import ClientTable
 from ..ratelog import RateLimitedLog
 from . import ams
 from .area import AreaView
@@ -49,6 +50,7 @@ class Connection:
         self.server, self.reader, self.writer, self.peer = server, reader, writer, peer
         self.session = Session(server.device)
         self.notes = Notifications(self.session, server.settings.max_notifications, server.note_ids)
+        self.place = None               # its place in the server's ClientTable
 
     async def serve(self) -> None:
         try:
@@ -56,6 +58,7 @@ class Connection:
                 frame = await self._next_frame()
                 if frame is None:
                     return
+                self.server.table.request(self.place)
                 reply = self.server.answer(self, frame)
                 self.writer.write(reply)
                 await self.writer.drain()
@@ -114,8 +117,10 @@ class AdsServer:
         self.ratelog = RateLimitedLog(logger or log, settings.log_interval_s)
         self.note_ids = itertools.count(1)
         self.connections: set[Connection] = set()
+        self.table = ClientTable(settings, lambda client, reason: self.ratelog.report(client.peer, reason))
         self._server: asyncio.Server | None = None
         self._poller: asyncio.Task | None = None
+        self._sweeper: asyncio.Task | None = None
         self._tasks: set[asyncio.Task] = set()
         self._wake = asyncio.Event()
         self._version: int | None = None
@@ -127,6 +132,7 @@ class AdsServer:
         self._wake = asyncio.Event()
         self._server = await asyncio.start_server(self._accept, self.settings.host, self.settings.port)
         self._poller = asyncio.create_task(self._poll(), name="ads-notify")
+        self._sweeper = asyncio.create_task(self._sweep(), name="ads-clients")
 
     @property
     def address(self) -> tuple[str, int]:
@@ -137,15 +143,16 @@ class AdsServer:
         """Close the listener and every connection; wait for their tasks."""
         if self._server is not None:
             self._server.close()
-        if self._poller is not None:
-            self._poller.cancel()
+        for task in (self._poller, self._sweeper):
+            if task is not None:
+                task.cancel()
         for conn in list(self.connections):
             conn.writer.transport.abort()       # not close(): a client that does not read would hold it open
-        tasks = [t for t in (*self._tasks, self._poller) if t is not None]
+        tasks = [t for t in (*self._tasks, self._poller, self._sweeper) if t is not None]
         await asyncio.gather(*tasks, return_exceptions=True)
         if self._server is not None:
             await self._server.wait_closed()
-        self._server = self._poller = None
+        self._server = self._poller = self._sweeper = None
         self.ratelog.flush()
 
     # -- notifications -----------------------------------------------------------------------------
@@ -173,6 +180,11 @@ class AdsServer:
             await asyncio.sleep(self.settings.notify_poll_s)
 
     # -- connections -------------------------------------------------------------------------------
+    async def _sweep(self) -> None:
+        while True:
+            await asyncio.sleep(self.table.sweep_interval_s)
+            self.table.sweep()
+
     async def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()
         self._tasks.add(task)
@@ -182,13 +194,16 @@ class AdsServer:
             if not self.settings.allows(peer):
                 self.ratelog.report(peer, "no route for this address (closed)")
                 return
-            if len(self.connections) >= self.settings.max_clients:
-                self.ratelog.report(peer, "max_clients reached (closed)")
-                return
             conn = Connection(self, reader, writer, peer)
+            conn.place = self.table.add(peer, writer.transport.abort, lambda: bool(conn.notes.items))
+            if conn.place is None:
+                self.ratelog.report(peer, "max_clients reached, every client polling (closed)")
+                return
             self.connections.add(conn)
             await conn.serve()
         finally:
+            if conn is not None:
+                self.table.remove(conn.place)
             self.connections.discard(conn)
             writer.close()
             try:
