@@ -8,7 +8,7 @@ first) reads as a REAL and a uint32 as a UDINT (docs/ads.md).
 
 The task info is read-only and computed on read from the to_plc values, in TwinCAT's units (100 ns).
 The runtime state is what ReadState answers, as TwinCAT's 0xF100 is: the ADS state (from
-``task_state``) and the device state, a UINT each. The symbol version is one byte (`SymbolTable.version`).
+``task_state``) and the device state, a UINT each. The symbol version is one byte (`Device.symbol_version`).
 All four can be read and subscribed, none written.
 """
 

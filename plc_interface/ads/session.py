@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import struct
 
+from ..register_map import RegisterMap
 from . import ams
 from .area import GROUPS, MB_GROUP, AreaView, Layout
 from .port import ImagePort
@@ -29,19 +30,41 @@ HANDLE_INFO = struct.Struct("<IIIH")  # handle, size, ADS data type, type name l
 class Device:
     """What every connection shares: the image port, the layout, the symbols and the limits.
 
+    The symbol version (0xF008, one byte) belongs to the running device: it starts at
+    ``FIRST_SYMBOL_VERSION`` and `install` moves it on by one (modulo 256) whenever the symbols it
+    installs differ from those served, so a client that cached the upload notices any change. The same
+    set installed again keeps it.
+
     Parameters
     ----------
     port : ImagePort
     max_handles, max_sum_requests, max_frame_bytes : limits (`AdsSettings`)
     """
 
+    FIRST_SYMBOL_VERSION = 1
+
     def __init__(self, port: ImagePort, max_handles: int = 1024, max_sum_requests: int = 500,
                  max_frame_bytes: int = 1 << 20):
         self.port = port
-        self.layout = Layout(port.rmap)
-        self.symbols = SymbolTable(port.rmap)
         self.max_handles, self.max_sum, self.max_frame = max_handles, max_sum_requests, max_frame_bytes
         self.handle_ids = itertools.count(1)
+        self.symbols: SymbolTable | None = None
+        self.symbol_version = self.FIRST_SYMBOL_VERSION
+        self.install(port.rmap)
+
+    def install(self, rmap: RegisterMap) -> int:
+        """Serve the layout and symbols of ``rmap`` from now on; returns the symbol version.
+
+        The one place a symbol table is installed: at start, and whenever the register map is replaced
+        while the service runs. The version changes exactly when the symbol upload (names, types,
+        addresses, sizes, comments) differs from the one served before.
+        """
+        table = SymbolTable(rmap)
+        version = self.symbol_version
+        if self.symbols is not None and table.upload != self.symbols.upload:
+            version = (version + 1) % 256
+        self.layout, self.symbols, self.symbol_version = Layout(rmap), table, version
+        return version
 
     def view(self) -> AreaView:
         """The areas of the newest published cycle."""
@@ -49,7 +72,7 @@ class Device:
 
     def view_of(self, snap: tuple[int, int, list[int], list[int]]) -> AreaView:
         """The areas of ``snap`` (an `ImagePort.snapshot`)."""
-        return AreaView(self.layout, snap, self.symbols.version)
+        return AreaView(self.layout, snap, self.symbol_version)
 
 
 class Session:

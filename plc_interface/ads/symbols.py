@@ -8,16 +8,13 @@ The upload encoding (index groups 0xF00B/0xF00C/0xF00F, and 0xF009 per symbol) i
 `AdsSymbolEntry`: entryLength, iGroup, iOffs, size, dataType, flags (uint32 each), then the lengths of
 name, type and comment (uint16 each), then the three strings, each NUL-terminated.
 
-The symbol version (index group 0xF008, one byte) is a checksum of that upload: it is the same for
-the same symbols, in every run, and changes when the set of symbols changes (a different register
-map), as a TwinCAT runtime's version changes with an online change. Being one byte of a CRC, two
-different sets share it with a chance of 1 in 255.
+The symbol version (index group 0xF008) is not the table's but the running device's: `session.Device`
+counts it up each time it installs a table whose upload differs from the one it serves.
 """
 
 from __future__ import annotations
 
 import struct
-import zlib
 from dataclasses import dataclass
 
 from ..register_map import RegisterMap
@@ -81,8 +78,7 @@ def symbols_from_map(rmap: RegisterMap) -> list[Symbol]:
 
 
 class SymbolTable:
-    """Symbols by name (case-insensitive), their data types, the upload blobs and the symbol version,
-    built once."""
+    """Symbols by name (case-insensitive), their data types and the upload blobs, built once."""
 
     def __init__(self, rmap: RegisterMap):
         self.symbols = symbols_from_map(rmap)
@@ -92,7 +88,6 @@ class SymbolTable:
         self.upload_info = UPLOAD_INFO.pack(len(self.symbols), len(self.upload))
         self.upload_info2 = UPLOAD_INFO2.pack(len(self.symbols), len(self.upload), len(self.types.types),
                                               len(self.types.upload), 0, 0)
-        self.version = zlib.crc32(self.upload) % 255 + 1        # 1..255, one byte (0xF008)
 
     def find(self, raw: bytes) -> Symbol | None:
         """The symbol named by ``raw`` (a name as a client sends it, NUL-terminated or not), or None."""

@@ -22,6 +22,7 @@ import pytest
 from hil.run import ServiceProcess
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.ads.datatypes import BASE_TYPES
+from plc_interface.ads.session import Device
 from plc_interface.ads.symbols import SymbolTable
 from plc_interface.register_map import RegisterMap
 
@@ -49,7 +50,7 @@ def test_ads_client_in_plc_mode_against_the_running_service(tmp_path, record_pro
 
     con = out["connect"]
     assert con["connected"] and con["tcSystemState"]["adsState"] == 5 and con["plcRuntimeState"]["adsState"] == 5
-    assert con["symbolVersion"] == table.version
+    assert con["symbolVersion"] == Device.FIRST_SYMBOL_VERSION
     assert out["state_notified"] == ["Run"]       # ads-client's own 0xF100 subscription, before any ReadState
     info = con["uploadInfo"]
     assert (info["symbolCount"], info["symbolLength"]) == (len(table.symbols), len(table.upload))
@@ -77,5 +78,5 @@ def test_ads_client_in_plc_mode_against_the_running_service(tmp_path, record_pro
     types = {t["name"]: (t["size"], t["ads"]) for t in out["types"]}
     assert types == {s.type_name: BASE_TYPES[s.type_name][::-1] for s in table.symbols}
     assert out["handle"] == {"size": 4, "type": "REAL", "value": written}
-    assert out["states"] == {"system": "Run", "plc": "Run", "symbol_version": table.version}
+    assert out["states"] == {"system": "Run", "plc": "Run", "symbol_version": Device.FIRST_SYMBOL_VERSION}
     assert out["second_client"] > out["after_reconnect"] > out["after_unknown"]

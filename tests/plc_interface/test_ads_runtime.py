@@ -8,13 +8,18 @@ from __future__ import annotations
 
 import ctypes
 import struct
+from itertools import pairwise
 
 import pyads
 import pytest
-from ads_child import MAP, AdsChild
+from ads_child import MAP, AdsChild, map_variant
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from plc_interface.ads.datatypes import BASE_TYPES
+from plc_interface.ads.session import Device
 from plc_interface.ads.symbols import TASKINFO_PREFIX, SymbolTable
+from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 
 NET_ID = "5.6.7.12.1.1"
@@ -84,7 +89,7 @@ def test_system_service_on_port_10000(server):
 def test_runtime_state_and_symbol_version_read_not_written(plc):
     assert plc.read(0xF100, 0, pyads.PLCTYPE_UINT) == pyads.ADSSTATE_RUN      # the fake cycle's task_state: run
     assert plc.read(0xF100, 2, pyads.PLCTYPE_UINT) == 0
-    assert plc.read(0xF008, 0, pyads.PLCTYPE_BYTE) == TABLE.version
+    assert plc.read(0xF008, 0, pyads.PLCTYPE_BYTE) == Device.FIRST_SYMBOL_VERSION
     for group, offset, typ in ((0xF008, 0, pyads.PLCTYPE_BYTE), (0xF100, 0, pyads.PLCTYPE_UINT)):
         with pytest.raises(pyads.ADSError) as e:
             plc.write(group, offset, 1, typ)
@@ -95,14 +100,42 @@ def test_runtime_state_and_symbol_version_read_not_written(plc):
     # subscriptions: test_ads_server.py (their first sample can reach AdsLib before it knows the handle)
 
 
-def test_symbol_version_changes_with_the_symbol_set_only(tmp_path):
-    assert SymbolTable(RegisterMap.from_yaml(MAP)).version == TABLE.version and 1 <= TABLE.version <= 255
-    fewer = tmp_path / "registers.yaml"            # a map without one register: one symbol less
-    fewer.write_text("".join(line for line in MAP.read_text().splitlines(keepends=True)
-                             if "name: period_jitter_us" not in line))
-    table = SymbolTable(RegisterMap.from_yaml(fewer))
-    assert len(table.symbols) == len(TABLE.symbols) - 1
-    assert table.version != TABLE.version
+@pytest.fixture(scope="module")
+def maps(tmp_path_factory):
+    """The shipped map, the same read again, one symbol less, and one comment changed."""
+    d = tmp_path_factory.mktemp("maps")
+    return [RegisterMap.from_yaml(MAP), RegisterMap.from_yaml(MAP), map_variant(d, drop="period_jitter_us"),
+            map_variant(d, old="joint correction to add to q_r", new="joint correction for q_r")]
+
+
+@pytest.fixture(scope="module")
+def device(maps):
+    image = ProcessImage(maps[0])
+    yield Device(image)
+    image.close()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 3), min_size=1, max_size=12))
+def test_symbol_version_changes_whenever_the_symbol_set_does_and_only_then(maps, device, picks):
+    for k in picks:
+        before, served = device.symbol_version, device.symbols.upload
+        after = device.install(maps[k])
+        assert after == device.symbol_version == device.view().read(0xF008, 0, 1)[1][0]
+        assert (after != before) == (SymbolTable(maps[k]).upload != served), (k, before, after)
+
+
+def test_symbol_version_starts_at_its_first_value_and_each_change_differs_from_the_last(maps):
+    image = ProcessImage(maps[0])
+    try:
+        dev = Device(image)
+        assert dev.symbol_version == Device.FIRST_SYMBOL_VERSION == Device(image).symbol_version
+        seen = [dev.symbol_version]
+        for k in range(300):                                # past one byte's range: it wraps, still changing
+            seen.append(dev.install(maps[2 + k % 2]))
+        assert all(a != b for a, b in pairwise(seen)) and all(0 <= v <= 255 for v in seen)
+    finally:
+        image.close()
 
 
 def test_data_types_upload_by_name_and_counts(plc):

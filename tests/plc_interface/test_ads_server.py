@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 import struct
 
-from ads_child import MAP
+from ads_child import MAP, map_variant
 
 from plc_interface.ads import AdsServer, AdsSettings, ams
 from plc_interface.contract import to_plc
@@ -146,7 +146,7 @@ def test_cycle_times_count_on_the_cycles_stamps_and_on_change_sends_changes_only
     assert sent["change"] == [(0, 0.0), (2 * ms, 1.0), (5 * ms, 2.0), (8 * ms, 3.0), (11 * ms, 4.0)]
 
 
-def test_runtime_state_and_symbol_version_notify_their_value_then_changes_only():
+def test_runtime_state_and_symbol_version_notify_their_value_then_changes_only(tmp_path):
     async def body(image, server):
         reader, writer = await asyncio.open_connection(*server.address)
         names = {}
@@ -157,7 +157,12 @@ def test_runtime_state_and_symbol_version_notify_their_value_then_changes_only()
             result, handle = ams.ADD_NOTE_RES.unpack(payload)
             assert result == 0
             names[handle] = name
-        for cycle in range(1, 21):                                  # the task runs 10 cycles, then stops
+        versions = [server.device.symbol_version]
+        for cycle in range(1, 41):                                  # the task runs 10 cycles, then stops
+            if cycle == 21:                                         # the same symbols installed again
+                versions.append(server.device.install(RegisterMap.from_yaml(MAP)))
+            if cycle == 31:                                         # one symbol less, as a live reload would
+                versions.append(server.device.install(map_variant(tmp_path, drop="period_jitter_us")))
             image.publish(to_plc(cycle_count=cycle, task_state=1 if cycle <= 10 else 2))
             server.on_cycle()
         writer.write(request(ams.READ_STATE, b"", invoke=99))
@@ -174,8 +179,10 @@ def test_runtime_state_and_symbol_version_notify_their_value_then_changes_only()
                 sent[names[handle]].append(payload[pos + 8: pos + 8 + size])
                 pos += 8 + size
         writer.close()
-        return sent, server.device.symbols.version
+        return sent, versions
 
-    sent, version = run(body, notify_poll_s=0.1)
+    sent, versions = run(body, notify_poll_s=0.1)
     assert sent["state"] == [struct.pack("<HH", ams.ADSSTATE_RUN, 0), struct.pack("<HH", ams.ADSSTATE_STOP, 0)]
-    assert sent["version"] == [bytes([version])]        # 20 cycles, one symbol set: sent once
+    first, same, fewer = versions
+    assert same == first != fewer
+    assert sent["version"] == [bytes([first]), bytes([fewer])]     # once per symbol set, at the cycle after it
