@@ -58,7 +58,7 @@ class IoServer:
             if s.plc.role == "server":
                 from .modbus_server import ModbusServer
 
-                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port, self._count_modbus))
+                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port, self._count_modbus, limits=s.plc))
             elif s.plc.role == "client":
                 from .modbus_client import ModbusClient
 

@@ -21,7 +21,24 @@ class PlcClientSettings(Strict):
     read_start: int = Field(0x8000, ge=0, le=0xFFFF)
 
 
-class PlcSettings(Strict):
+class ClientLimits(Strict):
+    """How many TCP clients a server holds and how long a silent one may stay (`client_table`).
+
+    Attributes
+    ----------
+    max_clients : connections at once; when full, the longest-idle one gives way to a new one
+    first_frame_timeout_s : s, a new connection must send a complete request within this
+    idle_timeout_s : s, a connection without a request for this long is closed (0: never)
+    """
+
+    max_clients: int = Field(64, ge=1, le=10_000)
+    first_frame_timeout_s: float = Field(10.0, gt=0, le=3600)
+    idle_timeout_s: float = Field(300.0, ge=0, le=86_400)
+
+
+class PlcSettings(ClientLimits):
+    """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``)."""
+
     role: Literal["server", "client", "none"] = "server"
     host: str = "127.0.0.1"
     port: int = Field(5020, ge=1, le=65535)

@@ -30,6 +30,8 @@ COMMAND_NAMES = {READ_DEVICE_INFO: "ReadDeviceInfo", READ: "Read", WRITE: "Write
 FLAG_RESPONSE = 0x0001
 FLAG_ADS_COMMAND = 0x0004
 
+SYSTEM_SERVICE_PORT = 10000     # TwinCAT's system service, on every AMS Net ID
+
 # AMS-level (router) error codes, carried in the AMS header
 ERR_TARGET_PORT_NOT_FOUND = 0x06
 ERR_TARGET_MACHINE_NOT_FOUND = 0x07

@@ -1,4 +1,5 @@
-"""The ADS data areas over the process image: %MB (index group 0x4020) and the task info (0x4040).
+"""The ADS data areas over the process image: %MB (index group 0x4020), the task info (0x4040), the PLC
+runtime's state (0xF100) and the symbol version (0xF008).
 
 %MB lays the Modbus words end to end, as TF6250 lays its registers over the PLC's memory: the to_plc
 block's words first, then the from_plc block's, each word little-endian. The register at word index
@@ -6,6 +7,9 @@ block's words first, then the from_plc block's, each word little-endian. The reg
 first) reads as a REAL and a uint32 as a UDINT (docs/ads.md).
 
 The task info is read-only and computed on read from the to_plc values, in TwinCAT's units (100 ns).
+The runtime state is what ReadState answers, as TwinCAT's 0xF100 is: the ADS state (from
+``task_state``) and the device state, a UINT each. The symbol version is one byte (`Device.symbol_version`).
+All four can be read and subscribed, none written.
 """
 
 from __future__ import annotations
@@ -18,6 +22,11 @@ from . import ams
 
 MB_GROUP = 0x4020
 TASKINFO_GROUP = 0x4040
+STATE_GROUP = 0xF100                # ADSIGRP_DEVICE_DATA: ADS state, device state
+SYMVER_GROUP = 0xF008               # ADSIGRP_SYM_VERSION
+GROUPS = (MB_GROUP, TASKINFO_GROUP, STATE_GROUP, SYMVER_GROUP)
+STATE = struct.Struct("<HH")
+TASK_STATES = {0: ams.ADSSTATE_INIT, 1: ams.ADSSTATE_RUN, 2: ams.ADSSTATE_STOP}   # task_state -> ADS state
 TASKINFO = struct.Struct("<IIIB3xI")
 # name, TwinCAT type, offset in TASKINFO, the to_plc value it comes from, factor to TwinCAT's unit
 TASKINFO_FIELDS = (
@@ -84,10 +93,11 @@ class AreaView:
     ----------
     layout : Layout
     snap : (version, stamp_ns, to_plc_words, from_plc_words) from `ImagePort.snapshot`
+    symbol_version : the byte 0xF008 answers
     """
 
-    def __init__(self, layout: Layout, snap: tuple[int, int, list[int], list[int]]):
-        self.layout = layout
+    def __init__(self, layout: Layout, snap: tuple[int, int, list[int], list[int]], symbol_version: int = 1):
+        self.layout, self.symbol_version = layout, symbol_version
         self.version, self.stamp_ns, self._to, self._from = snap
         self._mb: bytes | None = None
         self._task: bytes | None = None
@@ -117,12 +127,21 @@ class AreaView:
             self._task = TASKINFO.pack(*fields)
         return self._task
 
+    @property
+    def ads_state(self) -> int:
+        """The runtime's ADS state (ReadState, 0xF100): RUN unless the cycle reports INIT or STOP."""
+        return TASK_STATES.get(int(self.values().get("task_state", 1)), ams.ADSSTATE_RUN)
+
     def read(self, group: int, offset: int, length: int) -> tuple[int, bytes]:
         """(ADS result, data) of reading ``length`` bytes at ``group``/``offset``."""
         if group == MB_GROUP:
             area = self.mb
         elif group == TASKINFO_GROUP:
             area = self.task
+        elif group == STATE_GROUP:
+            area = STATE.pack(self.ads_state, 0)
+        elif group == SYMVER_GROUP:
+            area = bytes([self.symbol_version])
         else:
             return ams.ADSERR_INVALID_GROUP, b""
         if offset >= len(area):

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from . import ams
-from .area import MB_GROUP, TASKINFO_GROUP, AreaView
+from .area import GROUPS, AreaView
 from .session import SYM_VAL_BY_HND, Session
 
 MODES = {ams.TRANS_SERVER_CYCLE: False, ams.TRANS_SERVER_CYCLE2: False,
@@ -81,7 +81,7 @@ class Notifications:
             if length > sym.size:
                 return ams.ADD_NOTE_RES.pack(ams.ADSERR_INVALID_SIZE, 0)
             group, offset = sym.group, sym.offset
-        elif group not in (MB_GROUP, TASKINFO_GROUP):
+        elif group not in GROUPS:
             return ams.ADD_NOTE_RES.pack(ams.ADSERR_INVALID_GROUP, 0)
         err = view.read(group, offset, length)[0] if length else ams.ADSERR_INVALID_SIZE
         if err:

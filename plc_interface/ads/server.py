@@ -6,6 +6,10 @@ snapshot's version every ``notify_poll_s`` (1 ms) from the server's own task, on
 has a notification; `on_cycle` does the same at once for an I/O process that knows when a cycle was
 published. Both send each cycle's samples once.
 
+The same AMS Net ID answers on AMS port 10000 as TwinCAT's system service does (`system_command`):
+its state (RUN while the server serves), its device info, and no writes; ads-client reads that state
+before it talks to the PLC runtime and every second after.
+
 Malformed input (docs/ads.md): a frame with a usable AMS header gets an error reply (wrong length,
 target or command); one without (short header, nonzero AMS/TCP reserved field, announced length over
 the limit), a response sent to the server, or a request from an unknown route closes the connection.
@@ -18,6 +22,7 @@ import asyncio
 import itertools
 import logging
 
+from ..client_table import ClientTable
 from ..ratelog import RateLimitedLog
 from . import ams
 from .area import AreaView
@@ -28,7 +33,6 @@ from .settings import AdsSettings
 
 log = logging.getLogger("stiffcomp.ads")
 VERSION = (0, 1, 0)       # ReadDeviceInfo: major, minor, build
-TASK_STATES = {0: ams.ADSSTATE_INIT, 1: ams.ADSSTATE_RUN, 2: ams.ADSSTATE_STOP}
 
 
 class Closing(Exception):
@@ -46,6 +50,7 @@ class Connection:
         self.server, self.reader, self.writer, self.peer = server, reader, writer, peer
         self.session = Session(server.device)
         self.notes = Notifications(self.session, server.settings.max_notifications, server.note_ids)
+        self.place = None               # its place in the server's ClientTable
 
     async def serve(self) -> None:
         try:
@@ -53,6 +58,7 @@ class Connection:
                 frame = await self._next_frame()
                 if frame is None:
                     return
+                self.server.table.request(self.place)
                 reply = self.server.answer(self, frame)
                 self.writer.write(reply)
                 await self.writer.drain()
@@ -111,8 +117,10 @@ class AdsServer:
         self.ratelog = RateLimitedLog(logger or log, settings.log_interval_s)
         self.note_ids = itertools.count(1)
         self.connections: set[Connection] = set()
+        self.table = ClientTable(settings, lambda client, reason: self.ratelog.report(client.peer, reason))
         self._server: asyncio.Server | None = None
         self._poller: asyncio.Task | None = None
+        self._sweeper: asyncio.Task | None = None
         self._tasks: set[asyncio.Task] = set()
         self._wake = asyncio.Event()
         self._version: int | None = None
@@ -124,6 +132,7 @@ class AdsServer:
         self._wake = asyncio.Event()
         self._server = await asyncio.start_server(self._accept, self.settings.host, self.settings.port)
         self._poller = asyncio.create_task(self._poll(), name="ads-notify")
+        self._sweeper = asyncio.create_task(self._sweep(), name="ads-clients")
 
     @property
     def address(self) -> tuple[str, int]:
@@ -134,15 +143,16 @@ class AdsServer:
         """Close the listener and every connection; wait for their tasks."""
         if self._server is not None:
             self._server.close()
-        if self._poller is not None:
-            self._poller.cancel()
+        for task in (self._poller, self._sweeper):
+            if task is not None:
+                task.cancel()
         for conn in list(self.connections):
             conn.writer.transport.abort()       # not close(): a client that does not read would hold it open
-        tasks = [t for t in (*self._tasks, self._poller) if t is not None]
+        tasks = [t for t in (*self._tasks, self._poller, self._sweeper) if t is not None]
         await asyncio.gather(*tasks, return_exceptions=True)
         if self._server is not None:
             await self._server.wait_closed()
-        self._server = self._poller = None
+        self._server = self._poller = self._sweeper = None
         self.ratelog.flush()
 
     # -- notifications -----------------------------------------------------------------------------
@@ -170,6 +180,11 @@ class AdsServer:
             await asyncio.sleep(self.settings.notify_poll_s)
 
     # -- connections -------------------------------------------------------------------------------
+    async def _sweep(self) -> None:
+        while True:
+            await asyncio.sleep(self.table.sweep_interval_s)
+            self.table.sweep()
+
     async def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()
         self._tasks.add(task)
@@ -179,13 +194,16 @@ class AdsServer:
             if not self.settings.allows(peer):
                 self.ratelog.report(peer, "no route for this address (closed)")
                 return
-            if len(self.connections) >= self.settings.max_clients:
-                self.ratelog.report(peer, "max_clients reached (closed)")
-                return
             conn = Connection(self, reader, writer, peer)
+            conn.place = self.table.add(peer, writer.transport.abort, lambda: bool(conn.notes.items))
+            if conn.place is None:
+                self.ratelog.report(peer, "max_clients reached, every client polling (closed)")
+                return
             self.connections.add(conn)
             await conn.serve()
         finally:
+            if conn is not None:
+                self.table.remove(conn.place)
             self.connections.discard(conn)
             writer.close()
             try:
@@ -209,7 +227,7 @@ class AdsServer:
             error, reason = ams.ERR_INVALID_AMS_LENGTH, "AMS length disagrees with the frame"
         elif h.target != self.net_id:
             error, reason = ams.ERR_TARGET_MACHINE_NOT_FOUND, "wrong target AMS Net ID"
-        elif h.target_port != self.settings.ams_port:
+        elif h.target_port not in (self.settings.ams_port, ams.SYSTEM_SERVICE_PORT):
             error, reason = ams.ERR_TARGET_PORT_NOT_FOUND, "wrong target AMS port"
         elif h.command not in ams.COMMANDS:
             error, reason = ams.ADSERR_SRV_NOT_SUPP, "unknown ADS command"
@@ -218,7 +236,8 @@ class AdsServer:
             self.on_request(name, f"ads_error_{error:#x}")
             return h.reply(b"", error)
         try:
-            payload = self.command(conn, h, frame[ams.AMS_HEADER_SIZE:])
+            payload = (self.system_command if h.target_port == ams.SYSTEM_SERVICE_PORT else self.command)(
+                conn, h, frame[ams.AMS_HEADER_SIZE:])
         except Exception as e:  # noqa: BLE001 (a bug must cost one request, not the server)
             self._bug(e, f"ADS request {h.command:#x} from {conn.peer} failed", conn.peer)
             self.on_request(name, "internal_error")
@@ -234,15 +253,33 @@ class AdsServer:
             log.error("%s", what, exc_info=e)
         self.ratelog.report(client, f"internal error: {type(e).__name__}")
 
+    def _device_info(self) -> bytes:
+        return ams.DEVICE_INFO_RES.pack(0, *VERSION, self.settings.device_name.encode("latin-1", "replace"))
+
+    def system_command(self, conn: Connection, h: ams.AmsHeader, payload: bytes) -> bytes:
+        """The response payload of a request to the system service (AMS port 10000)."""
+        cmd = h.command
+        if cmd == ams.READ_DEVICE_INFO:
+            return self._device_info()
+        if cmd == ams.READ_STATE:                  # the system runs while it answers; the PLC's state is 0xF100
+            return ams.STATE_RES.pack(0, ams.ADSSTATE_RUN, 0)
+        if cmd == ams.WRITE_CONTROL:                # no client switches the service to config mode or restarts it
+            return ams.result_response(ams.ADSERR_SRV_NOT_SUPP)
+        if cmd == ams.DEL_NOTIFICATION:
+            return ams.result_response(ams.ADSERR_NOTIFY_HANDLE_INVALID)
+        if cmd == ams.ADD_NOTIFICATION:
+            return ams.ADD_NOTE_RES.pack(ams.ADSERR_INVALID_GROUP, 0)
+        if cmd == ams.WRITE:
+            return ams.result_response(ams.ADSERR_INVALID_GROUP)
+        return ams.read_response(ams.ADSERR_INVALID_GROUP)      # Read, ReadWrite: it serves no index group
+
     def command(self, conn: Connection, h: ams.AmsHeader, payload: bytes) -> bytes:
-        """The response payload of one well-addressed request."""
+        """The response payload of one well-addressed request to the PLC runtime (``ams_port``)."""
         s, cmd = conn.session, h.command
         if cmd == ams.READ_DEVICE_INFO:
-            name = self.settings.device_name.encode("latin-1", "replace")
-            return ams.DEVICE_INFO_RES.pack(0, *VERSION, name)
+            return self._device_info()
         if cmd == ams.READ_STATE:
-            state = self.device.view().values().get("task_state", 1)
-            return ams.STATE_RES.pack(0, TASK_STATES.get(int(state), ams.ADSSTATE_RUN), 0)
+            return ams.STATE_RES.pack(0, self.device.view().ads_state, 0)
         if cmd == ams.WRITE_CONTROL:
             return ams.result_response(ams.ADSERR_SRV_NOT_SUPP)    # the service's state is not the client's
         if cmd == ams.DEL_NOTIFICATION:

@@ -8,7 +8,8 @@ from pydantic import Field, field_validator
 
 from stiffness.yamlio import Strict
 
-from .ams import net_id_bytes
+from ..settings import ClientLimits
+from .ams import SYSTEM_SERVICE_PORT, net_id_bytes
 
 
 def _check_net_id(v: str) -> str:
@@ -30,7 +31,7 @@ class Route(Strict):
         return str(ipaddress.ip_address(v))
 
 
-class AdsSettings(Strict):
+class AdsSettings(ClientLimits):
     """Where the server listens, who it is, who may talk to it, and its limits.
 
     Attributes
@@ -40,7 +41,9 @@ class AdsSettings(Strict):
     net_id, ams_port : the server's AMS address (127.0.0.1.1.1:851, TwinCAT 3's first PLC runtime)
     allow_loopback : accept any AMS Net ID from a loopback address (127.0.0.0/8, ::1)
     routes : further peers, each an AMS Net ID and its IP address; anyone else is disconnected
-    max_clients : concurrent TCP connections; beyond it new ones are closed at once
+    max_clients, first_frame_timeout_s, idle_timeout_s : the client limits (`ClientLimits`): when all
+        places are taken, the longest-idle connection gives way to a new one; a connection with
+        notifications is not idle
     max_handles, max_notifications : per connection (ADS error 0x716 beyond)
     max_sum_requests : sub-requests in one sum command (pyads sends at most 500)
     max_frame_bytes : longest AMS frame accepted; a longer announced length closes the connection
@@ -58,7 +61,6 @@ class AdsSettings(Strict):
     ams_port: int = Field(851, ge=1, le=65535)
     allow_loopback: bool = True
     routes: list[Route] = Field(default_factory=list)
-    max_clients: int = Field(64, ge=1)
     max_handles: int = Field(1024, ge=1)
     max_notifications: int = Field(256, ge=1)
     max_sum_requests: int = Field(500, ge=1)
@@ -70,6 +72,13 @@ class AdsSettings(Strict):
     device_name: str = Field("stiffcomp", max_length=15)
 
     _net_id = field_validator("net_id")(_check_net_id)
+
+    @field_validator("ams_port")
+    @classmethod
+    def _not_system(cls, v: int) -> int:
+        if v == SYSTEM_SERVICE_PORT:
+            raise ValueError(f"{v} is the system service's AMS port; the PLC runtime needs another (851)")
+        return v
 
     def allows(self, peer_ip: str, net_id: str | None = None) -> bool:
         """Whether ``peer_ip`` (and, once known, the source ``net_id`` it sends) is a known route."""

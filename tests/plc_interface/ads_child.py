@@ -22,6 +22,16 @@ from plc_interface.register_map import RegisterMap
 MAP = Path(__file__).resolve().parents[2] / "config" / "registers.yaml"
 
 
+def map_variant(directory: Path, drop: str | None = None, old: str = "", new: str = "") -> RegisterMap:
+    """MAP without the register named ``drop`` (one symbol less) and with ``old`` replaced by ``new`` in
+    its text (a comment changed, say), read back from a file in ``directory``."""
+    lines = [line for line in MAP.read_text().splitlines(keepends=True)
+             if drop is None or f"name: {drop}," not in line]
+    path = directory / f"registers_{drop}_{len(old)}_{len(new)}.yaml"
+    path.write_text("".join(lines).replace(old, new) if old else "".join(lines))
+    return RegisterMap.from_yaml(path)
+
+
 def fake_values(cycle: int) -> dict[str, float]:
     return {"heartbeat": cycle & 0xFFFF, "task_state": 1, "cycle_count": cycle, "exceed_count": cycle // 100,
             "last_exec_us": 123.4, "cycle_time_us": 1000.0, "cycle_exceeded": cycle % 2,

@@ -18,14 +18,17 @@ from plc_interface.register_map import RegisterMap
 NET_ID = "5.6.7.9.1.1"
 TARGET = ams.net_id_bytes(NET_ID)
 SOURCE = ams.net_id_bytes("127.0.0.1.1.1")
-GROUPS = [0x4020, 0x4040, 0xF003, 0xF005, 0xF006, 0xF009, 0xF00B, 0xF00C, 0xF00F, 0xF080, 0xF081, 0xF082, 0x4021]
+GROUPS = [0x4020, 0x4040, 0xF003, 0xF005, 0xF006, 0xF009, 0xF00B, 0xF00C, 0xF00F, 0xF080, 0xF081, 0xF082, 0x4021,
+          0xF100, 0xF008, 0xF00E, 0xF011, 0xF0]
+PORTS = [851, 851, 10000, 852]      # the PLC runtime, the system service, and a port nobody serves
 # small numbers, the edges of the PLC's block in %MB (bytes 512..539: command word, heartbeat, q1..q6),
 # limits, and anything
 u32 = st.one_of(st.integers(0, 64), st.integers(508, 544), st.sampled_from([0x7FFFFFFF, 0xFFFFFFFF, 1024, 1023, 500, 501]),
                 st.integers(0, 0xFFFFFFFF))
 group = st.one_of(st.sampled_from(GROUPS), st.integers(0, 0xFFFFFFFF))
 blob = st.binary(max_size=64)
-names = st.sampled_from([b"GVL_Comp.q1\0", b"GVL_Comp.NoSuchSymbol", b"gvl_comp.command_word", b"\xff\xfe", b""])
+names = st.sampled_from([b"GVL_Comp.q1\0", b"GVL_Comp.NoSuchSymbol", b"gvl_comp.command_word", b"\xff\xfe", b"",
+                         b"REAL\0", b"udint", b"ST_NoSuchType\0"])
 
 
 @st.composite
@@ -52,7 +55,7 @@ def payloads(draw) -> tuple[int, bytes]:
 def frames(draw) -> bytes:
     cmd, payload = draw(payloads())
     invoke = draw(st.integers(0, 0xFFFFFFFF))
-    frame = ams.request_frame(TARGET, 851, SOURCE, 30000, cmd, payload, invoke)
+    frame = ams.request_frame(TARGET, draw(st.sampled_from(PORTS)), SOURCE, 30000, cmd, payload, invoke)
     how = draw(st.sampled_from(["as is", "as is", "flip", "cut", "extend", "random", "header fields"]))
     if how == "flip":
         b = bytearray(frame)
@@ -68,7 +71,7 @@ def frames(draw) -> bytes:
     elif how == "header fields":       # a whole frame whose AMS fields lie: length, target, port, flags
         length = draw(st.one_of(st.just(len(payload)), u32))
         flags = draw(st.sampled_from([4, 5, 0, 0x44]))
-        head = ams.AMS_HEADER.pack(draw(st.sampled_from([TARGET, SOURCE])), draw(st.sampled_from([851, 852])),
+        head = ams.AMS_HEADER.pack(draw(st.sampled_from([TARGET, SOURCE])), draw(st.sampled_from(PORTS)),
                                    SOURCE, 30000, cmd, flags, length, 0, invoke)
         frame = ams.TCP_HEADER.pack(0, 32 + len(payload)) + head + payload
     return frame
@@ -120,7 +123,7 @@ def connect(host: str, port: int) -> socket.socket:
 
 def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_path, record_property):
     log = tmp_path / "ads.log"
-    tally = {"frames": 0, "answered": 0, "closed": 0, "good reads": 0}
+    tally = {"frames": 0, "answered": 0, "closed": 0, "good reads": 0, "answered by port 10000": 0}
     with AdsChild(net_id=NET_ID, log_path=str(log), log_interval_s=10.0) as child:
         socks = [connect(child.host, child.port) for _ in range(4)]
         plc = pyads.Connection(NET_ID, 851, f"{child.host}:{child.port}")
@@ -137,6 +140,8 @@ def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_pa
                     outcome = answered_or_closed(socks[k], frame)
                     tally["frames"] += 1
                     tally[outcome] += 1
+                    if outcome == "answered" and frame[12:14] == (10000).to_bytes(2, "little"):
+                        tally["answered by port 10000"] += 1
                     if outcome == "closed":
                         socks[k].close()
                         socks[k] = connect(child.host, child.port)
@@ -156,6 +161,7 @@ def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_pa
     print(f"ADS fuzz: {tally}")
     record_property("ads_fuzz_frames", tally["frames"])
     assert tally["frames"] >= 1000 and tally["answered"] > 0 and tally["closed"] > 0
+    assert tally["answered by port 10000"] > 0
     assert child.report["tampered"] == 0                 # nothing wrote into the service's block
     rmap = RegisterMap.from_yaml(MAP)
     start = rmap.blocks["from_plc"].start

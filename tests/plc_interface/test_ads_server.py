@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 import struct
 
-from ads_child import MAP
+from ads_child import MAP, map_variant
 
 from plc_interface.ads import AdsServer, AdsSettings, ams
 from plc_interface.contract import to_plc
@@ -144,3 +144,45 @@ def test_cycle_times_count_on_the_cycles_stamps_and_on_change_sends_changes_only
     ms = 1_000_000
     assert sent["cyclic"] == [(0, 1), (5 * ms, 6), (10 * ms, 11)]
     assert sent["change"] == [(0, 0.0), (2 * ms, 1.0), (5 * ms, 2.0), (8 * ms, 3.0), (11 * ms, 4.0)]
+
+
+def test_runtime_state_and_symbol_version_notify_their_value_then_changes_only(tmp_path):
+    async def body(image, server):
+        reader, writer = await asyncio.open_connection(*server.address)
+        names = {}
+        for name, group, length in (("state", 0xF100, 4), ("version", 0xF008, 1)):    # as ads-client subscribes
+            writer.write(request(ams.ADD_NOTIFICATION, struct.pack("<IIIIII16x", group, 0, length,
+                                                                   ams.TRANS_SERVER_ON_CHANGE, 0, 0)))
+            _, payload = await read_frame(reader)
+            result, handle = ams.ADD_NOTE_RES.unpack(payload)
+            assert result == 0
+            names[handle] = name
+        versions = [server.device.symbol_version]
+        for cycle in range(1, 41):                                  # the task runs 10 cycles, then stops
+            if cycle == 21:                                         # the same symbols installed again
+                versions.append(server.device.install(RegisterMap.from_yaml(MAP)))
+            if cycle == 31:                                         # one symbol less, as a live reload would
+                versions.append(server.device.install(map_variant(tmp_path, drop="period_jitter_us")))
+            image.publish(to_plc(cycle_count=cycle, task_state=1 if cycle <= 10 else 2))
+            server.on_cycle()
+        writer.write(request(ams.READ_STATE, b"", invoke=99))
+        sent = {"state": [], "version": []}
+        while True:
+            h, payload = await read_frame(reader)
+            if h.invoke_id == 99 and h.flags & ams.FLAG_RESPONSE:
+                assert ams.STATE_RES.unpack(payload) == (0, ams.ADSSTATE_STOP, 0)
+                break
+            _, n = ams.STAMP_HEAD.unpack_from(payload, 8)
+            pos = 20
+            for _ in range(n):
+                handle, size = ams.SAMPLE_HEAD.unpack_from(payload, pos)
+                sent[names[handle]].append(payload[pos + 8: pos + 8 + size])
+                pos += 8 + size
+        writer.close()
+        return sent, versions
+
+    sent, versions = run(body, notify_poll_s=0.1)
+    assert sent["state"] == [struct.pack("<HH", ams.ADSSTATE_RUN, 0), struct.pack("<HH", ams.ADSSTATE_STOP, 0)]
+    first, same, fewer = versions
+    assert same == first != fewer
+    assert sent["version"] == [bytes([first]), bytes([fewer])]     # once per symbol set, at the cycle after it
