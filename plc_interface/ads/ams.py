@@ -1,7 +1,8 @@
 """AMS/TCP framing and the ADS command payloads (Beckhoff ADS specification; AdsLib's AmsHeader.h).
 
-A frame on the wire is a 6-byte AMS/TCP header (2 reserved bytes, 0, and the length of what follows)
-and a 32-byte AMS header, then the command's payload. Everything is little-endian.
+A frame on the wire is a 6-byte AMS/TCP header (2 bytes, 0 for an AMS frame, and the length of what
+follows) and a 32-byte AMS header, then the command's payload. Everything is little-endian. (A nonzero
+first field is a command to the AMS router itself, without an AMS header: `router`.)
 
 AMS header: target Net ID (6), target port (2), source Net ID (6), source port (2), command (2),
 state flags (2), payload length (4), error code (4), invoke ID (4).

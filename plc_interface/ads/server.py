@@ -10,9 +10,14 @@ The same AMS Net ID answers on AMS port 10000 as TwinCAT's system service does (
 its state (RUN while the server serves), its device info, and no writes; ads-client reads that state
 before it talks to the PLC runtime and every second after.
 
+Before its first request a client may ask the server, as its AMS router, for an AMS address (port
+connect, `router`); the port lent to it is given back by port close, which ends the connection, or
+when the connection ends otherwise.
+
 Malformed input (docs/ads.md): a frame with a usable AMS header gets an error reply (wrong length,
-target or command); one without (short header, nonzero AMS/TCP reserved field, announced length over
-the limit), a response sent to the server, or a request from an unknown route closes the connection.
+target or command); one without (short header, an AMS/TCP command other than an AMS frame, port connect
+or port close, announced length over the limit), a malformed port connect or close, a response sent to
+the server, or a request from an unknown route closes the connection.
 Every other client is served on. Errors are logged rate-limited (`RateLimitedLog`).
 """
 
@@ -24,7 +29,7 @@ import logging
 
 from ..client_table import ClientTable
 from ..ratelog import RateLimitedLog
-from . import ams
+from . import ams, router
 from .area import AreaView
 from .notifications import Notifications
 from .port import ImagePort
@@ -51,6 +56,7 @@ class Connection:
         self.session = Session(server.device)
         self.notes = Notifications(self.session, server.settings.max_notifications, server.note_ids)
         self.place = None               # its place in the server's ClientTable
+        self.ams_port: int | None = None    # the AMS port lent to it by port connect, if it asked
 
     async def serve(self) -> None:
         try:
@@ -58,8 +64,14 @@ class Connection:
                 frame = await self._next_frame()
                 if frame is None:
                     return
+                command, body = frame
                 self.server.table.request(self.place)
-                reply = self.server.answer(self, frame)
+                if command == router.AMS_FRAME:
+                    reply = self.server.answer(self, body)
+                else:
+                    reply = self._router_command(command, body)
+                    if reply is None:
+                        return
                 self.writer.write(reply)
                 await self.writer.drain()
         except Closing as e:
@@ -67,22 +79,44 @@ class Connection:
         except (ConnectionError, asyncio.IncompleteReadError):
             pass
 
-    async def _next_frame(self) -> bytes | None:
+    async def _next_frame(self) -> tuple[int, bytes] | None:
+        """(AMS/TCP command, the bytes after the AMS/TCP header) of the next frame; None at the end."""
         try:
             head = await self.reader.readexactly(ams.TCP_HEADER_SIZE)
         except asyncio.IncompleteReadError:
             return None             # closed by the client between frames: the normal end
-        reserved, length = ams.TCP_HEADER.unpack(head)
-        if reserved != 0:
-            raise Closing("AMS/TCP header with a nonzero reserved field (closed)")
-        if length < ams.AMS_HEADER_SIZE:
+        command, length = ams.TCP_HEADER.unpack(head)
+        if command in router.ROUTER_COMMANDS:
+            if length != router.PORT_REQ.size:
+                raise Closing("AMS/TCP port connect or close not of 2 bytes (closed)", f"length {length}")
+        elif command != router.AMS_FRAME:
+            raise Closing("AMS/TCP command that is no AMS frame, port connect or port close (closed)",
+                          f"command {command:#06x}")
+        elif length < ams.AMS_HEADER_SIZE:
             raise Closing("AMS frame shorter than its 32-byte header (closed)")
-        if length > self.server.settings.max_frame_bytes:
+        elif length > self.server.settings.max_frame_bytes:
             raise Closing("AMS frame longer than max_frame_bytes (closed)")
         try:        # a frame begun must end: a client stalled mid-frame must not hold its slot for ever
-            return await asyncio.wait_for(self.reader.readexactly(length), self.server.settings.frame_timeout_s)
+            body = await asyncio.wait_for(self.reader.readexactly(length), self.server.settings.frame_timeout_s)
         except TimeoutError:
             raise Closing("frame not completed within frame_timeout_s (closed)") from None
+        return command, body
+
+    def _router_command(self, command: int, body: bytes) -> bytes | None:
+        """The reply to a port connect (the client's AMS address); None after a port close (the end)."""
+        (port,) = router.PORT_REQ.unpack(body)
+        name = router.ROUTER_COMMANDS[command]
+        if command == router.PORT_CONNECT:
+            if self.ams_port is None:       # one port per connection: asked again, the same answer
+                self.ams_port = self.server.ports.lend(port)
+            self.server.on_request(name, None)
+            net_id = ams.net_id_bytes(self.server.settings.client_net_id(self.peer))
+            return router.port_connect_reply(net_id, self.ams_port)
+        if port != self.ams_port:
+            self.server.on_request(name, "port_not_held")
+            raise Closing("port close for a port this connection does not hold (closed)", f"port {port}")
+        self.server.on_request(name, None)
+        return None
 
     def send_due(self, view: AreaView) -> None:
         """Queue this cycle's notification frames, unless the client has stopped reading."""
@@ -117,6 +151,7 @@ class AdsServer:
         self.ratelog = RateLimitedLog(logger or log, settings.log_interval_s)
         self.note_ids = itertools.count(1)
         self.connections: set[Connection] = set()
+        self.ports = router.PortTable({settings.ams_port, ams.SYSTEM_SERVICE_PORT})
         self.table = ClientTable(settings, lambda client, reason: self.ratelog.report(client.peer, reason))
         self._server: asyncio.Server | None = None
         self._poller: asyncio.Task | None = None
@@ -204,6 +239,7 @@ class AdsServer:
         finally:
             if conn is not None:
                 self.table.remove(conn.place)
+                self.ports.give_back(conn.ams_port)
             self.connections.discard(conn)
             writer.close()
             try:

@@ -82,9 +82,22 @@ class AdsSettings(ClientLimits):
 
     def allows(self, peer_ip: str, net_id: str | None = None) -> bool:
         """Whether ``peer_ip`` (and, once known, the source ``net_id`` it sends) is a known route."""
-        ip = ipaddress.ip_address(peer_ip.split("%")[0])
-        if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
-            ip = ip.ipv4_mapped
+        ip = _ip(peer_ip)
         if self.allow_loopback and ip.is_loopback:
             return True
         return any(str(ip) == r.address and (net_id is None or net_id == r.net_id) for r in self.routes)
+
+    def client_net_id(self, peer_ip: str) -> str:
+        """The AMS Net ID a client at ``peer_ip`` is given when it asks the router for an address (port
+        connect): its route's, or, on this machine without one, the server's own, as TwinCAT's router
+        gives its local clients."""
+        ip = str(_ip(peer_ip))
+        return next((r.net_id for r in self.routes if r.address == ip), self.net_id)
+
+
+def _ip(peer_ip: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
+    """A peer's address as the routes name it (an IPv4-mapped IPv6 address as IPv4, no zone)."""
+    ip = ipaddress.ip_address(peer_ip.split("%")[0])
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
+        return ip.ipv4_mapped
+    return ip

@@ -1,4 +1,5 @@
-"""Random and mutated AMS/TCP frames from several connections (hypothesis): the ADS server answers or
+"""Random and mutated AMS/TCP frames, and commands to the AMS router (port connect and close, well-formed
+or not), from several connections (hypothesis): the ADS server answers or
 closes each, serves a well-behaved pyads client throughout, never writes outside the PLC's registers,
 and its log stays small."""
 
@@ -6,6 +7,7 @@ from __future__ import annotations
 
 import socket
 import struct
+import time
 
 import pyads
 from ads_child import MAP, AdsChild
@@ -52,7 +54,20 @@ def payloads(draw) -> tuple[int, bytes]:
 
 
 @st.composite
+def router_frames(draw) -> bytes:
+    """Commands to the AMS router itself: port connect (0x1000) and close (0x0001), well-formed or not, and
+    commands that go from a router, never to it (0x1001, 0x1002), or are none."""
+    command = draw(st.sampled_from([0x1000, 0x1000, 0x0001, 0x0001, 0x1001, 0x1002, 0x0002, 0xFFFF]))
+    data = draw(st.one_of(st.sampled_from([struct.pack("<H", p) for p in (0, 30000, 30001, 851, 10000, 0xFFFF)]),
+                          st.binary(min_size=2, max_size=2), st.binary(max_size=10)))
+    length = draw(st.one_of(st.just(len(data)), st.just(len(data)), u32))
+    return ams.TCP_HEADER.pack(command, length) + data
+
+
+@st.composite
 def frames(draw) -> bytes:
+    if draw(st.integers(0, 5)) == 0:
+        return draw(router_frames())
     cmd, payload = draw(payloads())
     invoke = draw(st.integers(0, 0xFFFFFFFF))
     frame = ams.request_frame(TARGET, draw(st.sampled_from(PORTS)), SOURCE, 30000, cmd, payload, invoke)
@@ -81,8 +96,8 @@ def delimited(frame: bytes) -> bool:
     """Whether the frame is whole by its AMS/TCP header, so the server must answer it (or close)."""
     if len(frame) < 6:
         return False
-    reserved, length = ams.TCP_HEADER.unpack_from(frame)
-    return reserved == 0 and length == len(frame) - 6
+    command, length = ams.TCP_HEADER.unpack_from(frame)
+    return command in (0, 0x1000, 0x0001) and length == len(frame) - 6
 
 
 def recv_exact(s: socket.socket, n: int) -> bytes | None:
@@ -107,13 +122,35 @@ def answered_or_closed(s: socket.socket, frame: bytes) -> str:
         head = recv_exact(s, 6)
         if head is None:
             return "closed"
-        body = recv_exact(s, struct.unpack_from("<I", head, 2)[0])
+        command, length = ams.TCP_HEADER.unpack(head)
+        body = recv_exact(s, length)
         if body is None:
             return "closed"
+        if command == 0x1000:                   # the router's answer to port connect: the client's address
+            assert frame[:2] == head[:2] and length == 8, (frame.hex(), head.hex())
+            net_id, port = struct.unpack("<6sH", body)
+            assert net_id == TARGET and port not in (851, 10000), body.hex()     # loopback: the server's Net ID
+            return "port lent"
+        assert command == 0, head.hex()
         h = ams.AmsHeader.parse(body)
         if h.flags & ams.FLAG_RESPONSE:
             assert h.invoke_id == invoke
             return "answered"
+
+
+def lowest_port_lent(child: AdsChild, deadline_s: float = 30.0) -> int:
+    """The port a port connect asking for any is lent once 30000 is free again (the server notices a
+    closed connection a moment after the client closed it); the last one lent when the deadline passes."""
+    end = time.monotonic() + deadline_s
+    while True:
+        with connect(child.host, child.port) as s:
+            s.sendall(ams.TCP_HEADER.pack(0x1000, 2) + b"\0\0")
+            head = recv_exact(s, 6)
+            port = struct.unpack("<6sH", recv_exact(s, 8))[1]
+        assert head == ams.TCP_HEADER.pack(0x1000, 8)
+        if port == 30000 or time.monotonic() > end:
+            return port
+        time.sleep(0.01)
 
 
 def connect(host: str, port: int) -> socket.socket:
@@ -123,7 +160,7 @@ def connect(host: str, port: int) -> socket.socket:
 
 def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_path, record_property):
     log = tmp_path / "ads.log"
-    tally = {"frames": 0, "answered": 0, "closed": 0, "good reads": 0, "answered by port 10000": 0}
+    tally = {"frames": 0, "answered": 0, "closed": 0, "port lent": 0, "good reads": 0, "answered by port 10000": 0}
     with AdsChild(net_id=NET_ID, log_path=str(log), log_interval_s=10.0) as child:
         socks = [connect(child.host, child.port) for _ in range(4)]
         plc = pyads.Connection(NET_ID, 851, f"{child.host}:{child.port}")
@@ -151,6 +188,10 @@ def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_pa
                 tally["good reads"] += 1
 
             fuzz()
+            for s in socks:                        # every port lent to a connection now closed was given back:
+                s.close()                          # the lowest free one is lent again
+            socks = []
+            assert lowest_port_lent(child) == 30000
         finally:
             for s in socks:
                 s.close()
@@ -161,7 +202,7 @@ def test_fuzzed_frames_are_answered_or_closed_and_a_good_client_is_served(tmp_pa
     print(f"ADS fuzz: {tally}")
     record_property("ads_fuzz_frames", tally["frames"])
     assert tally["frames"] >= 1000 and tally["answered"] > 0 and tally["closed"] > 0
-    assert tally["answered by port 10000"] > 0
+    assert tally["answered by port 10000"] > 0 and tally["port lent"] > 0
     assert child.report["tampered"] == 0                 # nothing wrote into the service's block
     rmap = RegisterMap.from_yaml(MAP)
     start = rmap.blocks["from_plc"].start

@@ -1,12 +1,14 @@
 """Issue 20's "Done when": ads-client (Node.js, v2, in its default PLC mode, not rawClient) against the
 service as `make run` starts it (`stiffcomp run` with config/default.yaml, on free ports).
 
-tests/plc_interface/node/check.js connects, reads CycleCount by name twice 1 s apart, writes a PLC
-input by name and reads it back, subscribes by name cyclic and on change, reads an unknown symbol
-(0x710, and the connection still works), lists the data types, creates a handle, reconnects and
-connects a second client. This test judges what it saw. `make test` installs ads-client from the
-committed package-lock.json (`make node-deps`); without node and npm the test is skipped, and in CI
-(where they are) it must run.
+tests/plc_interface/node/check.js connects with the fewest settings (the target's AMS address and the
+service's TCP address; ads-client asks the service, as its AMS router, for its own address), reads
+CycleCount by name twice 1 s apart, writes a PLC input by name and reads it back, subscribes by name
+cyclic and on change, reads an unknown symbol (0x710, and the connection still works), lists the data
+types, creates a handle, reconnects (port close, port connect) and connects a second client that names
+its own AMS address. This test judges what it saw. `make test` installs ads-client from the committed
+package-lock.json (`make node-deps`); without node and npm the test is skipped, and in CI (where they
+are) it must run.
 """
 
 from __future__ import annotations
@@ -22,10 +24,12 @@ import pytest
 from hil.run import ServiceProcess
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.ads.datatypes import BASE_TYPES
+from plc_interface.ads.router import PORT_BASE
 from plc_interface.ads.session import Device
 from plc_interface.ads.symbols import SymbolTable
 from plc_interface.register_map import RegisterMap
 
+NET_ID = "127.0.0.1.1.1"           # ads.net_id in config/default.yaml
 NODE_DIR = ROOT / "tests" / "plc_interface" / "node"
 INSTALLED = shutil.which("node") is not None and (NODE_DIR / "node_modules" / "ads-client").is_dir()
 pytestmark = pytest.mark.skipif(not INSTALLED and not os.environ.get("CI"),
@@ -38,7 +42,7 @@ def test_ads_client_in_plc_mode_against_the_running_service(tmp_path, record_pro
     service = ServiceProcess(cfg, tmp_path)
     try:
         service.wait_running()
-        p = subprocess.run(["node", str(NODE_DIR / "check.js"), "127.0.0.1", str(ads_port), "127.0.0.1.1.1"],
+        p = subprocess.run(["node", str(NODE_DIR / "check.js"), "127.0.0.1", str(ads_port), NET_ID],
                            capture_output=True, text=True, timeout=180, check=False, cwd=NODE_DIR)
     finally:
         service.stop()
@@ -49,6 +53,9 @@ def test_ads_client_in_plc_mode_against_the_running_service(tmp_path, record_pro
     table = SymbolTable(RegisterMap.from_yaml(ROOT / "config" / "registers.yaml"))
 
     con = out["connect"]
+    for lent in (con, out["reconnect"]):            # the router's answer to port connect: its Net ID, a free port
+        assert lent["localAmsNetId"] == NET_ID and lent["localAdsPort"] >= PORT_BASE, lent
+    assert out["second"] == {"localAmsNetId": "127.0.0.1.1.20", "localAdsPort": 32750}     # named by itself
     assert con["connected"] and con["tcSystemState"]["adsState"] == 5 and con["plcRuntimeState"]["adsState"] == 5
     assert con["symbolVersion"] == Device.FIRST_SYMBOL_VERSION
     assert out["state_notified"] == ["Run"]       # ads-client's own 0xF100 subscription, before any ReadState

@@ -1,4 +1,6 @@
 // ads-client (v2, default PLC mode, not rawClient) against the running service: the checks of issue 20.
+// The client is given only the target's AMS address and the service's TCP address; it registers an AMS
+// port with the service as its router. The second client after the reconnect names its own address.
 //
 //   node check.js <host> <tcp port> <AMS Net ID>
 //
@@ -12,18 +14,20 @@ const TASK = "TwinCAT_SystemInfoVarList._TaskInfo[1]";
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 const say = (...a) => console.log(...a);
 
+// The fewest settings: the client asks the service, as its AMS router, for its own AMS address.
 function settings() {
   return {
     targetAmsNetId: netId,
     targetAdsPort: 851,
     routerAddress: host,
     routerTcpPort: Number(port),
-    localAmsNetId: "127.0.0.1.1.20",   // no local AMS router: the client names itself, as with a remote PLC
-    localAdsPort: 32750,
     timeoutDelay: 10000,               // generous on a loaded machine; the service answers in about 1 ms
     autoReconnect: false,
   };
 }
+
+// The client names its own AMS address instead (no port connect), as with a PLC reached without a router.
+const EXPLICIT = { localAmsNetId: "127.0.0.1.1.20", localAdsPort: 32750 };
 
 async function waitFor(what, pred, timeoutMs = 20000) {
   const end = Date.now() + timeoutMs;
@@ -41,7 +45,7 @@ async function main() {
   const conn = await client.connect();
   const md = client.metaData;
   out.connect = {
-    connected: conn.connected, tcSystemState: md.tcSystemState, plcRuntimeState: md.plcRuntimeState,
+    connected: conn.connected, localAmsNetId: conn.localAmsNetId, localAdsPort: conn.localAdsPort, tcSystemState: md.tcSystemState, plcRuntimeState: md.plcRuntimeState,
     symbolVersion: md.plcSymbolVersion, uploadInfo: md.plcUploadInfo, deviceName: md.plcDeviceInfo.deviceName,
   };
   say(`connect: ${conn.targetAmsNetId}:${conn.targetAdsPort} as ${conn.localAmsNetId}:${conn.localAdsPort}; ` +
@@ -111,15 +115,19 @@ async function main() {
   say(`handle: GVL_Comp.q1 size ${h.size} type ${h.dataType}, by handle ${out.handle.value}; ` +
       `states: system ${out.states.system}, PLC ${out.states.plc}, symbol version ${out.states.symbol_version}`);
 
-  // reconnect: the same client, then a second one after it closed
-  await client.reconnect();
+  // reconnect: the same client (port close, then port connect), then a second one after it closed,
+  // naming its own AMS address
+  const re = await client.reconnect();
+  out.reconnect = { localAmsNetId: re.localAmsNetId, localAdsPort: re.localAdsPort };
   out.after_reconnect = (await client.readValue(`${TASK}.CycleCount`)).value;
   await client.disconnect();
-  const again = new Client(settings());
-  await again.connect();
+  const again = new Client({ ...settings(), ...EXPLICIT });
+  const second = await again.connect();
+  out.second = { localAmsNetId: second.localAmsNetId, localAdsPort: second.localAdsPort };
   out.second_client = (await again.readValue(`${TASK}.CycleCount`)).value;
   await again.disconnect();
-  say(`reconnect: CycleCount ${out.after_reconnect}; new client after disconnect: ${out.second_client}`);
+  say(`reconnect: as ${re.localAmsNetId}:${re.localAdsPort}, CycleCount ${out.after_reconnect}; ` +
+      `new client as ${second.localAmsNetId}:${second.localAdsPort} after disconnect: ${out.second_client}`);
   console.log(`RESULT ${JSON.stringify(out)}`);
 }
 
