@@ -1,4 +1,4 @@
-"""Gravity compensation of the sensor wrench (the real-time part; `service.payload` identifies the payload).
+"""Gravity compensation of the sensor wrench (the real-time part; `stiffness.payload` identifies the payload).
 
 A static payload of mass m with centre of gravity c (sensor frame) loads the sensor with
 
@@ -12,7 +12,7 @@ sensor reads W = W_ext + [F_g; T_g] + b, with b its bias, so the external wrench
 The bodies (sensor, tool, fixture, workpiece) combine into one mass and one centre of gravity. Tare
 adds the current external wrench to the bias, so the load at that moment reads zero.
 
-The offline identification of m, c and b from static poses is `service.payload`.
+The offline identification of m, c and b from static poses is `stiffness.payload`.
 """
 
 from __future__ import annotations
