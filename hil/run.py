@@ -164,7 +164,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         scenario, robot_path, cfg.gravity, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
         truth.input_map()))
     plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
-        scenario, robot_path, str(cfg.resolve(cfg.plc.register_map)), modbus_port, compensate, str(out_file), go,
+        scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
         plc_ready, faults.plc))
     procs = [sensor, plc]
     try:
@@ -185,7 +185,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         plc.join(world_len + scenario.circle.tail_s + 60.0)
         if plc.exitcode != 0:
             raise HilError(f"the PLC process ended with {plc.exitcode}")
-        unmapped = probe_unmapped(modbus_port, RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)))
+        unmapped = probe_unmapped(modbus_port, cfg.register_map())
     finally:
         stop.set()
         for s in services:
@@ -241,5 +241,5 @@ def _sensor_entry(scenario, robot_path, gravity, bus_kw, ati, go, ready, stop, f
     sensor_main(scenario, load_robot(robot_path), gravity, bus_kw, ati, go, ready, stop, fault, input_map)
 
 
-def _plc_entry(scenario, robot_path, register_map, port, compensate, out_file, go, ready, faults) -> None:
-    plc_main(scenario, load_robot(robot_path), register_map, port, compensate, out_file, go, ready, faults)
+def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:
+    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, faults)

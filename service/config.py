@@ -17,6 +17,8 @@ from typing import Literal
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from plc_interface.ads.settings import AdsSettings
+from plc_interface.errors import RegisterMapError
+from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
@@ -150,6 +152,14 @@ class ServiceConfig(Strict):
         """A path written in the config, relative to the config file's folder."""
         p = Path(relative)
         return p if p.is_absolute() else self.path.parent / p
+
+    def register_map(self) -> RegisterMap:
+        """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
+        naming this config file, the key and its value, then what is wrong in the map."""
+        try:
+            return RegisterMap.from_yaml(self.resolve(self.plc.register_map))
+        except RegisterMapError as e:
+            raise ServiceConfigError(f"{self.path}: plc.register_map = {self.plc.register_map!r}: {e}") from e
 
 
 def load_config(path: str | Path | None = None) -> ServiceConfig:
