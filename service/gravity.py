@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-BODIES = ("sensor", "tool", "fixture", "workpiece")
+# the bodies the sensor carries (the robot's frames are `stiffness.robot.BODIES`)
+PAYLOAD_BODIES = ("sensor", "tool", "fixture", "workpiece")
 
 
 class GravityCompensator:
@@ -43,8 +44,8 @@ class GravityCompensator:
 
     @classmethod
     def from_config(cls, section) -> GravityCompensator:
-        masses = np.array([getattr(section, b).mass_kg for b in BODIES])
-        cogs = np.array([getattr(section, b).cog_mm for b in BODIES]) / 1000.0
+        masses = np.array([getattr(section, b).mass_kg for b in PAYLOAD_BODIES])
+        cogs = np.array([getattr(section, b).cog_mm for b in PAYLOAD_BODIES]) / 1000.0
         m = masses.sum()
         cog = (masses[:, None] * cogs).sum(0) / m if m > 0 else np.zeros(3)
         return cls(m, cog, np.array(section.bias), np.array(section.g_mps2))
