@@ -161,7 +161,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
            "counts_per_torque": cfg.source.ati.counts_per_torque}
     bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}
     sensor = ctx.Process(target=_sensor_entry, name="hil-sensor", args=(
-        scenario, robot_path, cfg.gravity, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
+        scenario, robot_path, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
         truth.input_map()))
     plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
         scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
@@ -237,8 +237,8 @@ def _sleep_until(t: float) -> None:
         time.sleep(min(d, 0.05))
 
 
-def _sensor_entry(scenario, robot_path, gravity, bus_kw, ati, go, ready, stop, fault, input_map) -> None:
-    sensor_main(scenario, load_robot(robot_path), gravity, bus_kw, ati, go, ready, stop, fault, input_map)
+def _sensor_entry(scenario, robot_path, bus_kw, ati, go, ready, stop, fault, input_map) -> None:
+    sensor_main(scenario, load_robot(robot_path), bus_kw, ati, go, ready, stop, fault, input_map)
 
 
 def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:
