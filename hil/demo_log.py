@@ -44,15 +44,16 @@ def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: 
 def default_gravity_bias() -> np.ndarray:
     """Payload weight and bias of config/default.yaml at its initial pose, as the sensor reads them."""
     from service.config import load_config
-    from service.gravity import GravityCompensator
     from stiffness.model import StiffnessModel
+
+    from .payload import TruePayload
 
     cfg = load_config()
     robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
     F = robot.frames(np.radians(cfg.plc.initial_q_deg)[None])
     R_s = robot.sensor_pose(F)[0, :3, :3]
-    g = GravityCompensator.from_config(cfg.gravity)
-    return g.payload_wrench(R_s) + g.bias
+    payload = TruePayload(cfg.gravity)
+    return payload.wrench(R_s) + payload.bias
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,7 +24,6 @@ import numpy as np
 
 from hil.testing import free_port
 from hil.virtual_sensor import VirtualAtiSensor
-from plc_interface.register_map import RegisterMap
 from service.ati import AtiProtocol
 from service.config import load_config
 
@@ -67,10 +66,10 @@ def _sensor_entry(bus_kw: dict, ati: dict, out_file: str, ready, stop) -> None:
         np.savez(out_file, k=sensor.sent_k[:sensor.n], t=sensor.sent_t[:sensor.n])
 
 
-def _plc_entry(scenario, robot_path, register_map, port, out_file, go, ready) -> None:
+def _plc_entry(scenario, robot_path, rmap, port, out_file, go, ready) -> None:
     from stiffness.robot import load_robot
 
-    plc_main(scenario, load_robot(robot_path), register_map, port, False, out_file, go, ready)
+    plc_main(scenario, load_robot(robot_path), rmap, port, False, out_file, go, ready)
 
 
 def latencies(sent_t: np.ndarray, read_t: np.ndarray, read_code: np.ndarray) -> np.ndarray:
@@ -106,7 +105,7 @@ def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: floa
                "counts_per_torque": cfg.source.ati.counts_per_torque}
         bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}
         sensor = ctx.Process(target=_sensor_entry, args=(bus_kw, ati, str(folder / "sent.npz"), s_ready, stop))
-        plc = ctx.Process(target=_plc_entry, args=(sc, robot_path, str(cfg.resolve(cfg.plc.register_map)), port,
+        plc = ctx.Process(target=_plc_entry, args=(sc, robot_path, cfg.register_map(), port,
                                                    str(folder / "plc.npz"), go, p_ready))
         service = ServiceProcess(cfg_path, folder)
         try:
@@ -126,7 +125,7 @@ def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: floa
         with np.load(folder / "sent.npz") as z:
             sent_t = z["t"]
         with np.load(folder / "plc.npz") as z:
-            names = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)).codecs["to_plc"].names
+            names = cfg.register_map().codecs["to_plc"].names
             w = z["to_plc"][:, [names.index(n) for n in ("wrench_fx", "wrench_fy", "wrench_fz")]]
             t_read = z["t_read"]
             period = float(z["period"])

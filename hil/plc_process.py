@@ -13,12 +13,12 @@ from plc_interface.register_map import RegisterMap
 from .world import World
 
 
-def plc_main(scenario, robot, register_map: str, port: int, compensate: bool, out_file: str, go_value, ready,
+def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, out_file: str, go_value, ready,
              faults: PlcFaults | None = None, connect_timeout_s: float = 60.0) -> None:
-    """Process entry: connect, report ready, wait for the start time in ``go_value``, run, save the log."""
+    """Process entry: connect, report ready, wait for the start time in ``go_value``, run, save the log.
+    ``rmap`` is the service config's register map (`ServiceConfig.register_map`)."""
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)
-    rmap = RegisterMap.from_yaml(register_map)
     c = scenario.plc
     logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s,
                      faults)

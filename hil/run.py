@@ -12,6 +12,7 @@ process is stopped and joined on every path (try/finally).
 
 from __future__ import annotations
 
+import http.client
 import json
 import multiprocessing
 import random
@@ -24,11 +25,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pymodbus.client import ModbusTcpClient
 
-from hil.testing import free_port
+from hil.testing import free_port, write_config
 from hil.virtual_plc import PlcFaults
+from plc_interface.contract import TaskState
+from plc_interface.monitoring import read_health
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from stiffness.model import StiffnessModel
@@ -76,47 +78,42 @@ def free_udp_port() -> int:
 
 def write_service_config(scenario: Scenario, model_path: Path, folder: Path, group: str, can_port: int,
                          modbus_port: int, overrides: dict | None = None) -> Path:
-    """The scenario's service config with this run's model, bus and port; paths made absolute."""
-    src = scenario.resolve(scenario.service)
-    data = yaml.safe_load(src.read_text())
-    base = src.parent
-    data["model"]["file"] = str(Path(model_path).resolve())
-    plc = data.setdefault("plc", {})
-    plc["register_map"] = str((base / plc.get("register_map", "registers.yaml")).resolve())
-    plc["port"] = modbus_port
-    source = data["source"]
-    ati = source.setdefault("ati", {})
-    ati["dbc"] = str((base / ati.get("dbc", "ati_netft_can.dbc")).resolve())
-    source["can"]["channel"] = group
-    source["can"].setdefault("options", {})["port"] = can_port
-    data.setdefault("ads", {})["port"] = free_port()         # parallel runs never share ADS's 48898
-    data.setdefault("monitoring", {})["port"] = free_port()
-    deep_update(data, overrides or {})
-    path = folder / "service.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
+    """The scenario's service config with this run's model, bus and ports, and ``overrides``."""
+    run = {"model": {"file": str(Path(model_path).resolve())}, "plc": {"port": modbus_port},
+           "source": {"can": {"channel": group, "options": {"port": can_port}}}}
+    return write_config(folder, deep_update(run, overrides or {}), source=scenario.resolve(scenario.service))
 
 
 class ServiceProcess:
     """`stiffcomp run` as a child process; its log goes to a file (a pipe could fill and block it)."""
 
-    def __init__(self, config: Path, folder: Path, index: int = 0):
+    def __init__(self, config: Path, folder: Path, index: int = 0, log_level: str = "INFO"):
+        mon = load_config(config).monitoring
+        if not mon.enabled:
+            raise HilError(f"{config}: monitoring.enabled is false: the HIL waits for the service's /health")
+        self.health_at = ("127.0.0.1", mon.port)
         self.stats = folder / f"service_stats_{index}.json"
         self.log_path = folder / f"service_{index}.log"
         self._log = self.log_path.open("w")
         self.proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(config),
-                                      "--stats-json", str(self.stats)], cwd=ROOT, stdout=subprocess.DEVNULL,
-                                     stderr=self._log)
+                                      "--stats-json", str(self.stats), "--log-level", log_level], cwd=ROOT,
+                                     stdout=subprocess.DEVNULL, stderr=self._log)
 
     def wait_running(self, timeout: float = START_TIMEOUT_S) -> None:
+        """Until the service's ``GET /health`` reports its task running (task state RUN). Healthy or not:
+        before the PLC connects, a heartbeat fault may be latched, and the PLC resets it."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            if "service running" in self.log_path.read_text():
-                return
             if self.proc.poll() is not None:
                 raise HilError(f"the service exited with {self.proc.returncode}:\n{self.log_path.read_text()}")
+            try:
+                if read_health(*self.health_at, timeout_s=1.0).get("task_state") == TaskState.RUN:
+                    return
+            except (OSError, http.client.HTTPException, ValueError):
+                pass                                    # not serving yet
             time.sleep(0.05)
-        raise HilError("the service did not start in time")
+        raise HilError(f"the service did not report its task running at {self.health_at[0]}:{self.health_at[1]}"
+                       f"/health within {timeout:g} s")
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -161,10 +158,10 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
            "counts_per_torque": cfg.source.ati.counts_per_torque}
     bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}
     sensor = ctx.Process(target=_sensor_entry, name="hil-sensor", args=(
-        scenario, robot_path, cfg.gravity, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
+        scenario, robot_path, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
         truth.input_map()))
     plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
-        scenario, robot_path, str(cfg.resolve(cfg.plc.register_map)), modbus_port, compensate, str(out_file), go,
+        scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
         plc_ready, faults.plc))
     procs = [sensor, plc]
     try:
@@ -185,7 +182,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         plc.join(world_len + scenario.circle.tail_s + 60.0)
         if plc.exitcode != 0:
             raise HilError(f"the PLC process ended with {plc.exitcode}")
-        unmapped = probe_unmapped(modbus_port, RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)))
+        unmapped = probe_unmapped(modbus_port, cfg.register_map())
     finally:
         stop.set()
         for s in services:
@@ -237,9 +234,9 @@ def _sleep_until(t: float) -> None:
         time.sleep(min(d, 0.05))
 
 
-def _sensor_entry(scenario, robot_path, gravity, bus_kw, ati, go, ready, stop, fault, input_map) -> None:
-    sensor_main(scenario, load_robot(robot_path), gravity, bus_kw, ati, go, ready, stop, fault, input_map)
+def _sensor_entry(scenario, robot_path, bus_kw, ati, go, ready, stop, fault, input_map) -> None:
+    sensor_main(scenario, load_robot(robot_path), bus_kw, ati, go, ready, stop, fault, input_map)
 
 
-def _plc_entry(scenario, robot_path, register_map, port, compensate, out_file, go, ready, faults) -> None:
-    plc_main(scenario, load_robot(robot_path), register_map, port, compensate, out_file, go, ready, faults)
+def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:
+    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, faults)

@@ -7,11 +7,11 @@ from typing import Literal
 
 from pydantic import Field
 
+from service.config import GravityConfig
 from stiffness.yamlio import Strict, read_yaml, validate
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIO = ROOT / "config" / "hil" / "circle.yaml"
-
 
 
 class CircleConfig(Strict):
@@ -67,6 +67,7 @@ class Scenario(Strict):
     sensor: SensorConfig = Field(default_factory=SensorConfig)
     robot: RobotStubConfig = Field(default_factory=RobotStubConfig)
     plc: PlcConfig = Field(default_factory=PlcConfig)
+    payload: GravityConfig = Field(default_factory=GravityConfig)     # the truth: what the sensor carries
 
     path: Path = Field(default=Path("<scenario>"), exclude=True)
 

@@ -86,13 +86,15 @@ class HilSensor(VirtualAtiSensor):
         return self.protocol.encode(w, 0, self.counter)
 
 
-def sensor_main(scenario, robot, gravity, bus_kw: dict, ati: dict, go_value, ready, stop,
+def sensor_main(scenario, robot, bus_kw: dict, ati: dict, go_value, ready, stop,
                 fault: tuple[str, float] | None = None, input_map: np.ndarray | None = None) -> None:
     """Process entry: run the sensor until ``stop`` is set (multiprocessing Events and a Value).
 
-    ``input_map``: the truth's L (W_true = L W_measured), how the sensor is turned (None: aligned).
+    The sensor carries the scenario's true ``payload`` (not the service config's ``gravity``, which
+    the HIL checks). ``input_map``: the truth's L (W_true = L W_measured), how the sensor is turned
+    (None: aligned).
     """
-    world = World(scenario, robot, gravity, input_map)
+    world = World(scenario, robot, scenario.payload, input_map)
 
     def go() -> float | None:
         v = go_value.value

@@ -18,6 +18,7 @@ import numpy as np
 import yaml
 
 from service.ati import AtiProtocol
+from service.config import load_config
 from service.sources.replay import write_log
 from stiffness.effects import EFFECTS
 from stiffness.effects.joint_spring import JointSpring
@@ -55,20 +56,28 @@ def wait_for_port(port: int, proc: subprocess.Popen | None = None, timeout_s: fl
     raise RuntimeError(f"nothing served {host}:{port} within {timeout_s:g} s")
 
 
-def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml") -> Path:
-    """config/default.yaml with absolute paths and ``overrides`` merged in, written to ``folder``. ADS and
-    monitoring listen on free ports (not 48898 and 9020), so services of parallel tests never collide."""
-    data = yaml.safe_load((CONFIG / "default.yaml").read_text())
-    data["model"]["file"] = str(CONFIG / "models" / "kr125_6dof.yaml")
-    data["plc"]["register_map"] = str(CONFIG / "registers.yaml")
-    data["source"]["replay"]["file"] = str(CONFIG / "replay" / "demo_milling.blf")
-    data["source"]["ati"]["dbc"] = str(CONFIG / "ati_netft_can.dbc")
-    data["ads"]["port"] = free_port()
-    data["monitoring"]["port"] = free_port()
+def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: str = "service.yaml",
+                 source: Path = CONFIG / "default.yaml") -> Path:
+    """The service config ``source`` (config/default.yaml) with ``overrides`` merged in, written to
+    ``folder``: the files it names made absolute by the config itself (`ServiceConfig.files`), so the copy
+    names the same files. ADS and monitoring listen on free ports (not 48898 and 9020), so services of
+    parallel tests and HIL runs never collide."""
+    cfg = load_config(source)
+    data = yaml.safe_load(Path(source).read_text())
+    for key, rel in cfg.files().items():
+        deep_update(data, _nested(key, str(cfg.resolve(rel).resolve())))
+    deep_update(data, {"ads": {"port": free_port()}, "monitoring": {"port": free_port()}})
     deep_update(data, overrides or {})
     path = Path(folder) / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def _nested(key: str, value: Any) -> dict[str, Any]:
+    """``{"a": {"b": value}}`` for the dotted key ``"a.b"``."""
+    for part in reversed(key.split(".")):
+        value = {part: value}
+    return value
 
 
 def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:

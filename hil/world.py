@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.gravity import GravityCompensator
 from stiffness.robot import Robot
 
 from .milling import MillingForce
 from .path import CirclePath
+from .payload import TruePayload
 from .scenario import Scenario
 
 
@@ -28,25 +28,24 @@ class World:
     ----------
     scenario : Scenario
     robot : Robot
-    gravity_section : the service config's ``gravity`` section (payload and bias the sensor reports)
+    payload : the true payload and bias the sensor reports (the scenario's ``payload`` section, or any
+        section with its keys; `hil.payload.TruePayload`); None: none
     input_map : (6, 6) the truth's L (W_true = L W_measured); None: a sensor aligned with its frame
     """
 
-    def __init__(self, scenario: Scenario, robot: Robot, gravity_section=None,
-                 input_map: np.ndarray | None = None):
+    def __init__(self, scenario: Scenario, robot: Robot, payload=None, input_map: np.ndarray | None = None):
         self.robot = robot
         self.path = CirclePath(robot, scenario.circle)
         self.milling = MillingForce(scenario.milling, scenario.circle.feed_mm_s, self.path.duration)
         self.axis_out = -self.path.R_tool[:, 2]
-        self.gravity = GravityCompensator.from_config(gravity_section) if gravity_section is not None else None
+        self.gravity = TruePayload(payload) if payload is not None else None
         self.t_start = -self.path.lead_s
         self.t_end = self.milling.end_s + self.path.tail_s
         F = robot.frames(np.radians(scenario.circle.center_q_deg)[None])
         T_s = robot.sensor_pose(F)[0]
         self._R_s = T_s[:3, :3]
         self._lever = F[0, 7, :3, 3] - T_s[:3, 3]           # sensor origin -> TCP, base axes
-        self._payload = (np.array(self.gravity.payload_wrench(self._R_s)) if self.gravity is not None
-                         else np.zeros(6))
+        self._payload = self.gravity.wrench(self._R_s) if self.gravity is not None else np.zeros(6)
         self._bias = self.gravity.bias if self.gravity is not None else np.zeros(6)
         L = np.eye(6) if input_map is None else np.asarray(input_map, dtype=float)
         self.measured_from_true = np.linalg.inv(L)                 # L^-1

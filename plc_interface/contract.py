@@ -14,16 +14,19 @@ record by name, and a map that names a value the contract does not declare is re
 Adding a value for the PLC: declare it here (a `Value` whose ``source`` names the cycle quantity it
 publishes) and bind it in the register map YAML. docs/architecture.md walks through an example.
 
-The ``source`` of a to_plc value is a dotted path with an optional index, evaluated once per cycle on
-the cycle's namespace: ``task`` (the task's counters, `TaskValues`) and ``signals`` (the signal path's
-outputs of the cycle, `service.pipeline.Signals`), e.g. ``signals.correction[0]``.
+The ``source`` of a to_plc value is a dotted path with an optional index, read once per cycle (by
+operator getters compiled once, no ``eval``) from the cycle's records: ``task`` (the task's counters,
+`TaskValues`) and ``signals`` (the signal path's outputs of the cycle, `service.pipeline.Signals`),
+e.g. ``signals.correction[0]``.
 """
 
 from __future__ import annotations
 
 import enum
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from operator import attrgetter, itemgetter
 from typing import Any, NamedTuple
 
 from .errors import ContractError
@@ -183,34 +186,95 @@ class TaskValues(NamedTuple):
 
 
 _SOURCE = re.compile(r"^(task|signals)\.([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
+_ROOTS = ("task", "signals")
 
 
-def _expression(source: str) -> str:
-    """The Python expression of a source path (validated: a root, a name and an optional index only)."""
-    if _SOURCE.match(source) is None:
-        raise ContractError(f"contract source {source!r} must be 'task.NAME' or 'signals.NAME[INDEX]'")
-    return source
+class Source(NamedTuple):
+    """A parsed ``source`` path: the root (``task`` or ``signals``), the attribute and an optional index."""
+
+    root: str
+    name: str
+    index: int | None
+
+    @classmethod
+    def parse(cls, text: str) -> Source:
+        m = _SOURCE.match(text)
+        if m is None:
+            raise ContractError(f"contract source {text!r} must be 'task.NAME' or 'signals.NAME[INDEX]'")
+        root, name, index = m.groups()
+        return cls(root, name, None if index is None else int(index))
+
+    def read(self, task: TaskValues, signals: Any) -> Any:
+        """The value on one cycle's records (the slow way: one source at a time)."""
+        v = getattr(task if self.root == "task" else signals, self.name)
+        return v if self.index is None else v[self.index]
+
+
+def _tuple_getter(make: Callable[..., Callable[[Any], Any]], keys: list) -> Callable[[Any], tuple]:
+    """``make(*keys)`` (operator.attrgetter or itemgetter), returning a tuple for any number of keys."""
+    if len(keys) > 1:
+        return make(*keys)
+    if keys:
+        one = make(keys[0])
+        return lambda obj: (one(obj),)
+    return lambda obj: ()
+
+
+def _compile(sources: tuple[Source, ...], task: TaskValues, signals: Any) -> Callable[[TaskValues, Any], tuple]:
+    """One getter of all ``sources``, in their order, for records shaped as ``task`` and ``signals``.
+
+    One attrgetter per root reads every attribute a source names; the lists a source indexes are
+    appended whole (their lengths taken from these records); one itemgetter then picks the values in
+    the order of ``sources``. A list whose length changes later raises ContractError.
+    """
+    names = {r: list(dict.fromkeys(s.name for s in sources if s.root == r)) for r in _ROOTS}
+    read_task, read_signals = (_tuple_getter(attrgetter, names[r]) for r in _ROOTS)
+    whole = [Source(r, n, None) for r in _ROOTS for n in names[r]]          # what the attrgetters return
+    lists = list(dict.fromkeys(Source(s.root, s.name, None) for s in sources if s.index is not None))
+    the_lists = _tuple_getter(itemgetter, [whole.index(s) for s in lists])
+    sizes = [len(s.read(task, signals)) for s in lists]
+    flat = whole + [s._replace(index=i) for s, n in zip(lists, sizes) for i in range(n)]
+    order = _tuple_getter(itemgetter, [flat.index(s) for s in sources])
+    size = len(flat)
+
+    def values(task: TaskValues, signals: Any) -> tuple:
+        got = read_task(task) + read_signals(signals)
+        out = list(got)
+        for seq in the_lists(got):
+            out += seq
+        if len(out) != size:
+            raise ContractError(f"the lists {', '.join(f'{s.root}.{s.name}' for s in lists)} hold "
+                                f"{[len(seq) for seq in the_lists(got)]} values, at start-up {sizes}")
+        return order(out)
+
+    return values
+
+
+def _unchecked(task: TaskValues, signals: Any) -> tuple:
+    raise ContractError("Producer.check(task, signals) must run before the first record is built")
 
 
 class Producer:
     """Builds the `ToPlc` record of a cycle from its ``task`` and ``signals`` by the contract's sources.
 
-    The sources are compiled once into one function (each path is checked against a strict pattern
-    first, so the compiled text holds names and indices only); `check` evaluates every source on
-    sample records so a source that names a missing quantity fails at start-up, not in the cycle.
+    Each source path is parsed once into a `Source` (a root, a name and an index, checked against a
+    strict pattern; no ``eval``). `check` reads every source on the first records, so a source that
+    names a missing quantity fails at start-up, not in the cycle, and compiles the cycle's getter from
+    operator.attrgetter/itemgetter for those records.
     """
 
     def __init__(self) -> None:
-        body = ", ".join(_expression(v.source) for v in TO_PLC)
-        self._values = eval(f"lambda task, signals: ({body},)", {})
+        self._sources = tuple(Source.parse(v.source) for v in TO_PLC)
+        self._values: Callable[[TaskValues, Any], tuple] = _unchecked
         self._make = ToPlc._make
 
     def check(self, task: TaskValues, signals: Any) -> None:
-        for v in TO_PLC:
+        for v, s in zip(TO_PLC, self._sources):
             try:
-                float(eval(f"lambda task, signals: {v.source}", {})(task, signals))
+                float(s.read(task, signals))
             except (AttributeError, IndexError, TypeError, ValueError) as e:
                 raise ContractError(f"contract value {v.name!r}: source {v.source!r} does not resolve: {e}") from e
+        self._values = _compile(self._sources, task, signals)
 
     def __call__(self, task: TaskValues, signals: Any) -> ToPlc:
         return self._make(self._values(task, signals))

@@ -7,7 +7,7 @@ ring, so the histograms miss no cycle). From that it answers
 * ``GET /health``: `plc_interface.health.HealthMonitor`'s verdict as JSON ``{"healthy", "reason",
   ...}`` (200 healthy, 503 not): the task runs (its cycle count rose within the last second, state
   RUN), no fault is latched, and the share of exceeded deadlines over the last 10 s is below
-  ``health_max_exceed_rate``. `stiffcomp health` asks it.
+  ``health_max_exceed_rate``. `read_health` asks it: `stiffcomp health` and the HIL (for readiness).
 * ``GET /metrics``: the Prometheus text exposition, when ``monitoring.metrics`` is on.
 
 HTTP is served by the standard library's WSGI server in a thread of the I/O process (the cycle's
@@ -17,6 +17,7 @@ process is untouched); the sampler runs on the loop, the handler reads what it l
 from __future__ import annotations
 
 import asyncio
+import http.client
 import json
 import logging
 import threading
@@ -32,6 +33,33 @@ from .settings import MonitoringSettings
 log = logging.getLogger("stiffcomp.monitoring")
 
 SAMPLE_S = 0.1
+
+
+def read_health(host: str, port: int, timeout_s: float = 1.0) -> dict:
+    """The ``GET /health`` JSON of the service's I/O process at ``host:port``, within ``timeout_s`` in total.
+
+    Raises OSError (or http.client.HTTPException) when nothing answers in time, ValueError naming the
+    address and the HTTP status when the answer is not the health JSON (a dict with ``healthy``).
+    """
+    deadline = time.monotonic() + timeout_s
+    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
+    try:
+        conn.connect()
+        conn.sock.settimeout(max(deadline - time.monotonic(), 0.01))
+        conn.request("GET", "/health", headers={"Accept": "application/json"})
+        resp = conn.getresponse()
+        body = resp.read(64 * 1024)
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{host}:{port}/health took longer than {timeout_s:g} s")
+    finally:
+        conn.close()
+    try:
+        answer = json.loads(body)
+    except ValueError:
+        answer = None
+    if not isinstance(answer, dict) or "healthy" not in answer:
+        raise ValueError(f"{host}:{port}/health answered HTTP {resp.status} without the health JSON")
+    return answer
 
 
 class _Quiet(WSGIRequestHandler):

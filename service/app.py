@@ -27,10 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from plc_interface.contract import Producer, TaskState, TaskValues, ToPlc, stopped
-from plc_interface.errors import RegisterMapError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
-from plc_interface.register_map import RegisterMap
 from stiffness.errors import StiffnessError
 from stiffness.model import StiffnessModel
 
@@ -59,10 +57,7 @@ class Service:
         except StiffnessError as e:
             raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
         self.cycle = Cycle.from_config(cfg, self.model)
-        try:
-            self.rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
-        except RegisterMapError as e:
-            raise ServiceConfigError(f"{cfg.path}: plc.register_map = {cfg.plc.register_map!r}: {e}") from e
+        self.rmap = cfg.register_map()
         self.period = cfg.cycle.period_ms / 1000.0
         self.info = TaskInfo(self.period, cfg.cycle.history)
         self.produce = Producer()

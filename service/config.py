@@ -20,6 +20,8 @@ from pathlib import Path
 from pydantic import Field, ValidationError
 
 from plc_interface.ads.settings import AdsSettings
+from plc_interface.errors import RegisterMapError
+from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
@@ -55,6 +57,22 @@ class ServiceConfig(Strict):
         """A path written in the config, relative to the config file's folder."""
         p = Path(relative)
         return p if p.is_absolute() else self.path.parent / p
+
+    def files(self) -> dict[str, str]:
+        """Every file the config names and uses, by dotted key, as written (`resolve` finds it)."""
+        files = {"model.file": self.model.file, "plc.register_map": self.plc.register_map,
+                 "source.ati.dbc": self.source.ati.dbc}
+        if self.source.type == "replay" and self.source.replay is not None:
+            files["source.replay.file"] = self.source.replay.file
+        return files
+
+    def register_map(self) -> RegisterMap:
+        """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
+        naming this config file, the key and its value, then what is wrong in the map."""
+        try:
+            return RegisterMap.from_yaml(self.resolve(self.plc.register_map))
+        except RegisterMapError as e:
+            raise ServiceConfigError(f"{self.path}: plc.register_map = {self.plc.register_map!r}: {e}") from e
 
 
 def load_config(path: str | Path | None = None) -> ServiceConfig:
@@ -99,10 +117,6 @@ def check_consistency(cfg: ServiceConfig) -> None:
     if 0 < hb <= cfg.cycle.period_ms:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer "
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
-    files = [("model.file", cfg.model.file), ("plc.register_map", cfg.plc.register_map),
-             ("source.ati.dbc", cfg.source.ati.dbc)]
-    if cfg.source.type == "replay" and cfg.source.replay is not None:
-        files.append(("source.replay.file", cfg.source.replay.file))
-    for key, rel in files:
+    for key, rel in cfg.files().items():
         if not cfg.resolve(rel).exists():
             raise ServiceConfigError(f"{src}: {key} = {rel!r}: file {cfg.resolve(rel)} not found")

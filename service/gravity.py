@@ -1,4 +1,4 @@
-"""Gravity compensation of the sensor wrench (the real-time part; `service.payload` identifies the payload).
+"""Gravity compensation of the sensor wrench (the real-time part; `stiffness.payload` identifies the payload).
 
 A static payload of mass m with centre of gravity c (sensor frame) loads the sensor with
 
@@ -12,7 +12,7 @@ sensor reads W = W_ext + [F_g; T_g] + b, with b its bias, so the external wrench
 The bodies (sensor, tool, fixture, workpiece) combine into one mass and one centre of gravity. Tare
 adds the current external wrench to the bias, so the load at that moment reads zero.
 
-The offline identification of m, c and b from static poses is `service.payload`.
+The offline identification of m, c and b from static poses is `stiffness.payload`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from pydantic import Field
 
 from stiffness.yamlio import Strict
 
-BODIES = ("sensor", "tool", "fixture", "workpiece")
+# the bodies the sensor carries (the robot's frames are `stiffness.robot.BODIES`)
+PAYLOAD_BODIES = ("sensor", "tool", "fixture", "workpiece")
 
 
 class BodyConfig(Strict):
@@ -64,8 +65,8 @@ class GravityCompensator:
 
     @classmethod
     def from_config(cls, section: GravityConfig) -> GravityCompensator:
-        masses = np.array([getattr(section, b).mass_kg for b in BODIES])
-        cogs = np.array([getattr(section, b).cog_mm for b in BODIES]) / 1000.0
+        masses = np.array([getattr(section, b).mass_kg for b in PAYLOAD_BODIES])
+        cogs = np.array([getattr(section, b).cog_mm for b in PAYLOAD_BODIES]) / 1000.0
         m = masses.sum()
         cog = (masses[:, None] * cogs).sum(0) / m if m > 0 else np.zeros(3)
         return cls(m, cog, np.array(section.bias), np.array(section.g_mps2))

@@ -1,5 +1,6 @@
 """Model against measurement without fitting: error metrics overall and by body, component,
-configuration and load direction, for one model or two side by side (docs/compare.md).
+configuration and load direction, for one model or two side by side (docs/compare.md). The HTML
+report of a comparison is `stiffness.compare_report`.
 
 Metrics, for a set of rows and one kind (position: dx, dy, dz in mm; rotation: rx, ry, rz in deg),
 with e = measured - predicted:
@@ -18,6 +19,7 @@ The load direction of a reading is the dominant axis of the measured sensor forc
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,12 +28,10 @@ import numpy as np
 from .identify import rms
 from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
-from .report import Report
 from .robot import BODIES
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z", "none")
 NONE_FRACTION = 0.05
-KINDS = (("position", "mm", slice(0, 3)), ("rotation", "deg", slice(3, 6)))
 NOISE_LEVEL = 1.5   # RMS below this many times the model's expected noise: "at the noise level"
 NOISE_FAR = 3.0
 
@@ -50,17 +50,49 @@ def r2(y: np.ndarray, yhat: np.ndarray) -> float:
     return 1.0 - ss_res / ss_tot
 
 
+def _rms_error(y: np.ndarray, yhat: np.ndarray) -> float:
+    return rms(y - yhat)
+
+
+def _max_error(y: np.ndarray, yhat: np.ndarray) -> float:
+    return _max_abs(y - yhat)
+
+
+def _r2_of_rows(y: np.ndarray, yhat: np.ndarray) -> float:
+    return r2(y, yhat) if len(y) else float("nan")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One error metric of a set of rows: its key in the metrics (and the JSON), its words in the
+    reports, the kind of deflection it measures and how."""
+
+    key: str                                              # e.g. "rms_position_mm"
+    label: str                                            # the overall table's row: "RMS position [mm]"
+    column: str                                           # a group table's column: "RMS mm"
+    kind: str                                             # "position" (dx, dy, dz) or "rotation" (rx, ry, rz)
+    stat: Callable[[np.ndarray, np.ndarray], float]       # (measured, predicted) of that kind -> value
+
+    def of(self, y: np.ndarray, yhat: np.ndarray) -> float:
+        sl = KIND_COLUMNS[self.kind]
+        return self.stat(y[:, sl], yhat[:, sl])
+
+
+KIND_COLUMNS = {"position": slice(0, 3), "rotation": slice(3, 6)}
+METRICS = (
+    Metric("rms_position_mm", "RMS position [mm]", "RMS mm", "position", _rms_error),
+    Metric("rms_rotation_deg", "RMS rotation [deg]", "RMS deg", "rotation", _rms_error),
+    Metric("max_position_mm", "max |error| position [mm]", "max mm", "position", _max_error),
+    Metric("max_rotation_deg", "max |error| rotation [deg]", "max deg", "rotation", _max_error),
+    Metric("r2_position", "R² position", "R² pos", "position", _r2_of_rows),
+    Metric("r2_rotation", "R² rotation", "R² rot", "rotation", _r2_of_rows),
+)
+
+
 def summary(y: np.ndarray, yhat: np.ndarray) -> dict[str, Any]:
-    """RMS, max |error| and R^2 of position (mm) and rotation (deg) for rows y, yhat (n, 6)."""
-    out: dict[str, Any] = {}
-    for kind, unit, sl in KINDS:
-        e = y[:, sl] - yhat[:, sl]
-        out[f"rms_{kind}_{unit}"] = rms(e)
-    for kind, unit, sl in KINDS:
-        e = y[:, sl] - yhat[:, sl]
-        out[f"max_{kind}_{unit}"] = _max_abs(e)
-    for kind, _, sl in KINDS:
-        out[f"r2_{kind}"] = r2(y[:, sl], yhat[:, sl]) if len(y) else float("nan")
+    """Every `METRICS` entry (RMS, max |error| and R² of position in mm and rotation in deg) and the
+    number of rows, for rows y, yhat (n, 6)."""
+    out: dict[str, Any] = {m.key: m.of(y, yhat) for m in METRICS}
     out["n_rows"] = len(y)
     return out
 
@@ -129,8 +161,7 @@ class Comparison:
             return None
         a, b = self.models[0].metrics, self.models[1].metrics
         out = {}
-        for key in ("rms_position_mm", "rms_rotation_deg", "max_position_mm", "max_rotation_deg",
-                    "r2_position", "r2_rotation"):
+        for key in (m.key for m in METRICS):
             rel = (b[key] - a[key]) / a[key] if a[key] else float("nan")
             out[key] = {"from": a[key], "to": b[key], "change": b[key] - a[key], "relative": rel}
         return out
@@ -220,83 +251,3 @@ def compare(models: list[StiffnessModel], data: Dataset) -> Comparison:
         names = [f"{n} ({k + 1})" for k, n in enumerate(names)]
     results = [evaluate(m, data, direction, n) for m, n in zip(models, names)]
     return Comparison(data, direction, threshold, results)
-
-
-# -- the report ---------------------------------------------------------------------------------
-def build_report(comp: Comparison, command: str = "", plots: bool = True) -> Report:
-    """The HTML report: verdict, overall table, tables by group, RMS bars and Fig. 4 grids."""
-    from . import plots as P
-
-    names = [m.name for m in comp.models]
-    title = "Model against measurement: " + " vs ".join(names)
-    rep = Report(title, f"{comp.data.source}: {len(comp.data)} rows, {len(comp.data.configs)} configurations; "
-                        "predicted without fitting")
-    text, kind = comp.verdict()
-    rep.verdict(text, kind)
-    rep.heading("Overall")
-    header = ["metric", *names] + (["change"] if len(names) > 1 else [])
-    ch = comp.change()
-    rows = []
-    for key, label in OVERALL:
-        row = [label, *(m.metrics[key] for m in comp.models)]
-        if ch:
-            row.append(change_text(key, ch[key]))
-        rows.append(row)
-    rep.table(header, rows, "RMS per component; max |error| over rows and components; R² per kind")
-    for group, what in (("by_body", "body"), ("by_config", "configuration"), ("by_load_direction", "load direction")):
-        rep.heading(f"By {what}")
-        rep.table(*_group_table(comp, group, what))
-        if plots:
-            noise = comp.models[-1].noise
-            rep.figure(P.rms_bars([(m.name, m.metrics[group]) for m in comp.models], what,
-                                  (noise["position_mm"], noise["rotation_deg"])),
-                       f"rms_{group}", f"RMS error per {what}")
-    rep.heading("By component")
-    cols = ["component", "unit"] + [f"{n}: {s}" for n in names for s in ("RMS", "max", "R²")]
-    crow = [[c, comp.models[0].metrics["by_component"][c]["unit"],
-             *(m.metrics["by_component"][c][s] for m in comp.models for s in ("rms", "max", "r2"))]
-            for c in COMPONENTS]
-    rep.table(cols, crow)
-    if plots:
-        rep.heading("Deflection against load (Fig. 4)")
-        rep.paragraph("Each grid shows one component for every measured body (rows) and load axis "
-                      f"(columns): measured readings as dots, the model{'s' if len(names) > 1 else ''} as "
-                      "lines in the order the readings were taken, coloured by configuration. "
-                      f"Readings with |F| below {comp.threshold_N:.3g} N count as unloaded and appear in "
-                      "every column.")
-        preds = [(m.name, m.predicted) for m in comp.models]
-        for c in COMPONENTS:
-            rep.figure(P.deflection_vs_load(comp.data, comp.direction, preds, c), f"load_{c}",
-                       f"{c} [{'mm' if c.startswith('d') else 'deg'}] against load", dpi=80)
-    if command:
-        rep.heading("Reproduce")
-        rep.preformatted(command)
-    return rep
-
-
-OVERALL = (("rms_position_mm", "RMS position [mm]"), ("rms_rotation_deg", "RMS rotation [deg]"),
-           ("max_position_mm", "max |error| position [mm]"), ("max_rotation_deg", "max |error| rotation [deg]"),
-           ("r2_position", "R² position"), ("r2_rotation", "R² rotation"))
-
-
-def change_text(key: str, ch: dict[str, float]) -> str | None:
-    """Relative change for errors, absolute change for R² (a fraction already)."""
-    if key.startswith("r2_"):
-        return f"{ch['change']:+.3f}" if np.isfinite(ch["change"]) else None
-    return f"{ch['relative']:+.1%}" if np.isfinite(ch["relative"]) else None
-
-
-def _group_table(comp: Comparison, group: str, what: str) -> tuple[list[str], list[list], str]:
-    names = [m.name for m in comp.models]
-    header = [what, "rows"] + [f"{n}: {s}" for n in names for s in ("RMS mm", "RMS deg", "max mm", "max deg",
-                                                                     "R² pos", "R² rot")]
-    keys = list(comp.models[0].metrics[group])
-    rows = []
-    for k in keys:
-        row: list[Any] = [k, comp.models[0].metrics[group][k]["n_rows"]]
-        for m in comp.models:
-            g = m.metrics[group][k]
-            row += [g["rms_position_mm"], g["rms_rotation_deg"], g["max_position_mm"], g["max_rotation_deg"],
-                    g["r2_position"], g["r2_rotation"]]
-        rows.append(row)
-    return header, rows, f"Error by {what}"

@@ -6,7 +6,8 @@ import math
 import shlex
 import sys
 
-from stiffness.compare import OVERALL, Comparison, build_report, change_text, compare
+from stiffness.compare import METRICS, Comparison, compare
+from stiffness.compare_report import GROUPS, build_report, change_text
 from stiffness.errors import ConfigError
 from stiffness.model import StiffnessModel
 
@@ -58,13 +59,12 @@ def print_text(comp: Comparison) -> None:
           "(predicted without fitting)")
     ch = comp.change()
     print(f"  {'':28}" + "".join(f"{n:>{w}}" for n in names) + (f"{'change':>10}" if ch else ""))
-    for key, label in OVERALL:
-        line = f"  {label:28}" + "".join(f"{_fmt(m.metrics[key]):>{w}}" for m in comp.models)
+    for metric in METRICS:
+        line = f"  {metric.label:28}" + "".join(f"{_fmt(m.metrics[metric.key]):>{w}}" for m in comp.models)
         if ch:
-            line += f"{change_text(key, ch[key]) or '-':>10}"
+            line += f"{change_text(metric.key, ch[metric.key]) or '-':>10}"
         print(line)
-    for group, what in (("by_body", "body"), ("by_config", "configuration"),
-                        ("by_load_direction", "load direction")):
+    for group, what in GROUPS:
         print(f"  RMS by {what} (mm / deg):")
         for k in comp.models[0].metrics[group]:
             cells = "".join(f"{_fmt(m.metrics[group][k]['rms_position_mm']) + ' / ' + _fmt(m.metrics[group][k]['rms_rotation_deg']):>{w + 8}}"

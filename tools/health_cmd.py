@@ -11,9 +11,8 @@ Exit code 0 when healthy, 1 otherwise (also when nothing answers); the reason is
 from __future__ import annotations
 
 import http.client
-import json
-import time
 
+from plc_interface.monitoring import read_health
 from service.config import DEFAULT_CONFIG, load_config
 
 TIMEOUT_S = 1.0
@@ -39,24 +38,11 @@ def run(args) -> int:
 
 def check(host: str, port: int, timeout_s: float = TIMEOUT_S) -> tuple[bool, str]:
     """(healthy, reason) from ``GET http://host:port/health``, within ``timeout_s`` in total."""
-    deadline = time.monotonic() + timeout_s
-    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
     try:
-        conn.connect()
-        conn.sock.settimeout(max(deadline - time.monotonic(), 0.01))
-        conn.request("GET", "/health", headers={"Accept": "application/json"})
-        resp = conn.getresponse()
-        body = resp.read(64 * 1024)
-        if time.monotonic() > deadline:
-            raise TimeoutError
+        answer = read_health(host, port, timeout_s)
     except (OSError, http.client.HTTPException):
         return False, f"no answer from the service's I/O process at {host}:{port}"
-    finally:
-        conn.close()
-    try:
-        answer = json.loads(body)
-        healthy = answer["healthy"]
-    except (ValueError, KeyError, TypeError):
-        return False, f"{host}:{port}/health answered HTTP {resp.status} without the health JSON"
+    except ValueError as e:
+        return False, str(e)
     reason = " ".join(str(answer.get("reason") or "no reason given").split())   # one line, always
-    return healthy is True, reason
+    return answer["healthy"] is True, reason

@@ -18,8 +18,8 @@ import numpy as np
 
 from service.config import DEFAULT_CONFIG, load_config
 from service.fast_effects import input_rotation
-from service.payload import identify_payload, read_poses
 from stiffness.model import StiffnessModel
+from stiffness.payload import identify_payload, read_poses
 
 
 def register(sub) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 
-from plc_interface.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, load_config
 
 
@@ -17,7 +16,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cfg = load_config(args.config)
-    rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
+    rmap = cfg.register_map()
     if args.json:
         print(json.dumps(rmap.as_list(), indent=2))
         return 0

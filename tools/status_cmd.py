@@ -127,7 +127,7 @@ def reader_for(cfg, via: str, host: str | None, port: int | None):
             raise ValueError(f"plc.role is {cfg.plc.role} and ads.enabled is false: the service serves "
                              "neither Modbus nor ADS to read its status from (--via modbus --host H --port P "
                              "reads another one)")
-    rmap = RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map))
+    rmap = cfg.register_map()
     local = {"0.0.0.0": "127.0.0.1"}
     if via == "modbus":
         return BlockReader(rmap, host or local.get(cfg.plc.host, cfg.plc.host), port or cfg.plc.port), via

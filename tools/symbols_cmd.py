@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 from plc_interface.ads import symbols_from_map
-from plc_interface.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, load_config
 
 
@@ -18,7 +17,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cfg = load_config(args.config)
-    symbols = symbols_from_map(RegisterMap.from_yaml(cfg.resolve(cfg.plc.register_map)))
+    symbols = symbols_from_map(cfg.register_map())
     if args.json:
         print(json.dumps([s.as_dict() for s in symbols], indent=2))
         return 0

@@ -1,4 +1,4 @@
-"""Payload identification from static poses (offline; behind `stiffcomp payload`).
+"""Payload identification from static poses (offline science; behind `stiffcomp payload`).
 
 For poses k with sensor orientation R_k and static readings W_k, with g_k = R_k^T g,
 
@@ -43,7 +43,6 @@ def read_poses(path: str) -> np.ndarray:
     if len(rows) < 3:
         raise DataError(f"{path}: {len(rows)} pose(s); at least 3 are needed (better 6 or more)")
     return np.array(rows)
-
 
 
 @dataclass
