@@ -125,8 +125,8 @@ def urdf_text(robot) -> str:
 
     L = [_rz(o) @ _tz(d) @ _tx(a) @ _rx(al) for o, d, a, al in zip(robot.offset, robot.d, robot.a, robot.alpha)]
     lines = ['<?xml version="1.0"?>',
-             f"<!-- {robot.name}: written by stiffness.urdf.urdf_text from {Path(robot.source).name}; "
-             "DH frame i is joint i's frame moved by the next joint's origin (docs/model_format.md) -->",
+             (f"<!-- {robot.name}: written by stiffness.urdf.urdf_text from {Path(robot.source).name}; "
+              "DH frame i is joint i's frame moved by the next joint's origin (docs/model_format.md) -->"),
              f'<robot name="{robot.name.replace(" ", "_")}">', '  <link name="base_link"/>']
     for i in range(6):
         com = (L[i] @ np.append(robot.link_com[i], 1.0))[:3]
