@@ -79,6 +79,10 @@ class Statics:
         self.g = g
         self.arm_loaded = robot.has_masses
         self.balancer = robot.balancer
+        self._balancer_gain = np.zeros(6)           # tau_balancer = gain * tau_arm: -share at its joint
+        if robot.balancer is not None:
+            self._balancer_gain[robot.balancer.joint - 1] = -robot.balancer.share
+        self._with_balancer = 1.0 + self._balancer_gain
         self.pm = pin.Model(robot.pin_model)
         self.pm.gravity = pin.Motion(np.concatenate([g, np.zeros(3)]))
         sensor = self.pm.frames[self.pm.getFrameId("sensor")]
@@ -91,16 +95,26 @@ class Statics:
     def __call__(self, q_rad: np.ndarray) -> StaticTorques:
         """The static torques at joint angles ``q_rad`` ((N, 6) or (6,), rad): each part (N, 6) Nm."""
         q = np.atleast_2d(np.asarray(q_rad, dtype=float))
-        n = len(q)
-        arm, payload, balancer = np.zeros((n, 6)), np.zeros((n, 6)), np.zeros((n, 6))
+        arm, payload = np.zeros((len(q), 6)), np.zeros((len(q), 6))
+        for k in range(len(q)):
+            arm[k], payload[k] = self._parts(q[k])
+        return StaticTorques(arm, payload, arm * self._balancer_gain)
+
+    def total_at(self, q_rad: np.ndarray) -> np.ndarray:
+        """tau_s (6,) Nm at one configuration (6,) rad: the call to make when the joints move."""
+        arm, payload = self._parts(q_rad)
+        return arm * self._with_balancer + payload
+
+    def _parts(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(arm, payload) torques (6,) at one configuration."""
         pin, pm, pd = self._pin, self.pm, self.pd
-        for k in range(n):
-            if self.arm_loaded:
-                arm[k] = -pin.computeGeneralizedGravity(pm, pd, q[k])
-            if self.payload_kg > 0:
-                Jv = pin.computeFrameJacobian(pm, pd, q[k], self.cog_id, pin.LOCAL_WORLD_ALIGNED)[:3]
-                payload[k] = Jv.T @ self._weight
-        if self.balancer is not None:
-            j = self.balancer.joint - 1
-            balancer[:, j] = -self.balancer.share * arm[:, j]
-        return StaticTorques(arm, payload, balancer)
+        arm = -pin.computeGeneralizedGravity(pm, pd, q) if self.arm_loaded else _ZERO
+        if self.payload_kg > 0:
+            payload = pin.computeFrameJacobian(pm, pd, q, self.cog_id, pin.LOCAL_WORLD_ALIGNED)[:3].T @ self._weight
+        else:
+            payload = _ZERO
+        return arm, payload
+
+
+_ZERO = np.zeros(6)
+_ZERO.flags.writeable = False

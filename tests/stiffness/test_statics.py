@@ -145,3 +145,9 @@ def test_batched_equals_one_at_a_time_and_gravity_is_linear(robot):
 def test_bad_payload_is_refused(robot, kw, message):
     with pytest.raises(ValueError, match=message):
         Statics(robot, **kw)
+
+
+def test_total_at_one_configuration_equals_the_batched_total(robot):
+    q = random_q(robot, 10, 4)
+    st_ = Statics(robot, 30.0, (0, 20, 100))
+    np.testing.assert_allclose(np.array([st_.total_at(qk) for qk in q]), st_(q).total, rtol=1e-13, atol=1e-9)
