@@ -168,10 +168,10 @@ class Robot:
 
             urdf_path = Path(path).parent / config.urdf.file
             dh, limits, links = read_urdf(urdf_path, config.urdf.flange, f"{path}: urdf.file")
-            config = config.model_copy(update={
-                "dh": DHConfig(**dh), "joint_limits_deg": limits,
-                "inertial": InertialConfig(links=[LinkInertialConfig(**lk) for lk in links],
-                                           balancer=config.inertial.balancer if config.inertial else None)})
+            inertial = {"links": links} | ({"balancer": data["inertial"]["balancer"]}
+                                           if config.inertial and config.inertial.balancer else {})
+            config = validate(RobotConfig, data | {"dh": dh, "joint_limits_deg": limits, "inertial": inertial},
+                              f"{urdf_path} (read for {path})")
         return cls(config, str(path))
 
     # -- batched kinematics -------------------------------------------------------------------

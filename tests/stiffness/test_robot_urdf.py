@@ -209,3 +209,9 @@ def test_masses_leave_the_kinematics_alone(dh_robot, tmp_path):
     np.testing.assert_array_equal(bare.frames(q), dh_robot.frames(q))
     for qk in q:
         np.testing.assert_array_equal(pin_frames(bare, qk), pin_frames(dh_robot, qk))
+
+
+def test_urdf_values_out_of_range_are_a_config_error(urdf_folder):
+    edit_urdf(urdf_folder, '<mass value="220.0"/>', '<mass value="-220.0"/>')
+    with pytest.raises(ConfigError, match=r"r.urdf \(read for .*u.yaml\): inertial.links.1.mass_kg = -220.0: .*greater than or equal to 0"):
+        Robot.from_yaml(urdf_folder / "u.yaml")
