@@ -1,8 +1,11 @@
-"""The robot: a standard DH table, joint limits, the F/T sensor frame and the TCP, read from YAML.
+"""The robot: a standard DH table, joint limits, the F/T sensor frame, the TCP and (optionally) the
+links' masses and a gravity balancer, read from YAML.
 
 Kinematics are built with pinocchio from the DH table (`Robot.pin_model`). For whole measurement
 campaigns the same chain is evaluated batched in NumPy (`Robot.frames`), and the tests check the two
-agree.
+agree. A robot YAML may instead name a URDF (``urdf: {file: ...}``); `stiffness.urdf` reads its
+joints, limits and inertials with pinocchio's parser and turns them into the same DH table, so every
+robot is a DH robot from here on (docs/model_format.md, "Robot").
 
 Frames: 0 is the base, i = 1..6 the DH frames after joint i, 6 the flange. DH convention:
     T(i-1, i) = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i),   theta_i = q_i + offset_i
@@ -12,6 +15,7 @@ from __future__ import annotations
 
 from functools import cached_property
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -52,16 +56,65 @@ class SensorConfig(PoseConfig):
     frame: int = Field(6, ge=0, le=6, description="DH frame the sensor is mounted on")
 
 
+class LinkInertialConfig(Strict):
+    """One link's mass and centre of mass, in its DH frame (link i is the body between joints i and i+1)."""
+    mass_kg: float = Field(ge=0.0, le=1e5)
+    com_mm: list[Annotated[float, Field(ge=-1e4, le=1e4)]] = Field(min_length=3, max_length=3)
+
+
+class BalancerConfig(Strict):
+    """A gravity balancer on ``joint`` that carries ``share`` of the arm's static torque there."""
+    joint: int = Field(ge=1, le=N_JOINTS)
+    share: float = Field(ge=0.0, le=1.0)
+
+
+class InertialConfig(Strict):
+    links: list[LinkInertialConfig] | None = Field(
+        None, description="DH frames 1..6; required with dh, forbidden with urdf (the URDF has them)")
+    balancer: BalancerConfig | None = None
+
+    @field_validator("links")
+    @classmethod
+    def _six_links(cls, v):
+        return v if v is None else _six(v)
+
+
+class UrdfConfig(Strict):
+    file: str = Field(description="the URDF, relative to the robot YAML")
+    flange: str = Field("flange", description="the URDF frame (link or fixed joint) that is DH frame 6")
+
+
 class RobotConfig(Strict):
     name: str = "robot"
-    dh: DHConfig
-    joint_limits_deg: list[tuple[float, float]]
+    dh: DHConfig | None = None
+    urdf: UrdfConfig | None = None
+    joint_limits_deg: list[tuple[float, float]] | None = None
     sensor: SensorConfig = Field(default_factory=SensorConfig)
     tcp: PoseConfig = Field(default_factory=lambda: PoseConfig(xyz_mm=[0.0, 0.0, 250.0]))
+    inertial: InertialConfig | None = None
+
+    def check_sources(self, source: str) -> None:
+        """The DH table or a URDF, each with what it needs and nothing it brings itself."""
+        has_links = self.inertial is not None and self.inertial.links is not None
+        problem = None
+        if (self.dh is None) == (self.urdf is None):
+            problem = "give either dh (with joint_limits_deg) or urdf (with its file), not both and not neither"
+        elif self.dh is not None and self.joint_limits_deg is None:
+            problem = "joint_limits_deg is missing (a dh robot needs them)"
+        elif self.urdf is not None and self.joint_limits_deg is not None:
+            problem = "joint_limits_deg is not allowed with urdf (the URDF gives the limits)"
+        elif self.urdf is not None and has_links:
+            problem = "inertial.links is not allowed with urdf (the URDF gives the masses)"
+        elif self.dh is not None and self.inertial is not None and not has_links:
+            problem = "inertial.links is missing (six entries, DH frames 1..6)"
+        if problem:
+            raise ConfigError(f"{source}: {problem}")
 
     @field_validator("joint_limits_deg")
     @classmethod
-    def _limits(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    def _limits(cls, v: list[tuple[float, float]] | None) -> list[tuple[float, float]] | None:
+        if v is None:
+            return v
         _six(v)
         for i, (lo, hi) in enumerate(v):
             if not lo < hi:
@@ -70,17 +123,19 @@ class RobotConfig(Strict):
 
 
 class Robot:
-    """A 6R serial robot from a DH table, with its sensor frame and TCP.
+    """A 6R serial robot from a DH table, with its sensor frame, TCP and optional link masses.
 
     Parameters
     ----------
     config : RobotConfig
-        The validated robot description.
+        The validated robot description with its DH table (`from_yaml` turns a URDF into one).
     source : str
         Where the config came from, for error messages.
     """
 
     def __init__(self, config: RobotConfig, source: str = "<robot>"):
+        if config.dh is None:
+            raise ConfigError(f"{source}: no dh table (a urdf robot is read with Robot.from_yaml)")
         self.config = config
         self.source = source
         self.name = config.name
@@ -92,11 +147,32 @@ class Robot:
         self.sensor_frame = config.sensor.frame
         self.T_frame_sensor = config.sensor.matrix()
         self.T_flange_tcp = config.tcp.matrix()
+        links = config.inertial.links if config.inertial is not None else None
+        self.link_mass = np.array([lk.mass_kg for lk in links]) if links else np.zeros(N_JOINTS)
+        self.link_com = (np.array([lk.com_mm for lk in links]) / 1000.0 if links
+                         else np.zeros((N_JOINTS, 3)))          # m, link i's centre in DH frame i
+        self.balancer = config.inertial.balancer if config.inertial is not None else None
+
+    @property
+    def has_masses(self) -> bool:
+        """Whether any link has a mass (else the arm's static torque is zero)."""
+        return bool(self.link_mass.any())
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> Robot:
         data = read_yaml(path)
-        return cls(validate(RobotConfig, data, str(path)), str(path))
+        config = validate(RobotConfig, data, str(path))
+        config.check_sources(str(path))
+        if config.urdf is not None:
+            from .urdf import read_urdf
+
+            urdf_path = Path(path).parent / config.urdf.file
+            dh, limits, links = read_urdf(urdf_path, config.urdf.flange, f"{path}: urdf.file")
+            inertial = {"links": links} | ({"balancer": data["inertial"]["balancer"]}
+                                           if config.inertial and config.inertial.balancer else {})
+            config = validate(RobotConfig, data | {"dh": dh, "joint_limits_deg": limits, "inertial": inertial},
+                              f"{urdf_path} (read for {path})")
+        return cls(config, str(path))
 
     # -- batched kinematics -------------------------------------------------------------------
     def dh_transforms(self, q: np.ndarray) -> np.ndarray:
@@ -138,7 +214,9 @@ class Robot:
         """A pinocchio model of the chain with operational frames A1..A6, 'sensor' and 'TCP'.
 
         Joint i's frame is DH frame i-1 turned by Rz(offset_i + q_i); frame A_i is joint i's frame
-        moved by Tz(d_i) Tx(a_i) Rx(alpha_i).
+        moved by Tz(d_i) Tx(a_i) Rx(alpha_i). Link i's mass sits on joint i as a point mass at its
+        centre of mass (zero without an ``inertial`` section); gravity is pinocchio's default
+        (0, 0, -9.81) m/s^2 in the base.
         """
         import pinocchio as pin
 
@@ -153,6 +231,8 @@ class Robot:
             model.lowerPositionLimit[i] = np.radians(self.limits_deg[i, 0])
             model.upperPositionLimit[i] = np.radians(self.limits_deg[i, 1])
             tail = _tz(self.d[i]) @ _tx(self.a[i]) @ _rx(self.alpha[i])
+            com = (tail @ np.append(self.link_com[i], 1.0))[:3]
+            model.appendBodyToJoint(parent, pin.Inertia(self.link_mass[i], com, np.zeros((3, 3))), pin.SE3.Identity())
             model.addFrame(pin.Frame(BODIES[i], parent, pin.SE3(tail), pin.FrameType.OP_FRAME))
         flange = pin.SE3(tail)
         model.addFrame(pin.Frame("TCP", parent, flange * pin.SE3(self.T_flange_tcp), pin.FrameType.OP_FRAME))

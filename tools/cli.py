@@ -18,6 +18,7 @@ from stiffness.errors import StiffnessError
 COMMANDS = {
     "fit": "tools.fit_cmd",
     "kcart": "tools.stiffness_cmd",
+    "torques": "tools.torques_cmd",
     "run": "tools.run_cmd",
     "health": "tools.health_cmd",
     "status": "tools.status_cmd",

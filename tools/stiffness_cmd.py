@@ -8,6 +8,7 @@ from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_an
 from stiffness.errors import ConfigError
 
 from .common import load, print_json
+from .torques_cmd import static_torques, torque_dict, torque_table
 
 
 def register(sub) -> None:
@@ -27,6 +28,8 @@ def run(args) -> int:
             out["model"] = {"q_deg": args.q, "K": tcp_stiffness(model, np.array(args.q))}
         except ValueError as e:
             raise ConfigError(f"--q: {e}") from e
+        torques = static_torques(model.robot, args.q)
+        out["model"]["static_torque_Nm"] = torque_dict(torques)
     if data is not None:
         out["identified"] = []
         for cfg in data.configs:
@@ -48,4 +51,7 @@ def run(args) -> int:
             for entry in val if isinstance(val, list) else [val]:
                 print(f"{key} K at q = {np.asarray(entry['q_deg'])} deg (N/m, N/rad; Nm/m, Nm/rad):")
                 print(entry.get("K", entry.get("error")))
+        if args.q is not None:
+            print("static joint torques tau_s there (Nm, no payload; `stiffcomp torques` adds one):")
+            print(torque_table(model.robot, torques))
     return 0

@@ -1,0 +1,120 @@
+"""The static joint torque tau_s(q): the arm's own weight, the payload's weight and the balancer.
+
+tau_s is written exactly like the external joint torque the model already uses (Eq. 4 and
+`stiffness.effects.axial.joint_torque`): tau_i = W_i[rz], the moment about joint i's axis (z of DH
+frame i-1) of the external loads on the links distal of joint i. Gravity on those links is such an
+external load, so
+
+    tau_s = tau_arm + tau_payload + tau_balancer,
+
+    tau_arm     = -g(q)                      pinocchio's generalized gravity g (the torque the motors hold),
+    tau_payload = J_c(q)^T (m_p g_vec)       the payload's weight at its centre c (sensor frame),
+                                             the same as its wrench [m_p R_s^T g_vec; c x F] at the sensor
+                                             transported to each joint (Eq. 4),
+    tau_balancer_j = -share * tau_arm_j      at the balancer's joint j, zero elsewhere,
+
+with g_vec the gravity vector in base axes (default (0, 0, -9.81) m/s^2) and J_c the Jacobian of the
+payload's centre. All in Nm. A robot without masses gives tau_arm = tau_balancer = 0; with no payload,
+tau_s = 0. The balancer carries a share of the arm's weight only: a spring set for the arm knows
+nothing of the tool.
+
+The effects do not use tau_s yet (docs/effects.md, "Static torque").
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .robot import Robot
+
+G_STANDARD = (0.0, 0.0, -9.81)   # m/s^2, base axes: a floor-mounted robot
+
+
+class StaticTorques(NamedTuple):
+    """Static joint torques per reading, each (N, 6) in Nm, signed like the external joint torque."""
+
+    arm: np.ndarray
+    payload: np.ndarray
+    balancer: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        """tau_s = arm + payload + balancer, (N, 6) Nm."""
+        return self.arm + self.payload + self.balancer
+
+
+class Statics:
+    """tau_s(q) for one robot, payload and gravity direction.
+
+    Parameters
+    ----------
+    robot : Robot
+        With or without link masses and a balancer.
+    payload_kg : float
+        Mass carried at the sensor (spindle, tool, fixture), kg, >= 0.
+    payload_cog_mm : (3,)
+        Its centre of gravity in the sensor frame, mm.
+    g_mps2 : (3,)
+        Gravity in base axes, m/s^2.
+
+    Holds its own pinocchio model (a copy of ``robot.pin_model`` with this gravity and a frame at the
+    payload's centre) and data, so calls are independent of anyone else's use of the robot's model.
+    """
+
+    def __init__(self, robot: Robot, payload_kg: float = 0.0, payload_cog_mm=(0.0, 0.0, 0.0),
+                 g_mps2=G_STANDARD):
+        import pinocchio as pin
+
+        self.payload_kg = float(payload_kg)
+        cog = np.asarray(payload_cog_mm, dtype=float)
+        g = np.asarray(g_mps2, dtype=float)
+        if not (np.isfinite(self.payload_kg) and self.payload_kg >= 0):
+            raise ValueError(f"payload mass = {payload_kg!r} kg must be a finite number >= 0")
+        if cog.shape != (3,) or not np.isfinite(cog).all():
+            raise ValueError(f"payload centre of gravity = {payload_cog_mm!r} mm must be three finite numbers")
+        if g.shape != (3,) or not np.isfinite(g).all():
+            raise ValueError(f"gravity = {g_mps2!r} m/s^2 must be three finite numbers")
+        self.g = g
+        self.arm_loaded = robot.has_masses
+        self.balancer = robot.balancer
+        self._balancer_gain = np.zeros(6)           # tau_balancer = gain * tau_arm: -share at its joint
+        if robot.balancer is not None:
+            self._balancer_gain[robot.balancer.joint - 1] = -robot.balancer.share
+        self._with_balancer = 1.0 + self._balancer_gain
+        self.pm = pin.Model(robot.pin_model)
+        self.pm.gravity = pin.Motion(np.concatenate([g, np.zeros(3)]))
+        sensor = self.pm.frames[self.pm.getFrameId("sensor")]
+        at_cog = sensor.placement * pin.SE3(np.eye(3), cog / 1000.0)
+        self.cog_id = self.pm.addFrame(pin.Frame("payload_cog", sensor.parentJoint, at_cog, pin.FrameType.OP_FRAME))
+        self.pd = self.pm.createData()
+        self._weight = self.payload_kg * g
+        self._pin = pin
+
+    def __call__(self, q_rad: np.ndarray) -> StaticTorques:
+        """The static torques at joint angles ``q_rad`` ((N, 6) or (6,), rad): each part (N, 6) Nm."""
+        q = np.atleast_2d(np.asarray(q_rad, dtype=float))
+        arm, payload = np.zeros((len(q), 6)), np.zeros((len(q), 6))
+        for k in range(len(q)):
+            arm[k], payload[k] = self._parts(q[k])
+        return StaticTorques(arm, payload, arm * self._balancer_gain)
+
+    def total_at(self, q_rad: np.ndarray) -> np.ndarray:
+        """tau_s (6,) Nm at one configuration (6,) rad: the call to make when the joints move."""
+        arm, payload = self._parts(q_rad)
+        return arm * self._with_balancer + payload
+
+    def _parts(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(arm, payload) torques (6,) at one configuration."""
+        pin, pm, pd = self._pin, self.pm, self.pd
+        arm = -pin.computeGeneralizedGravity(pm, pd, q) if self.arm_loaded else _ZERO
+        if self.payload_kg > 0:
+            payload = pin.computeFrameJacobian(pm, pd, q, self.cog_id, pin.LOCAL_WORLD_ALIGNED)[:3].T @ self._weight
+        else:
+            payload = _ZERO
+        return arm, payload
+
+
+_ZERO = np.zeros(6)
+_ZERO.flags.writeable = False

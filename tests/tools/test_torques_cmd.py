@@ -1,0 +1,61 @@
+"""`stiffcomp torques` and the static torques `stiffcomp kcart` prints, run as a user runs them."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+from stiffcomp_testlib import MODELS, ROOT
+
+from stiffness.model import StiffnessModel
+from stiffness.statics import Statics
+
+MODEL = MODELS / "kr125_6dof.yaml"
+Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]
+
+
+def stiffcomp(*args):
+    return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=ROOT,
+                          capture_output=True, check=False, text=True, timeout=120)
+
+
+def test_torques_json_equals_statics_and_sums():
+    r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", 80, "--payload-cog-mm", 0, 10, 150, "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)["static_torque_Nm"]
+    robot = StiffnessModel.from_yaml(MODEL).robot
+    expected = Statics(robot, 80.0, (0, 10, 150))(np.radians(Q))
+    for part in ("arm", "payload", "balancer", "total"):
+        np.testing.assert_allclose(out[part], getattr(expected, part)[0], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(out["total"], np.sum([out[p] for p in ("arm", "payload", "balancer")], axis=0))
+    assert abs(out["arm"][1]) > 100 and abs(out["payload"][1]) > 100 and out["balancer"][1] != 0
+
+
+def test_torques_table_has_a_line_per_joint_with_the_parts_that_add_up():
+    r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", 50)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    head = next(k for k, line in enumerate(lines) if line.split()[:5] == ["joint", "arm", "payload", "balancer", "total"])
+    rows = [line.split() for line in lines[head + 1:head + 7]]
+    assert [row[0] for row in rows] == [f"A{i}" for i in range(1, 7)]
+    values = np.array([[float(v) for v in row[1:]] for row in rows])
+    np.testing.assert_allclose(values[:, :3].sum(1), values[:, 3], atol=0.11)     # printed to 0.1 Nm
+    assert "50 kg" in r.stdout and "balancer on joint 2" in r.stdout
+
+
+def test_kcart_prints_the_static_torques_of_its_configuration():
+    r = stiffcomp("kcart", MODEL, "--q", *Q, "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)["model"]["static_torque_Nm"]
+    robot = StiffnessModel.from_yaml(MODEL).robot
+    np.testing.assert_allclose(out["total"], Statics(robot)(np.radians(Q)).total[0], rtol=1e-12, atol=1e-9)
+    text = stiffcomp("kcart", MODEL, "--q", *Q).stdout
+    assert "static joint torques" in text and "A6" in text
+
+
+def test_bad_options_exit_2_naming_the_option():
+    r = stiffcomp("torques", MODEL, "--q", 0, 40, 0, 0, 0, 0)
+    assert r.returncode == 2 and "--q: joint 2 = 40 deg is outside its limits [-155, 35]" in r.stderr
+    r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", "-2")
+    assert r.returncode == 2 and "payload mass = -2.0 kg must be a finite number >= 0" in r.stderr
+    assert "Traceback" not in r.stderr
