@@ -88,10 +88,7 @@ class ServiceProcess:
     """`stiffcomp run` as a child process; its log goes to a file (a pipe could fill and block it)."""
 
     def __init__(self, config: Path, folder: Path, index: int = 0, log_level: str = "INFO"):
-        mon = load_config(config).monitoring
-        if not mon.enabled:
-            raise HilError(f"{config}: monitoring.enabled is false: the HIL waits for the service's /health")
-        self.health_at = ("127.0.0.1", mon.port)
+        self.config = config
         self.stats = folder / f"service_stats_{index}.json"
         self.log_path = folder / f"service_{index}.log"
         self._log = self.log_path.open("w")
@@ -103,6 +100,10 @@ class ServiceProcess:
         """Until the service's ``GET /health`` reports its task running (task state RUN). Healthy or not:
         before the PLC connects, a heartbeat fault may be latched, and the PLC resets it."""
         deadline = time.monotonic() + timeout
+        mon = load_config(self.config).monitoring            # read while the service starts
+        if not mon.enabled:
+            raise HilError(f"{self.config}: monitoring.enabled is false: the HIL waits for the service's /health")
+        self.health_at = ("127.0.0.1", mon.port)
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
                 raise HilError(f"the service exited with {self.proc.returncode}:\n{self.log_path.read_text()}")

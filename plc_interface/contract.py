@@ -225,7 +225,8 @@ def _compile(sources: tuple[Source, ...], task: TaskValues, signals: Any) -> Cal
 
     One attrgetter per root reads every attribute a source names; the lists a source indexes are
     appended whole (their lengths taken from these records); one itemgetter then picks the values in
-    the order of ``sources``. A list whose length changes later raises ContractError.
+    the order of ``sources``. Lists whose length changes later (their sum, checked every cycle for the
+    price of one ``len``) raise ContractError.
     """
     names = {r: list(dict.fromkeys(s.name for s in sources if s.root == r)) for r in _ROOTS}
     read_task, read_signals = (_tuple_getter(attrgetter, names[r]) for r in _ROOTS)
