@@ -18,7 +18,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 
 from plc_interface.ads.settings import AdsSettings
 from plc_interface.settings import MonitoringSettings, PlcSettings
-from stiffness.errors import StiffnessError
+from stiffness.errors import StiffnessError, quote
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
 from .errors import ServiceConfigError
@@ -200,4 +200,4 @@ def check_consistency(cfg: ServiceConfig) -> None:
         files.append(("source.replay.file", cfg.source.replay.file))
     for key, rel in files:
         if not cfg.resolve(rel).exists():
-            raise ServiceConfigError(f"{src}: {key} = {rel!r}: file {cfg.resolve(rel)} not found")
+            raise ServiceConfigError(f"{src}: {key} = {quote(rel)}: file {cfg.resolve(rel)} not found")

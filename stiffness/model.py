@@ -21,7 +21,7 @@ import yaml
 from .context import Context
 from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
-from .errors import ConfigError
+from .errors import ConfigError, quote
 from .measurements import Dataset
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
@@ -76,18 +76,18 @@ class StiffnessModel:
         robot_ref = data.get("robot")
         if robot is None:
             if not isinstance(robot_ref, str):
-                raise ConfigError(f"{source}: robot = {robot_ref!r}: must name a robot YAML file "
+                raise ConfigError(f"{source}: robot = {quote(robot_ref)}: must name a robot YAML file "
                                   "(a path relative to the model file)")
             robot_path = (base_dir or Path(".")) / robot_ref
             if not robot_path.exists():
-                raise ConfigError(f"{source}: robot = {robot_ref!r}: file {robot_path} not found")
+                raise ConfigError(f"{source}: robot = {quote(robot_ref)}: file {robot_path} not found")
             robot = load_robot(robot_path)
         noise = data.get("noise") or {}
         if not isinstance(noise, dict) or set(noise) - set(DEFAULT_NOISE):
             raise ConfigError(f"{source}: noise must be a mapping with keys {', '.join(DEFAULT_NOISE)}")
         for k, v in noise.items():
             if not isinstance(v, (int, float)) or not v > 0:
-                raise ConfigError(f"{source}: noise.{k} = {v!r} must be a number > 0")
+                raise ConfigError(f"{source}: noise.{k} = {quote(v)} must be a number > 0")
         entries = data.get("effects")
         if not isinstance(entries, list) or not entries:
             raise ConfigError(f"{source}: effects must be a non-empty list of effect entries")
@@ -99,7 +99,7 @@ class StiffnessModel:
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             name = entry["effect"]
             if name not in EFFECTS:
-                raise ConfigError(f"{where}: effect = {name!r} is not in the library "
+                raise ConfigError(f"{where}: effect = {quote(name)} is not in the library "
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             effects.append(EFFECTS[name].from_config(entry, robot, where))
         return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),

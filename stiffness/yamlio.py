@@ -8,9 +8,24 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from .errors import ConfigError
+from .errors import ConfigError, quote
 
 M = TypeVar("M", bound=BaseModel)
+
+
+class NoAliasLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses aliases (``*name``): nested aliases expand exponentially (a
+    "billion laughs" file of a few hundred bytes takes minutes and gigabytes), and no config or model
+    of ours needs them. An anchor alone (``&name``) is harmless and left alone."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.MarkedYAMLError(
+                problem=f"an alias (*{event.anchor}) is not accepted: write the value out in full "
+                        "(aliases can expand without bound)",
+                problem_mark=event.start_mark)
+        return super().compose_node(parent, index)
 
 
 class Strict(BaseModel):
@@ -28,7 +43,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     except OSError as e:
         raise ConfigError(f"{path}: cannot read: {e.strerror or e}") from e
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=NoAliasLoader)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""
@@ -48,7 +63,7 @@ def format_validation_error(source: str, err: ValidationError, prefix: str = "")
         elif e["type"] == "missing":
             lines.append(f"{source}: {key} is missing")
         else:
-            lines.append(f"{source}: {key} = {e.get('input')!r}: {e['msg']}")
+            lines.append(f"{source}: {key} = {quote(e.get('input'))}: {e['msg']}")
     return "\n".join(lines)
 
 
