@@ -159,6 +159,31 @@ class StiffnessModel:
                 raise ConfigError(f"{self.source}: effect {e.label} appears twice")
             seen.add(key)
 
+    def negative_compliances(self) -> list[str]:
+        """Each compliance below zero as 'effect@joint1.key = value unit' (YAML units); none: []."""
+        return [f"{e.label}.{p.key} = {v * p.yaml_factor:.4g} {p.unit}"
+                for e in self.effects for p, v in zip(e.params, e.theta) if p.compliance and v < 0]
+
+    def unphysical(self) -> str | None:
+        """What makes the model impossible for a real robot, in words; None when nothing does.
+
+        A negative compliance: the joint would deflect against the load, and a correction from it
+        pushes the tool the wrong way. A fit may return one (`stiffcomp fit` shows it and can bound
+        it with ``--nonnegative``); a model to compensate with must not hold one.
+        """
+        bad = self.negative_compliances()
+        if not bad:
+            return None
+        return (f"{len(bad)} negative compliance(s), which no robot has (a compliance must be >= 0): "
+                + "; ".join(bad))
+
+    def require_physical(self) -> None:
+        """Raise ConfigError naming the source, the effects and the keys when `unphysical`."""
+        problem = self.unphysical()
+        if problem:
+            raise ConfigError(f"{self.source}: {problem}. Refit with `stiffcomp fit --nonnegative`, or "
+                              "remove the component")
+
     # -- parameters -----------------------------------------------------------------------------
     @property
     def theta(self) -> np.ndarray:

@@ -13,15 +13,30 @@ import numpy as np
 from stiffness.errors import OutputError
 from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
+from stiffness.sanity import resolve_duplicates
 
 
-def load(model_path: str, data_path: str | None = None) -> tuple[StiffnessModel, Dataset | None]:
+def load(model_path: str, data_path: str | None = None,
+         keep_duplicates: bool = False) -> tuple[StiffnessModel, Dataset | None]:
+    """The model and the campaign, with a note on ignored columns and a warning on duplicate rows
+    (left out unless ``keep_duplicates``, see `stiffness.sanity`)."""
     model = StiffnessModel.from_yaml(model_path)
     data = read_measurements(data_path, model.robot) if data_path else None
     if data is not None and data.ignored_columns:
         print(f"note: {data_path}: column(s) {', '.join(data.ignored_columns)} are not part of the "
               "format and were not used", file=sys.stderr)
+    if data is not None:
+        data, warnings = resolve_duplicates(data, keep_duplicates)
+        for w in warnings:
+            print(f"warning: {w}", file=sys.stderr)
     return model, data
+
+
+def add_duplicates_option(p) -> None:
+    """``--keep-duplicates``: keep rows that repeat an earlier row (shared by fit, diagnose, compare, kcart)."""
+    p.add_argument("--keep-duplicates", action="store_true",
+                   help="keep rows that repeat an earlier row, or a body measured twice in one reading "
+                        "(default: leave them out, with a warning; docs/measurement_format.md)")
 
 
 T = TypeVar("T")

@@ -8,7 +8,7 @@ from pathlib import Path
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report, to_dict
 
-from .common import load, print_json, write_output
+from .common import add_duplicates_option, load, print_json, write_output
 from .fit_cmd import add_robust_option
 
 
@@ -20,11 +20,12 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--top", type=int, default=None, help="list only the best N candidates")
     add_robust_option(p)
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    model, data = load(args.model, args.data)
+    model, data = load(args.model, args.data, args.keep_duplicates)
     tty = sys.stderr.isatty()
 
     def progress(msg: str) -> None:

@@ -7,7 +7,7 @@ import numpy as np
 from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.errors import ConfigError
 
-from .common import load, print_json
+from .common import add_duplicates_option, load, print_json
 
 
 def register(sub) -> None:
@@ -16,11 +16,12 @@ def register(sub) -> None:
     p.add_argument("--q", nargs=6, type=float, metavar="Q", help="joint angles in deg")
     p.add_argument("--data", help="identify K directly from the campaign's TCP rows, per configuration (Eq. 15)")
     p.add_argument("--json", action="store_true")
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    model, data = load(args.model, args.data)
+    model, data = load(args.model, args.data, args.keep_duplicates)
     out = {}
     if args.q is not None:
         try:

@@ -28,6 +28,8 @@ class Param:
     """One parameter: its YAML key (unit in the name), SI scale for fitting, and whether it is fitted.
 
     ``yaml_factor`` converts SI to the YAML unit (value_yaml = value_si * yaml_factor).
+    ``compliance`` marks a compliance: physically >= 0 (a negative one is a spring that pushes back
+    the wrong way), refused by `StiffnessModel.require_physical`, bounded by ``fit(nonnegative=True)``.
     """
 
     key: str
@@ -36,6 +38,7 @@ class Param:
     yaml_factor: float = 1.0
     nonlinear: bool = False
     bounds: tuple[float, float] = (-np.inf, np.inf)
+    compliance: bool = False
 
 
 class Effect(ABC):
