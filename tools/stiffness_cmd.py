@@ -47,6 +47,9 @@ def run(args) -> int:
         np.set_printoptions(precision=4, suppress=False, linewidth=140)
         for key, val in out.items():
             for entry in val if isinstance(val, list) else [val]:
-                print(f"{key} K at q = {np.asarray(entry['q_deg'])} deg (N/m, N/rad; Nm/m, Nm/rad):")
-                print(entry.get("K", entry.get("error")))
+                where = f"{key} K at q = {np.asarray(entry['q_deg'])} deg"
+                if "K" in entry:
+                    print(f"{where} (N/m, N/rad; Nm/m, Nm/rad):\n{entry['K']}")
+                else:
+                    print(f"{where}: refused: {entry['error']}")
     return 0
