@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -37,6 +38,37 @@ def add_duplicates_option(p) -> None:
     p.add_argument("--keep-duplicates", action="store_true",
                    help="keep rows that repeat an earlier row, or a body measured twice in one reading "
                         "(default: leave them out, with a warning; docs/measurement_format.md)")
+
+
+class Progress:
+    """The progress of a long command (fit, diagnose) on stderr, so stdout stays the result.
+
+    On a terminal: one line rewritten in place with the stage and the seconds so far. Otherwise (a
+    log, CI): the first stage, then at most one line every EVERY_S seconds. Both end with
+    ``COMMAND: done in X s``.
+    """
+
+    EVERY_S = 5.0
+
+    def __init__(self, command: str, stream=None):
+        self.command = command
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.t0 = time.monotonic()
+        self.last: float | None = None
+
+    def __call__(self, stage: str) -> None:
+        now = time.monotonic()
+        line = f"{self.command}: {stage} ({now - self.t0:.0f} s)"
+        if self.tty:
+            print(f"\r\033[K{line}", end="", file=self.stream, flush=True)
+        elif self.last is None or now - self.last >= self.EVERY_S:
+            print(line, file=self.stream, flush=True)
+            self.last = now
+
+    def done(self) -> None:
+        print(("\r\033[K" if self.tty else "") + f"{self.command}: done in {time.monotonic() - self.t0:.1f} s",
+              file=self.stream, flush=True)
 
 
 T = TypeVar("T")

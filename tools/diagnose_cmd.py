@@ -8,7 +8,7 @@ from pathlib import Path
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report, to_dict
 
-from .common import add_duplicates_option, load, print_json, write_output
+from .common import Progress, add_duplicates_option, load, print_json, write_output
 from .fit_cmd import add_robust_option
 
 
@@ -26,15 +26,9 @@ def register(sub) -> None:
 
 def run(args) -> int:
     model, data = load(args.model, args.data, args.keep_duplicates)
-    tty = sys.stderr.isatty()
-
-    def progress(msg: str) -> None:
-        if tty:
-            print(f"\r\033[Kdiagnose: {msg}", end="", file=sys.stderr, flush=True)
-
+    progress = Progress("diagnose")
     d = diagnose(model, data, progress, robust=args.robust)
-    if tty:
-        print("\r\033[K", end="", file=sys.stderr)
+    progress.done()
     if args.report:
         report = build_report(d, args.model, args.data)
         path = write_output(Path(args.report) / "index.html", lambda p: report.write(p.parent))

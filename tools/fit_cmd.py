@@ -9,7 +9,7 @@ import numpy as np
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.identify import FitResult, fit
 
-from .common import add_duplicates_option, load, print_json, write_output
+from .common import Progress, add_duplicates_option, load, print_json, write_output
 
 
 def register(sub) -> None:
@@ -73,7 +73,10 @@ def _measured(result: FitResult, k: int) -> bool:
 
 def run(args) -> int:
     model, data = load(args.model, args.data, args.keep_duplicates)
+    progress = Progress("fit")
+    progress(f"fitting {len(model.theta)} parameters to {len(data)} rows")
     result = fit(model, data, robust=args.robust, nonnegative=args.nonnegative)
+    progress.done()
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
                   f"{result.rms_text()}")
