@@ -138,6 +138,17 @@ def test_problems_stop_collecting_at_1000_and_count_the_rest(tmp_path):
     assert f"... and {e.value.count - 20} more" in str(e.value)
 
 
+def test_parquet_problems_are_capped_the_same_way(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+    header = REF.read_text().splitlines()[0].split(",")
+    pq.write_table(pa.table({h: ["garbage!"] * 2000 for h in header}), tmp_path / "garbage.parquet")
+    with pytest.raises(DataError) as e:
+        read_measurements(tmp_path / "garbage.parquet")
+    assert len(e.value.problems) == Problems.LIMIT and e.value.count > 2000 * 14
+    assert "line 2:" in e.value.problems[0]
+
+
 def test_memory_is_bounded_by_the_file_not_by_its_problems(tmp_path):
     path = tmp_path / "garbage.csv"
     garbage_csv(path, 20_000)
