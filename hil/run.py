@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pymodbus.client import ModbusTcpClient
 
 from hil.testing import free_port
@@ -33,7 +32,7 @@ from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from stiffness.model import StiffnessModel
 from stiffness.robot import load_robot
-from stiffness.yamlio import deep_update
+from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario
@@ -78,7 +77,7 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
                          modbus_port: int, overrides: dict | None = None) -> Path:
     """The scenario's service config with this run's model, bus and port; paths made absolute."""
     src = scenario.resolve(scenario.service)
-    data = yaml.safe_load(src.read_text())
+    data = read_yaml(src)                  # the one loader: a user's scenario may name any service config
     base = src.parent
     data["model"]["file"] = str(Path(model_path).resolve())
     plc = data.setdefault("plc", {})
@@ -93,7 +92,7 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
     data.setdefault("monitoring", {})["port"] = free_port()
     deep_update(data, overrides or {})
     path = folder / "service.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    path.write_text(dump_yaml(data, sort_keys=False))
     return path
 
 

@@ -20,7 +20,7 @@ import yaml
 from service.ati import AtiProtocol
 from service.sources.replay import write_log
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import deep_update
+from stiffness.yamlio import deep_update, dump_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"
@@ -73,7 +73,7 @@ def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: st
     data["monitoring"]["port"] = free_port()
     deep_update(data, overrides or {})
     path = Path(folder) / name
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    path.write_text(dump_yaml(data, sort_keys=False))
     return path
 
 

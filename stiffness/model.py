@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from .context import Context
 from .effects import EFFECTS, Effect
@@ -26,7 +25,7 @@ from .measurements import Dataset
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
 from .units import M_TO_MM, RAD_TO_DEG
-from .yamlio import read_yaml
+from .yamlio import dump_yaml, read_yaml
 
 TOP_KEYS = {"name", "description", "robot", "noise", "effects"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
@@ -126,7 +125,7 @@ class StiffnessModel:
         folder, so the written model loads from wherever it is written."""
         d = self.to_dict()
         d["robot"] = self.robot_ref_from(Path(path).resolve().parent)
-        text = yaml.safe_dump(d, sort_keys=False, width=110)
+        text = dump_yaml(d, sort_keys=False, width=110)
         Path(path).write_text((header + "\n" if header else "") + text)
 
     def robot_ref_from(self, folder: Path) -> str | None:

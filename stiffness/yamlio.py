@@ -35,6 +35,19 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+class _NoAliasDumper(yaml.SafeDumper):
+    """yaml.SafeDumper that writes a value shared twice in full twice, never as an alias."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
+def dump_yaml(data: Any, **options: Any) -> str:
+    """YAML text of ``data`` without aliases (`read_yaml` refuses them), the one way stiffcomp writes
+    YAML a person or stiffcomp reads again; ``options`` as for ``yaml.safe_dump``."""
+    return yaml.dump(data, Dumper=_NoAliasDumper, **options)
+
+
 def read_yaml(path: str | Path) -> dict[str, Any]:
     """Read a YAML mapping from ``path``; raise ConfigError naming the file on any failure."""
     path = Path(path)
