@@ -63,9 +63,11 @@ class Problems:
         self.kept: list[str] = []
         self.count = 0
 
-    def add(self, text: str) -> None:
+    def add(self, text: str | None) -> None:
+        """Count a problem; keep its text while below LIMIT. None counts it only: a caller in a hot
+        loop passes None once `full`, and composes no text nobody reads."""
         self.count += 1
-        if len(self.kept) < self.LIMIT:
+        if text is not None and len(self.kept) < self.LIMIT:
             self.kept.append(text)
 
     @property

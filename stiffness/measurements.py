@@ -230,7 +230,8 @@ def _validate(path: Path, header: list[str], rows: Iterable[tuple[int, list[str]
         b = row[idx["body"]].strip()
         body.append(body_index.get(b, -1))
         if b not in body_index:
-            problems.add(f"{path}: line {line}: body = {quote(b)} is not one of {', '.join(BODIES)}")
+            problems.add(None if problems.full else
+                         f"{path}: line {line}: body = {quote(b)} is not one of {', '.join(BODIES)}")
     n = len(lines)
     num_a = np.frombuffer(num, dtype=float).reshape(n, len(NUMERIC_COLS)) if n else np.zeros((0, 19))
     q = num_a[:, 1:7]
@@ -260,9 +261,9 @@ def _numbers(path: Path, line: int, row: list[str], idx: dict[str, int], problem
             try:
                 v = float(text)
             except ValueError:
-                problems.add(f"{path}: line {line}: {c} = {quote(text)} is not a number")
+                problems.add(None if problems.full else f"{path}: line {line}: {c} = {quote(text)} is not a number")
             else:
                 if not math.isfinite(v):
-                    problems.add(f"{path}: line {line}: {c} = {quote(text)} is not finite")
+                    problems.add(None if problems.full else f"{path}: line {line}: {c} = {quote(text)} is not finite")
         out.append(v)
     return out
