@@ -11,6 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
+
+from stiffness.plots import legend_below
 
 from .robot_stub import RobotStub
 from .world import World
@@ -46,15 +49,17 @@ def errors(ev: dict) -> tuple[float, float]:
 
 
 def plot(world: World, passes: dict[str, dict], path: str | Path, exaggerate: float = 20.0) -> Path:
+    """`circle_figure` written to ``path`` (PNG)."""
+    path = Path(path)
+    circle_figure(world, passes, exaggerate).savefig(path, dpi=130)
+    return path
+
+
+def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.0) -> Figure:
     """Fig. 8: (a) nominal, uncompensated and compensated paths (radial error exaggerated), (b) the error
-    around the circle."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    around the circle; the legend below both, off the data."""
     r_mm = world.path.radius * 1000.0
-    fig = plt.figure(figsize=(12, 5.2))
+    fig = Figure(figsize=(12, 5.6), layout="constrained")
     ax = fig.add_subplot(1, 2, 1, aspect="equal")
     th = np.linspace(0, 2 * np.pi, 721)
     ax.plot(r_mm * np.cos(th), r_mm * np.sin(th), "k-", lw=1.2, label="nominal")
@@ -67,7 +72,6 @@ def plot(world: World, passes: dict[str, dict], path: str | Path, exaggerate: fl
     ax.set_xlabel("x in the circle's plane, mm")
     ax.set_ylabel("y, mm")
     ax.set_title(f"a) milled circle, r = {r_mm:g} mm")
-    ax.legend(loc="upper right", fontsize=8)
     bx = fig.add_subplot(1, 2, 2)
     for name, ev in passes.items():
         c = ev["cut"]
@@ -78,10 +82,6 @@ def plot(world: World, passes: dict[str, dict], path: str | Path, exaggerate: fl
     bx.set_xlabel("angle along the circle, deg")
     bx.set_ylabel("point-to-point (radial) error, mm")
     bx.set_title("b) point-to-point error")
-    bx.legend(fontsize=8)
     bx.grid(alpha=0.3)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    legend_below(fig, ax, bx, ncols=3)
+    return fig

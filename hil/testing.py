@@ -23,7 +23,7 @@ from service.sources.replay import write_log
 from stiffness.effects import EFFECTS
 from stiffness.effects.joint_spring import JointSpring
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import deep_update
+from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"
@@ -63,13 +63,13 @@ def write_config(folder: Path, overrides: dict[str, Any] | None = None, name: st
     names the same files. ADS and monitoring listen on free ports (not 48898 and 9020), so services of
     parallel tests and HIL runs never collide."""
     cfg = load_config(source)
-    data = yaml.safe_load(Path(source).read_text())
+    data = read_yaml(source)            # the one loader: aliases refused, errors name the file
     for key, rel in cfg.files().items():
         deep_update(data, _nested(key, str(cfg.resolve(rel).resolve())))
     deep_update(data, {"ads": {"port": free_port()}, "monitoring": {"port": free_port()}})
     deep_update(data, overrides or {})
     path = Path(folder) / name
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    path.write_text(dump_yaml(data, sort_keys=False))
     return path
 
 

@@ -22,8 +22,9 @@ def test_path_error_falls_once_the_diagnosed_backlash_is_added(tmp_path):
     d = diagnose(StiffnessModel.from_yaml(MODELS / "kr125_6dof.yaml"), data)
     assert d.verdict == "missing_effect", d.message
     assert (d.best.name, d.best.joint) == ("backlash", 3)
-    before = write_model(d.fit.model, tmp_path / "6dof.yaml")
-    fixed = fit(add_effect(d.fit.model, d.best.name, d.best.joint), data)
+    # bounded fits: the service refuses a model with a negative compliance (an unbounded fit leaves some)
+    before = write_model(fit(d.fit.model, data, nonnegative=True).model, tmp_path / "6dof.yaml")
+    fixed = fit(add_effect(d.fit.model, d.best.name, d.best.joint), data, nonnegative=True)
     after = write_model(fixed.model, tmp_path / "6dof_backlash.yaml")
     sc = scenario()
     _, ev1 = compensated(sc, TRUTH, before, tmp_path / "before")

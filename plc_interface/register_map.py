@@ -22,7 +22,7 @@ from typing import Literal
 
 from pydantic import Field, ValidationError
 
-from stiffness.errors import StiffnessError
+from stiffness.errors import StiffnessError, quote
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
 from .contract import REQUIRED, VALUES
@@ -159,7 +159,7 @@ class RegisterMap:
             for k, r in enumerate(block.registers):
                 where = f"{source}: {direction}.registers[{k}] ({r.name})"
                 if r.name not in declared:
-                    raise RegisterMapError(f"{where}: {r.name!r} is not a value the service produces for this "
+                    raise RegisterMapError(f"{where}: {quote(r.name)} is not a value the service produces for this "
                                            f"direction (the contract's {direction} values: {', '.join(declared)})")
                 if r.type is None:
                     r.type = declared[r.name].type
@@ -180,13 +180,13 @@ class RegisterMap:
             names = [r.name for r in block.registers]
             dup = sorted({n for n in names if names.count(n) > 1})
             if dup:
-                raise RegisterMapError(f"{source}: {direction}: register name {dup[0]!r} appears twice")
+                raise RegisterMapError(f"{source}: {direction}: register name {quote(dup[0])} appears twice")
             missing = [n for n in REQUIRED[direction] if n not in names]
             if missing:
-                raise RegisterMapError(f"{source}: {direction}: register {missing[0]!r} is missing "
+                raise RegisterMapError(f"{source}: {direction}: register {quote(missing[0])} is missing "
                                        f"(needed: {', '.join(REQUIRED[direction])})")
         if cfg.from_plc.table != "holding_registers":
-            raise RegisterMapError(f"{source}: from_plc.table = {cfg.from_plc.table!r}: the PLC can write only "
+            raise RegisterMapError(f"{source}: from_plc.table = {quote(cfg.from_plc.table)}: the PLC can write only "
                                    "holding_registers")
         a, b = cfg.to_plc, cfg.from_plc
         if a.table == b.table and a.start < b.start + b.size and b.start < a.start + a.size:

@@ -54,6 +54,7 @@ class Service:
         self.cfg = cfg
         try:
             self.model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
+            self.model.require_physical()
         except StiffnessError as e:
             raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
         self.cycle = Cycle.from_config(cfg, self.model)

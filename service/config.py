@@ -23,7 +23,7 @@ from plc_interface.ads.settings import AdsSettings
 from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
-from stiffness.errors import StiffnessError
+from stiffness.errors import StiffnessError, quote
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
 from .compensation import ModelConfig
@@ -119,4 +119,4 @@ def check_consistency(cfg: ServiceConfig) -> None:
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
     for key, rel in cfg.files().items():
         if not cfg.resolve(rel).exists():
-            raise ServiceConfigError(f"{src}: {key} = {rel!r}: file {cfg.resolve(rel)} not found")
+            raise ServiceConfigError(f"{src}: {key} = {quote(rel)}: file {cfg.resolve(rel)} not found")

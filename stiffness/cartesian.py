@@ -69,16 +69,48 @@ def tcp_wrench_and_deflection(data: Dataset, model_robot) -> tuple[np.ndarray, n
     return W, dX
 
 
+MIN_SPAN = 0.05      # the weakest load direction must carry this share of the strongest (physical units)
+MIN_LEVER_M = 0.05   # a load lever below this (a force at the TCP) is taken as this: moments are then noise
+
+
+def load_lever(W: np.ndarray) -> float:
+    """The load's lever L (m): the median |M| / |F| over the rows loaded with at least 10 % of the
+    largest force (a force applied at a distance L from the TCP gives |M| ~ L |F|), at least
+    MIN_LEVER_M; 1 m when no row is loaded by a force."""
+    F = np.linalg.norm(W[:, :3], axis=1)
+    M = np.linalg.norm(W[:, 3:], axis=1)
+    loaded = F > 0.1 * F.max(initial=0.0)
+    if not loaded.any():
+        return 1.0
+    return max(float(np.median(M[loaded] / F[loaded])), MIN_LEVER_M)
+
+
 def identify_cartesian(W: np.ndarray, dX: np.ndarray) -> np.ndarray:
     """Eq. 15: K^T = (sum dX dX^T)^-1 (sum dX W^T), the least-squares K with W = K dX.
 
-    Needs loads along all six directions: a wrench that never varies in some direction leaves K
-    unidentified there (noise alone still makes dX full rank), so raises ValueError.
+    Needs loads along all six directions. Forces and moments are compared physically: a moment over
+    the load's lever L (`load_lever`) is the force that makes it, so W' = [F, M / L] in N; when
+    the weakest direction of W' carries less than MIN_SPAN of the strongest (e.g. every moment
+    comes from forces at one fixed lever, or moments are sensor noise), K is not determined there
+    (noise alone still makes dX full rank). A K whose symmetric part is not positive definite is
+    no spring either. Both raise ValueError saying why.
     """
-    Wn = W / np.maximum(np.sqrt(np.mean(W**2, axis=0)), 1e-300)
-    s = np.linalg.svd(Wn, compute_uv=False)
-    if len(W) < 6 or s[-1] < 1e-3 * s[0]:
-        raise ValueError("the wrenches do not span six directions (force and moment at the TCP): K cannot "
-                         "be identified; load the TCP along more axes")
+    if len(W) < 6:
+        raise ValueError(f"{len(W)} TCP rows: K needs at least 6 readings loading six directions")
+    lever = load_lever(W)
+    s = np.linalg.svd(np.concatenate([W[:, :3], W[:, 3:] / lever], axis=1), compute_uv=False)
+    if s[-1] < MIN_SPAN * s[0]:
+        raise ValueError(
+            f"the wrenches do not span six directions: with moments over the load's lever ({lever:.3g} m), "
+            f"the weakest load direction carries {s[-1] / max(s[0], 1e-300):.2g} of the strongest (needs "
+            f">= {MIN_SPAN:g}), so K cannot be identified; load the TCP along more axes, with forces at "
+            "several levers or pure moments")
     M = dX.T @ dX
-    return np.linalg.solve(M, dX.T @ W).T
+    K = np.linalg.solve(M, dX.T @ W).T
+    eig = np.linalg.eigvalsh((K + K.T) / 2)
+    if eig[0] <= 0:
+        raise ValueError(f"the identified K is not positive definite (its symmetric part has eigenvalue(s) "
+                         f"{', '.join(f'{e:.3g}' for e in eig[eig <= 0])}): no spring pushes back that way, "
+                         "so the data do not determine K; load the TCP along more axes or measure more "
+                         "repeats")
+    return K

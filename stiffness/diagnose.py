@@ -208,7 +208,6 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     ctx = model.context(data)
     result = fit(model, ctx, robust=robust)
     fitted = result.model
-    sigma = result.sigma
     resid = result.residual
     # unmeasured entries and gross errors weigh nothing: they drop out of every Gram block
     wt = result.weights
@@ -260,7 +259,9 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
         c.explanation = describe(c, fitted, ctx, result)
     candidates.sort(key=lambda c: (-c.named, -c.significant, -c.cv_improvement, c.delta_bic))
     verdict, message = _verdict(candidates, lof, result)
-    return Diagnosis(result, ctx, worst(ctx, np.where(use[:, None], resid, np.nan), sigma), noise, candidates,
+    # "where the model fails" in units of the noise its label names (repeats, else the stated noise)
+    ref = np.array([lof["position_mm"]] * 3 + [lof["rotation_deg"]] * 3)
+    return Diagnosis(result, ctx, worst(ctx, np.where(use[:, None], resid, np.nan), ref), noise, candidates,
                      verdict, message, lof)
 
 

@@ -6,6 +6,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .context import Context
+from .plots import legend_below
 from .residuals import axial_residual
 from .units import RAD_TO_DEG
 
@@ -47,7 +48,7 @@ def residual_vs_time(ctx: Context, resid: np.ndarray) -> Figure:
                     label=ctx.config_labels[c])
         ax.set_xlabel("time since the configuration's first reading (s)")
         ax.set_ylabel(f"|residual| ({unit})")
-    axes[0].legend(fontsize=7, ncols=2)
+    legend_below(fig, axes[0], ncols=12, markerscale=3)
     fig.suptitle("Residual of the most distal body against time")
     return fig
 
@@ -65,7 +66,7 @@ def residual_vs_force(ctx: Context, resid: np.ndarray) -> Figure:
             ax.plot(f[:, a], resid[m][:, k], ".", ms=2, alpha=0.5, label=f"f{'xyz'[a]}")
         ax.set_ylabel(f"residual {labels[k]}")
         ax.set_xlabel("sensor force (N)")
-    axes[0, 0].legend(fontsize=7)
+    legend_below(fig, axes[0, 0], markerscale=4)
     fig.suptitle("Residual of the most distal body against the sensor-frame force")
     return fig
 
@@ -103,7 +104,7 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         ax.set_xlabel(f"deflection {e.name} predicts (noise units)")
         ax.set_ylabel("residual (noise units)")
     ax.axhline(0, color="0.6", lw=0.8)
-    ax.legend(fontsize=8)
+    legend_below(fig, ax, markerscale=3)
     where = f" at {e.location_key} {e.joint}" if e.joint is not None else ""
     ax.set_title(f"Evidence: {e.name}{where}")
     return fig

@@ -66,7 +66,8 @@ def build_report(d: Diagnosis, model_path: str, data_path: str, plots: bool = Tr
     rep.heading("Where the model fails")
     w = d.worst
     rep.paragraph(f"Worst body {w['body']}, component {w['component']}, configuration {w['config']}, "
-                  f"load range {w['load_range']} (RMS in units of the noise; 1 is noise).")
+                  f"load range {w['load_range']} (RMS in units of the noise of {d.lack_of_fit['reference']}: "
+                  f"{d.lack_of_fit['position_mm']:.3g} mm, {d.lack_of_fit['rotation_deg']:.3g} deg; 1 is noise).")
     for key, title in (("body", "body"), ("component", "component"), ("config", "configuration"),
                        ("load_range", "load range (|F|)")):
         sc = w["scores"][key]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .effects import EFFECTS
-from .errors import ConfigError
+from .errors import ConfigError, quote
 from .model import StiffnessModel
 
 
@@ -14,7 +14,7 @@ def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
     ``joint`` is the joint (1..6) or, for link_bending, the link; global effects take none.
     """
     if effect not in EFFECTS:
-        raise ConfigError(f"effect {effect!r} is not in the library (one of {', '.join(sorted(EFFECTS))})")
+        raise ConfigError(f"effect {quote(effect)} is not in the library (one of {', '.join(sorted(EFFECTS))})")
     cls = EFFECTS[effect]
     entry = {"effect": effect, **(values or {})}
     if cls.per_joint:

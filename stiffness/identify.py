@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, lsq_linear
 
 from .context import Context
 from .identifiability import IDENT_TOL, unidentifiable
@@ -33,6 +33,7 @@ from .model import StiffnessModel
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale
+from .sanity import noise_warning
 
 T_DETERMINED = 3.0  # |estimate| / standard error below this: the data cannot tell it from zero
 ROBUST_EXTRA_ROUNDS = 3   # rounds a robust fit may add while its set of gross errors still changes
@@ -192,7 +193,7 @@ def _param(model, k):
 
 
 def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 100,
-        sigma: np.ndarray | None = None, robust: bool = True) -> FitResult:
+        sigma: np.ndarray | None = None, robust: bool = True, nonnegative: bool = False) -> FitResult:
     """Identify every parameter of ``model`` from ``data``; returns a fitted copy in the result.
 
     Parameters
@@ -208,6 +209,10 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         Give rows judged gross errors (`robust.gross_errors`) weight zero, re-judging after each
         round; up to ROBUST_EXTRA_ROUNDS more rounds while that set still changes. False: plain
         weighted least squares over every row.
+    nonnegative : bool
+        Bound every compliance (`Param.compliance`) at >= 0: bounded linear least squares
+        (scipy.optimize.lsq_linear). The result's warnings name the compliances held at the bound.
+        Unbounded (default), a negative compliance is kept and named in a warning.
     """
     model = model.copy()
     ctx = data if isinstance(data, Context) else model.context(data)
@@ -218,6 +223,8 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     scale = np.array([p.scale for e in model.effects for p in e.params])
     lin = linear_index(model)
     nl = np.setdiff1d(np.arange(len(scale)), lin)
+    compliance = np.array([p.compliance for e in model.effects for p in e.params], dtype=bool)
+    lower = np.where(compliance & nonnegative, 0.0, -np.inf)
     converged, message = True, "closed-form least squares"
     theta = model.theta.copy()
     inlier = np.ones(len(y), dtype=bool)
@@ -226,10 +233,11 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     while k < n_rounds:
         w = weights(measured, inlier, sigma)
         if len(nl):
-            theta, converged, message = _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev)
+            theta, converged, message = _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev,
+                                                         lower)
         else:
-            theta = _solve_linear(model, ctx, y, w, theta, lin)
-        theta = _exact_step(model, ctx, y, w, scale, theta)
+            theta = _solve_linear(model, ctx, y, w, theta, lin, lower)
+        theta = _exact_step(model, ctx, y, w, scale, theta, lower)
         resid = np.where(measured, y - model.predict(ctx, theta), np.nan)
         if robust:
             keep = ~gross_errors(resid, robust_scale(resid, stated), group)
@@ -256,6 +264,10 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     if undetermined:
         warnings.append(f"{len(undetermined)} parameter(s) cannot be told from zero by these data "
                         f"(|estimate| < {T_DETERMINED:g} standard errors): " + ", ".join(undetermined))
+    warnings += _compliance_warnings(model, compliance, nonnegative)
+    units = noise_warning(model, ctx, np.where(measured, ctx.data.deflection, np.nan))
+    if units:
+        warnings.append(units)
     result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
                        ~inlier, ctx.data.line)
     if result.outlier.any():
@@ -275,19 +287,45 @@ def _weighted(X: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (X * w[:, :, None]).reshape(-1, X.shape[2])
 
 
-def _solve_linear(model, ctx, y, w, theta, lin):
-    """The linear parameters in closed form (minimum-norm step from ``theta``), the others held."""
+def _solve_linear(model, ctx, y, w, theta, lin, lower=None):
+    """The linear parameters in closed form (minimum-norm step from ``theta``), the others held.
+
+    With ``lower`` (P,) below which a parameter may not go (-inf: unbounded), and any finite, the
+    bounded problem is solved by scipy.optimize.lsq_linear on unit-norm columns instead."""
     theta = theta.copy()
     start = theta[lin].copy()
     theta[lin] = 0.0
     rest = y - model.predict(ctx, theta, linear=True) if len(lin) < len(theta) else y
     X = design(model, ctx, model.frame_wrenches(ctx, theta), theta)
     Xw = _weighted(X, w)
-    theta[lin] = start + solve_ls(Xw, (rest * w).reshape(-1) - Xw @ start)
+    b = (rest * w).reshape(-1)
+    lo = None if lower is None else lower[lin]
+    if lo is None or not np.isfinite(lo).any():
+        theta[lin] = start + solve_ls(Xw, b - Xw @ start)
+        return theta
+    norms = np.linalg.norm(Xw, axis=0)
+    norms[norms <= 0] = 1.0
+    sol = lsq_linear(Xw / norms, b, bounds=(np.where(np.isfinite(lo), lo * norms, -np.inf), np.inf),
+                     method="bvls")
+    theta[lin] = sol.x / norms
     return theta
 
 
-def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev):
+def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegative: bool) -> list[str]:
+    """Name the negative compliances (unbounded fit) or those held at the bound of 0 (bounded fit)."""
+    labels = model.param_labels()
+    if nonnegative:
+        held = [lab for lab, c, v in zip(labels, compliance, model.theta) if c and v <= 0]
+        return [f"the non-negative bound is active on {len(held)} compliance(s), held at 0 because the "
+                "data push them below zero: " + ", ".join(held)] if held else []
+    problem = model.unphysical()
+    if not problem:
+        return []
+    return [(f"{problem}. The data may not determine them (see their standard errors), or the model misses "
+            "an effect; `--nonnegative` bounds them at 0. The service refuses a model holding one")]
+
+
+def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None):
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
@@ -296,7 +334,7 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev):
     def inner(x):
         th = theta.copy()
         th[nl] = x * scale[nl]
-        th = _solve_linear(model, ctx, y, w, th, lin)
+        th = _solve_linear(model, ctx, y, w, th, lin, lower)
         cache["theta"] = th
         return ((y - model.predict(ctx, th, linear=True)) * w).reshape(-1)
 
@@ -307,9 +345,12 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev):
     return cache["theta"], bool(sol.status > 0), sol.message
 
 
-def _exact_step(model, ctx, y, w, scale, theta):
-    """One Gauss-Newton step on the exact chain from the linearised optimum."""
+def _exact_step(model, ctx, y, w, scale, theta, lower=None):
+    """One Gauss-Newton step on the exact chain from the linearised optimum (kept within the
+    parameters' bounds and ``lower``)."""
     lo = np.array([p.bounds[0] for e in model.effects for p in e.params])
+    if lower is not None:
+        lo = np.maximum(lo, lower)
     hi = np.array([p.bounds[1] for e in model.effects for p in e.params])
     J = _weighted(jacobian(model, ctx, theta), w) * scale
     r = ((y - model.predict(ctx, theta)) * w).reshape(-1)

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import csv
 import math
+from array import array
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, Problems, quote
 from .robot import BODIES, Robot
 
 Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
@@ -131,48 +133,48 @@ def read_measurements(path: str | Path, robot: Robot | None = None) -> Dataset:
     """Read and validate a campaign from CSV (or Parquet, with pyarrow installed).
 
     Every row is checked: missing columns, non-numeric values, NaN or inf, unknown bodies and,
-    given a robot, joint angles outside its limits. All problems are collected and raised together
-    as one DataError naming each line; nothing is dropped silently.
+    given a robot, joint angles outside its limits. The problems are collected (the first
+    `Problems.LIMIT` kept, the rest counted) and raised together as one DataError naming each line;
+    nothing is dropped silently. Rows are checked as they are read, into compact arrays, so memory
+    grows with the file, not with its problems. A CSV may start with a UTF-8 byte order mark (Excel).
     """
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: measurement file not found")
     if path.suffix.lower() in (".parquet", ".pq"):
-        header, rows, lines = _parquet_rows(path)
-    else:
-        header, rows, lines = _csv_rows(path)
-    return _validate(path, header, rows, lines, robot)
-
-
-def _csv_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
+        header, rows = _parquet_rows(path)
+        return _validate(path, header, rows, robot)
     try:
-        with open(path, newline="") as fh:
-            return _parse_csv(path, fh)
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            header = _csv_header(path, reader)
+            return _validate(path, header, _csv_rows(path, reader), robot)
     except OSError as e:
         raise DataError(f"{path}: cannot read: {e.strerror or e}") from e
 
 
-def _parse_csv(path: Path, fh) -> tuple[list[str], list[list[str]], list[int]]:
-    reader = csv.reader(fh)
+def _csv_header(path: Path, reader) -> list[str]:
     try:
         header = next(reader)
     except StopIteration:
         raise DataError(f"{path}: the file is empty; expected a header row") from None
     except (csv.Error, UnicodeDecodeError) as e:
         raise DataError(f"{path}: line 1: cannot parse the header: {e}") from e
-    rows, lines = [], []
+    return [h.strip() for h in header]
+
+
+def _csv_rows(path: Path, reader) -> Iterator[tuple[int, list[str]]]:
+    """(file line, fields) of every non-blank row."""
     try:
         for row in reader:
             if not row or all(not c.strip() for c in row):
                 continue  # blank line: holds no data
-            rows.append(row)
-            lines.append(reader.line_num)
+            yield reader.line_num, row
     except (csv.Error, UnicodeDecodeError) as e:
         raise DataError(f"{path}: line {reader.line_num}: cannot parse: {e}") from e
-    return [h.strip() for h in header], rows, lines
 
 
-def _parquet_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
+def _parquet_rows(path: Path) -> tuple[list[str], Iterator[tuple[int, list[str]]]]:
     try:
         import pyarrow.parquet as pq
     except ImportError as e:
@@ -183,12 +185,11 @@ def _parquet_rows(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
         raise DataError(f"{path}: cannot read Parquet: {e}") from e
     header = list(table.column_names)
     cols = [table.column(c).to_pylist() for c in header]
-    rows = [["" if v is None else str(v) for v in r] for r in zip(*cols)]
-    return header, rows, [i + 2 for i in range(len(rows))]
+    rows = (["" if v is None else str(v) for v in r] for r in zip(*cols))
+    return header, enumerate(rows, start=2)
 
 
-def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[int],
-              robot: Robot | None) -> Dataset:
+def _check_header(path: Path, header: list[str]) -> None:
     missing = [c for c in REQUIRED_COLS if c not in header]
     if missing:
         raise DataError(f"{path}: line 1: missing column(s) {', '.join(missing)}; "
@@ -200,51 +201,69 @@ def _validate(path: Path, header: list[str], rows: list[list[str]], lines: list[
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: line 1: column(s) {', '.join(dup)} appear more than once")
+
+
+def _validate(path: Path, header: list[str], rows: Iterable[tuple[int, list[str]]],
+              robot: Robot | None) -> Dataset:
+    _check_header(path, header)
     idx = {c: header.index(c) for c in COLUMNS if c in header}
-    problems: list[str] = []
-    n = len(rows)
-    num = np.full((n, len(NUMERIC_COLS)), np.nan)
-    config = np.empty(n, dtype=object)
-    body = np.full(n, -1)
+    problems = Problems()
+    num, config, body, lines = array("d"), [], array("b"), array("q")
     body_index = {b: i for i, b in enumerate(BODIES)}
-    for r, (row, line) in enumerate(zip(rows, lines)):
+    nan_row = [math.nan] * len(NUMERIC_COLS)
+    for line, row in rows:
+        lines.append(line)
         if len(row) != len(header):
-            problems.append(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
+            problems.add(f"{path}: line {line}: {len(row)} fields, the header has {len(header)}")
+            num.extend(nan_row)
+            config.append("")
+            body.append(-1)
             continue
-        for k, c in enumerate(NUMERIC_COLS):
-            text = row[idx[c]].strip() if c in idx else ""
-            if not text and c in DEFLECTION_COLS:
-                continue            # not measured in this row: stays NaN
-            try:
-                v = float(text)
-            except ValueError:
-                problems.append(f"{path}: line {line}: {c} = {text!r} is not a number")
-                continue
-            if not math.isfinite(v):
-                problems.append(f"{path}: line {line}: {c} = {text!r} is not finite")
-            num[r, k] = v
+        num.extend(_numbers(path, line, row, idx, problems))
         if not any(row[idx[c]].strip() for c in DEFLECTION_COLS if c in idx):
-            problems.append(f"{path}: line {line}: no deflection component is given; a row must "
-                            "measure at least one")
-        config[r] = row[idx["config"]].strip()
-        if not config[r]:
-            problems.append(f"{path}: line {line}: config is empty")
+            problems.add(f"{path}: line {line}: no deflection component is given; a row must "
+                         "measure at least one")
+        cfg = row[idx["config"]].strip()
+        config.append(cfg)
+        if not cfg:
+            problems.add(f"{path}: line {line}: config is empty")
         b = row[idx["body"]].strip()
+        body.append(body_index.get(b, -1))
         if b not in body_index:
-            problems.append(f"{path}: line {line}: body = {b!r} is not one of {', '.join(BODIES)}")
-        else:
-            body[r] = body_index[b]
-    q = num[:, 1:7]
+            problems.add(None if problems.full else
+                         f"{path}: line {line}: body = {quote(b)} is not one of {', '.join(BODIES)}")
+    n = len(lines)
+    num_a = np.frombuffer(num, dtype=float).reshape(n, len(NUMERIC_COLS)) if n else np.zeros((0, 19))
+    q = num_a[:, 1:7]
     if robot is not None:
         ok = robot.within_limits(np.nan_to_num(q))
         for r, j in zip(*np.nonzero(~ok)):
             lo, hi = robot.limits_deg[j]
-            problems.append(f"{path}: line {lines[r]}: q{j + 1}_deg = {q[r, j]:g} is outside the joint "
-                            f"limits [{lo:g}, {hi:g}] of {robot.source}")
+            problems.add(f"{path}: line {lines[r]}: q{j + 1}_deg = {q[r, j]:g} is outside the joint "
+                         f"limits [{lo:g}, {hi:g}] of {robot.source}")
     if problems:
-        raise DataError(f"{path}: {len(problems)} problem(s) in {n} rows; nothing was loaded", problems)
+        raise DataError(f"{path}: {problems.count} problem(s) in {n} rows; nothing was loaded", problems)
     if n == 0:
         raise DataError(f"{path}: no data rows after the header")
     extra = [c for c in header if c not in COLUMNS]
-    return Dataset(num[:, 0], config.astype(str), q, num[:, 7:13], body, num[:, 13:19],
-                   np.asarray(lines), str(path), extra)
+    return Dataset(num_a[:, 0].copy(), np.array(config, dtype=str), q.copy(), num_a[:, 7:13].copy(),
+                   np.asarray(body, dtype=int), num_a[:, 13:19].copy(), np.asarray(lines, dtype=int),
+                   str(path), extra)
+
+
+def _numbers(path: Path, line: int, row: list[str], idx: dict[str, int], problems: Problems) -> list[float]:
+    """The numeric columns of one row (NaN where a deflection is not measured or a value is bad)."""
+    out = []
+    for c in NUMERIC_COLS:
+        text = row[idx[c]].strip() if c in idx else ""
+        v = math.nan
+        if text or c not in DEFLECTION_COLS:     # an empty deflection cell: not measured
+            try:
+                v = float(text)
+            except ValueError:
+                problems.add(None if problems.full else f"{path}: line {line}: {c} = {quote(text)} is not a number")
+            else:
+                if not math.isfinite(v):
+                    problems.add(None if problems.full else f"{path}: line {line}: {c} = {quote(text)} is not finite")
+        out.append(v)
+    return out

@@ -16,17 +16,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from .context import Context
 from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
-from .errors import ConfigError
+from .errors import ConfigError, quote
 from .measurements import Dataset
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
 from .units import M_TO_MM, RAD_TO_DEG
-from .yamlio import read_yaml
+from .yamlio import dump_yaml, read_yaml
 
 TOP_KEYS = {"name", "description", "robot", "noise", "effects"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
@@ -76,18 +75,18 @@ class StiffnessModel:
         robot_ref = data.get("robot")
         if robot is None:
             if not isinstance(robot_ref, str):
-                raise ConfigError(f"{source}: robot = {robot_ref!r}: must name a robot YAML file "
+                raise ConfigError(f"{source}: robot = {quote(robot_ref)}: must name a robot YAML file "
                                   "(a path relative to the model file)")
             robot_path = (base_dir or Path(".")) / robot_ref
             if not robot_path.exists():
-                raise ConfigError(f"{source}: robot = {robot_ref!r}: file {robot_path} not found")
+                raise ConfigError(f"{source}: robot = {quote(robot_ref)}: file {robot_path} not found")
             robot = load_robot(robot_path)
         noise = data.get("noise") or {}
         if not isinstance(noise, dict) or set(noise) - set(DEFAULT_NOISE):
             raise ConfigError(f"{source}: noise must be a mapping with keys {', '.join(DEFAULT_NOISE)}")
         for k, v in noise.items():
             if not isinstance(v, (int, float)) or not v > 0:
-                raise ConfigError(f"{source}: noise.{k} = {v!r} must be a number > 0")
+                raise ConfigError(f"{source}: noise.{k} = {quote(v)} must be a number > 0")
         entries = data.get("effects")
         if not isinstance(entries, list) or not entries:
             raise ConfigError(f"{source}: effects must be a non-empty list of effect entries")
@@ -99,7 +98,7 @@ class StiffnessModel:
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             name = entry["effect"]
             if name not in EFFECTS:
-                raise ConfigError(f"{where}: effect = {name!r} is not in the library "
+                raise ConfigError(f"{where}: effect = {quote(name)} is not in the library "
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             effects.append(EFFECTS[name].from_config(entry, robot, where))
         return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),
@@ -126,7 +125,7 @@ class StiffnessModel:
         folder, so the written model loads from wherever it is written."""
         d = self.to_dict()
         d["robot"] = self.robot_ref_from(Path(path).resolve().parent)
-        text = yaml.safe_dump(d, sort_keys=False, width=110)
+        text = dump_yaml(d, sort_keys=False, width=110)
         Path(path).write_text((header + "\n" if header else "") + text)
 
     def robot_ref_from(self, folder: Path) -> str | None:
@@ -158,6 +157,31 @@ class StiffnessModel:
             if key in seen:
                 raise ConfigError(f"{self.source}: effect {e.label} appears twice")
             seen.add(key)
+
+    def negative_compliances(self) -> list[str]:
+        """Each compliance below zero as 'effect@joint1.key = value unit' (YAML units); none: []."""
+        return [f"{e.label}.{p.key} = {v * p.yaml_factor:.4g} {p.unit}"
+                for e in self.effects for p, v in zip(e.params, e.theta) if p.compliance and v < 0]
+
+    def unphysical(self) -> str | None:
+        """What makes the model impossible for a real robot, in words; None when nothing does.
+
+        A negative compliance: the joint would deflect against the load, and a correction from it
+        pushes the tool the wrong way. A fit may return one (`stiffcomp fit` shows it and can bound
+        it with ``--nonnegative``); a model to compensate with must not hold one.
+        """
+        bad = self.negative_compliances()
+        if not bad:
+            return None
+        return (f"{len(bad)} negative compliance(s), which no robot has (a compliance must be >= 0): "
+                + "; ".join(bad))
+
+    def require_physical(self) -> None:
+        """Raise ConfigError naming the source, the effects and the keys when `unphysical`."""
+        problem = self.unphysical()
+        if problem:
+            raise ConfigError(f"{self.source}: {problem}. Refit with `stiffcomp fit --nonnegative`, or "
+                              "remove the component")
 
     # -- parameters -----------------------------------------------------------------------------
     @property

@@ -86,6 +86,19 @@ def deflection_vs_load(data: Dataset, direction: np.ndarray, predictions: list[t
     return fig
 
 
+def legend_below(fig: Figure, *axes, ncols: int | None = None, markerscale: float = 1.0) -> None:
+    """The legend entries of ``axes`` as one legend below them, off the data (the figure must use
+    the constrained layout, which makes room). The one place plots put a legend."""
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols or min(len(handles), 6), fontsize=8,
+               frameon=False, markerscale=markerscale)
+
+
 def _legend(fig: Figure, configs: list[str], colours: dict, models: list[str], styles) -> None:
     handles = [Line2D([], [], ls="none", marker=".", ms=8, color="0.3", label="measured")]
     handles += [Line2D([], [], ls=ls, color="0.3", label=name) for name, ls in zip(models, styles)]
@@ -126,6 +139,6 @@ def rms_bars(groups: list[tuple[str, dict[str, dict]]], what: str,
         ax.set_ylabel(label, fontsize=9)
         ax.tick_params(axis="y", labelsize=8)
         ax.grid(True, axis="y", lw=0.4, alpha=0.5)
-    axes[0].legend(fontsize=8)
+    legend_below(fig, axes[0])
     fig.suptitle(f"RMS error per {what}", fontsize=11)
     return fig

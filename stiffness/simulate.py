@@ -32,7 +32,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator
 
-from .errors import ConfigError
+from .errors import ConfigError, quote
 from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 from .robot import BODIES, N_JOINTS, Robot
@@ -158,7 +158,7 @@ class Campaign:
             q += q_rand.tolist()
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise ConfigError(f"{source}: configurations: name = {dup[0]!r} is used twice; names must be unique")
+            raise ConfigError(f"{source}: configurations: name = {quote(dup[0])} is used twice; names must be unique")
         self.config_names = names
         self.q_deg = np.array(q, dtype=float)
         n_rows = len(names) * len(self.axes) * len(self.levels_N) * self.repeats * len(self.bodies)
@@ -173,7 +173,7 @@ class Campaign:
         spec = validate(CampaignSpec, read_yaml(path), str(path))
         truth_path = path.parent / spec.truth
         if not truth_path.exists():
-            raise ConfigError(f"{path}: truth = {spec.truth!r}: model file {truth_path} not found "
+            raise ConfigError(f"{path}: truth = {quote(spec.truth)}: model file {truth_path} not found "
                               "(the path is relative to the campaign file)")
         return cls(spec, StiffnessModel.from_yaml(truth_path), str(path))
 

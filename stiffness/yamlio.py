@@ -8,9 +8,24 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from .errors import ConfigError
+from .errors import ConfigError, quote
 
 M = TypeVar("M", bound=BaseModel)
+
+
+class NoAliasLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses aliases (``*name``): nested aliases expand exponentially (a
+    "billion laughs" file of a few hundred bytes takes minutes and gigabytes), and no config or model
+    of ours needs them. An anchor alone (``&name``) is harmless and left alone."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.MarkedYAMLError(
+                problem=f"an alias (*{event.anchor}) is not accepted: write the value out in full "
+                        "(aliases can expand without bound)",
+                problem_mark=event.start_mark)
+        return super().compose_node(parent, index)
 
 
 class Strict(BaseModel):
@@ -18,6 +33,19 @@ class Strict(BaseModel):
     and so are inf and NaN (an infinite limit would silently disable it)."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class _NoAliasDumper(yaml.SafeDumper):
+    """yaml.SafeDumper that writes a value shared twice in full twice, never as an alias."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+
+def dump_yaml(data: Any, **options: Any) -> str:
+    """YAML text of ``data`` without aliases (`read_yaml` refuses them), the one way stiffcomp writes
+    YAML a person or stiffcomp reads again; ``options`` as for ``yaml.safe_dump``."""
+    return yaml.dump(data, Dumper=_NoAliasDumper, **options)
 
 
 def read_yaml(path: str | Path) -> dict[str, Any]:
@@ -28,7 +56,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     except OSError as e:
         raise ConfigError(f"{path}: cannot read: {e.strerror or e}") from e
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=NoAliasLoader)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""
@@ -48,7 +76,7 @@ def format_validation_error(source: str, err: ValidationError, prefix: str = "")
         elif e["type"] == "missing":
             lines.append(f"{source}: {key} is missing")
         else:
-            lines.append(f"{source}: {key} = {e.get('input')!r}: {e['msg']}")
+            lines.append(f"{source}: {key} = {quote(e.get('input'))}: {e['msg']}")
     return "\n".join(lines)
 
 

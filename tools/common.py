@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -13,15 +14,61 @@ import numpy as np
 from stiffness.errors import OutputError
 from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
+from stiffness.sanity import resolve_duplicates
 
 
-def load(model_path: str, data_path: str | None = None) -> tuple[StiffnessModel, Dataset | None]:
+def load(model_path: str, data_path: str | None = None,
+         keep_duplicates: bool = False) -> tuple[StiffnessModel, Dataset | None]:
+    """The model and the campaign, with a note on ignored columns and a warning on duplicate rows
+    (left out unless ``keep_duplicates``, see `stiffness.sanity`)."""
     model = StiffnessModel.from_yaml(model_path)
     data = read_measurements(data_path, model.robot) if data_path else None
     if data is not None and data.ignored_columns:
         print(f"note: {data_path}: column(s) {', '.join(data.ignored_columns)} are not part of the "
               "format and were not used", file=sys.stderr)
+    if data is not None:
+        data, warnings = resolve_duplicates(data, keep_duplicates)
+        for w in warnings:
+            print(f"warning: {w}", file=sys.stderr)
     return model, data
+
+
+def add_duplicates_option(p) -> None:
+    """``--keep-duplicates``: keep rows that repeat an earlier row (shared by fit, diagnose, compare, kcart)."""
+    p.add_argument("--keep-duplicates", action="store_true",
+                   help="keep rows that repeat an earlier row, or a body measured twice in one reading "
+                        "(default: leave them out, with a warning; docs/measurement_format.md)")
+
+
+class Progress:
+    """The progress of a long command (fit, diagnose) on stderr, so stdout stays the result.
+
+    On a terminal: one line rewritten in place with the stage and the seconds so far. Otherwise (a
+    log, CI): the first stage, then at most one line every EVERY_S seconds. Both end with
+    ``COMMAND: done in X s``.
+    """
+
+    EVERY_S = 5.0
+
+    def __init__(self, command: str, stream=None):
+        self.command = command
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.t0 = time.monotonic()
+        self.last: float | None = None
+
+    def __call__(self, stage: str) -> None:
+        now = time.monotonic()
+        line = f"{self.command}: {stage} ({now - self.t0:.0f} s)"
+        if self.tty:
+            print(f"\r\033[K{line}", end="", file=self.stream, flush=True)
+        elif self.last is None or now - self.last >= self.EVERY_S:
+            print(line, file=self.stream, flush=True)
+            self.last = now
+
+    def done(self) -> None:
+        print(("\r\033[K" if self.tty else "") + f"{self.command}: done in {time.monotonic() - self.t0:.1f} s",
+              file=self.stream, flush=True)
 
 
 T = TypeVar("T")

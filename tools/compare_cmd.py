@@ -11,7 +11,7 @@ from stiffness.compare_report import GROUPS, build_report, change_text
 from stiffness.errors import ConfigError
 from stiffness.model import StiffnessModel
 
-from .common import load, print_json
+from .common import add_duplicates_option, load, print_json
 
 
 def register(sub) -> None:
@@ -24,6 +24,7 @@ def register(sub) -> None:
                                                              "the campaign (CSV, or Parquet with pyarrow)")
     p.add_argument("--report", metavar="DIR", help="write an HTML report with plots into DIR")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON (docs/compare.md)")
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
@@ -31,8 +32,13 @@ def run(args) -> int:
     if len(args.files) not in (2, 3):
         raise ConfigError(f"compare takes MODEL [MODEL2] DATA: got {len(args.files)} file(s)")
     *model_paths, data_path = args.files
-    first, data = load(model_paths[0], data_path)
+    first, data = load(model_paths[0], data_path, args.keep_duplicates)
     models = [first, *(StiffnessModel.from_yaml(p) for p in model_paths[1:])]
+    for m in models:
+        problem = m.unphysical()
+        if problem:
+            print(f"warning: {m.source}: {problem}; compared as it is, but `stiffcomp run` refuses this model "
+                  "(refit with `stiffcomp fit --nonnegative`)", file=sys.stderr)
     comp = compare(models, data)
     if args.json:
         print_json(comp.to_dict())

@@ -8,7 +8,7 @@ from pathlib import Path
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report, to_dict
 
-from .common import load, print_json, write_output
+from .common import Progress, add_duplicates_option, load, print_json, write_output
 from .fit_cmd import add_robust_option
 
 
@@ -20,20 +20,15 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--top", type=int, default=None, help="list only the best N candidates")
     add_robust_option(p)
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    model, data = load(args.model, args.data)
-    tty = sys.stderr.isatty()
-
-    def progress(msg: str) -> None:
-        if tty:
-            print(f"\r\033[Kdiagnose: {msg}", end="", file=sys.stderr, flush=True)
-
+    model, data = load(args.model, args.data, args.keep_duplicates)
+    progress = Progress("diagnose")
     d = diagnose(model, data, progress, robust=args.robust)
-    if tty:
-        print("\r\033[K", end="", file=sys.stderr)
+    progress.done()
     if args.report:
         report = build_report(d, args.model, args.data)
         path = write_output(Path(args.report) / "index.html", lambda p: report.write(p.parent))

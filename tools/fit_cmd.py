@@ -9,7 +9,7 @@ import numpy as np
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
 from stiffness.identify import FitResult, fit
 
-from .common import load, print_json, write_output
+from .common import Progress, add_duplicates_option, load, print_json, write_output
 
 
 def register(sub) -> None:
@@ -18,7 +18,11 @@ def register(sub) -> None:
     p.add_argument("data", help="measurement campaign (CSV, or Parquet with pyarrow)")
     p.add_argument("-o", "--output", help="write the fitted model YAML here")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--nonnegative", action="store_true",
+                   help="bound every compliance at >= 0 (bounded least squares); a warning names those "
+                        "held at the bound")
     add_robust_option(p)
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
@@ -31,13 +35,14 @@ def add_robust_option(p) -> None:
 def joint_stiffness(result: FitResult) -> list[dict]:
     """Per joint, the stiffness of each spring component (N/m or Nm/rad); None where absent.
 
-    A compliance that is not positive has no finite stiffness and is reported as None too.
+    A negative compliance gives a negative stiffness, shown as it is (the fit's warnings name it); a
+    compliance of exactly 0 (held at the bound by ``--nonnegative``) an infinite one.
     """
     table = [{"joint": j, **{c: None for c in COMPONENTS}} for j in range(1, 7)]
     for e in result.model.effects:
         if isinstance(e, JointSpring):
             for c, v in zip(e.components, e.theta):
-                table[e.joint - 1][c] = 1.0 / v if v > 0 else None
+                table[e.joint - 1][c] = 1.0 / v if v != 0 else float("inf")
     return table
 
 
@@ -67,8 +72,11 @@ def _measured(result: FitResult, k: int) -> bool:
 
 
 def run(args) -> int:
-    model, data = load(args.model, args.data)
-    result = fit(model, data, robust=args.robust)
+    model, data = load(args.model, args.data, args.keep_duplicates)
+    progress = Progress("fit")
+    progress(f"fitting {len(model.theta)} parameters to {len(data)} rows")
+    result = fit(model, data, robust=args.robust, nonnegative=args.nonnegative)
+    progress.done()
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "
                   f"{result.rms_text()}")
@@ -87,7 +95,8 @@ def run(args) -> int:
 def print_text(result: FitResult, args) -> None:
     print(f"fitted {args.model} to {args.data}")
     print(f"  residual RMS per component: {result.rms_text()}")
-    print("  joint stiffness (N/m for x, y, z; Nm/rad for rx, ry, rz; - not in the model):")
+    print("  joint stiffness (N/m for x, y, z; Nm/rad for rx, ry, rz; - not in the model; "
+          "< 0 a negative compliance, see the warning; inf held at 0 by --nonnegative):")
     print("  joint " + "".join(f"{c:>12}" for c in COMPONENTS))
     for row in joint_stiffness(result):
         cells = "".join(f"{row[c]:12.3g}" if row[c] is not None else f"{'-':>12}" for c in COMPONENTS)

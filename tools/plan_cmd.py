@@ -7,13 +7,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from stiffness.errors import ConfigError
 from stiffness.model import StiffnessModel
 from stiffness.planning import DEVICES, Device, Plan, plan
 from stiffness.robot import BODIES
 from stiffness.simulate import LoadSpec, NoiseSpec, ReadingSpec
+from stiffness.yamlio import dump_yaml
 
 from .common import print_json, write_output
 
@@ -77,7 +77,7 @@ def campaign_yaml(result: Plan, model: StiffnessModel, device: Device, args) -> 
         "bodies": device.bodies,
         "components": comps,
     }
-    return "# Follow it in the lab; rehearse it with `stiffcomp simulate`.\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
+    return "# Follow it in the lab; rehearse it with `stiffcomp simulate`.\n" + dump_yaml(doc, sort_keys=False, default_flow_style=None, width=120)
 
 
 def to_dict(result: Plan, args) -> dict:

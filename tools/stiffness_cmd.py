@@ -7,7 +7,7 @@ import numpy as np
 from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.errors import ConfigError
 
-from .common import load, print_json
+from .common import add_duplicates_option, load, print_json
 from .torques_cmd import static_torques, torque_dict, torque_table
 
 
@@ -17,11 +17,12 @@ def register(sub) -> None:
     p.add_argument("--q", nargs=6, type=float, metavar="Q", help="joint angles in deg")
     p.add_argument("--data", help="identify K directly from the campaign's TCP rows, per configuration (Eq. 15)")
     p.add_argument("--json", action="store_true")
+    add_duplicates_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    model, data = load(args.model, args.data)
+    model, data = load(args.model, args.data, args.keep_duplicates)
     out = {}
     if args.q is not None:
         try:
@@ -49,8 +50,11 @@ def run(args) -> int:
         np.set_printoptions(precision=4, suppress=False, linewidth=140)
         for key, val in out.items():
             for entry in val if isinstance(val, list) else [val]:
-                print(f"{key} K at q = {np.asarray(entry['q_deg'])} deg (N/m, N/rad; Nm/m, Nm/rad):")
-                print(entry.get("K", entry.get("error")))
+                where = f"{key} K at q = {np.asarray(entry['q_deg'])} deg"
+                if "K" in entry:
+                    print(f"{where} (N/m, N/rad; Nm/m, Nm/rad):\n{entry['K']}")
+                else:
+                    print(f"{where}: refused: {entry['error']}")
         if args.q is not None:
             print("static joint torques tau_s there (Nm, no payload; `stiffcomp torques` adds one):")
             print(torque_table(model.robot, torques))

@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..context import N_SITES, Context
-from ..errors import ConfigError
+from ..errors import ConfigError, quote
 from .realtime import InputTerm, Term
 
 # "predicted": the residual against the deflection the effect predicts (points on the diagonal: explained);
@@ -44,6 +44,8 @@ class Param:
     """One parameter: its YAML key (unit in the name), SI scale for fitting, and whether it is fitted.
 
     ``yaml_factor`` converts SI to the YAML unit (value_yaml = value_si * yaml_factor).
+    ``compliance`` marks a compliance: physically >= 0 (a negative one is a spring that pushes back
+    the wrong way), refused by `StiffnessModel.require_physical`, bounded by ``fit(nonnegative=True)``.
     """
 
     key: str
@@ -52,6 +54,7 @@ class Param:
     yaml_factor: float = 1.0
     nonlinear: bool = False
     bounds: tuple[float, float] = (-np.inf, np.inf)
+    compliance: bool = False
 
 
 class Effect(ABC):
@@ -150,13 +153,13 @@ def read_values(cls_name: str, section: dict[str, Any], params: list[Param], whe
         try:
             v = float(raw)
         except (TypeError, ValueError):
-            raise ConfigError(f"{where}: {p.key} = {raw!r} is not a number ({p.unit})") from None
+            raise ConfigError(f"{where}: {p.key} = {quote(raw)} is not a number ({p.unit})") from None
         if not np.isfinite(v):
-            raise ConfigError(f"{where}: {p.key} = {raw!r} must be finite ({p.unit})")
+            raise ConfigError(f"{where}: {p.key} = {quote(raw)} must be finite ({p.unit})")
         lo, hi = p.bounds
         si = v / p.yaml_factor
         if not lo <= si <= hi:
-            raise ConfigError(f"{where}: {p.key} = {raw!r} is outside [{lo * p.yaml_factor:g}, "
+            raise ConfigError(f"{where}: {p.key} = {quote(raw)} is outside [{lo * p.yaml_factor:g}, "
                               f"{hi * p.yaml_factor:g}] {p.unit}")
         theta[k] = si
     return theta
@@ -168,5 +171,5 @@ def read_location(section: dict[str, Any], key: str, allowed: tuple[int, ...], w
         raise ConfigError(f"{where}: {key} is missing (one of {', '.join(map(str, allowed))})")
     v = section[key]
     if not isinstance(v, int) or isinstance(v, bool) or v not in allowed:
-        raise ConfigError(f"{where}: {key} = {v!r} must be one of {', '.join(map(str, allowed))}")
+        raise ConfigError(f"{where}: {key} = {quote(v)} must be one of {', '.join(map(str, allowed))}")
     return v

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from ..context import Context
-from ..errors import ConfigError
+from ..errors import ConfigError, quote
 from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque, torque_range
 from .base import Effect, Param, read_location, read_values
@@ -139,7 +139,7 @@ class Hysteresis(Effect):
                               "the service; replace it and fit again")
         thr = section.get("threshold_Nm", DEFAULT_THRESHOLD_NM)
         if isinstance(thr, bool) or not isinstance(thr, (int, float)) or not 0 <= thr < 1e4:
-            raise ConfigError(f"{where}: threshold_Nm = {thr!r} must be a number in [0, 1e4) Nm")
+            raise ConfigError(f"{where}: threshold_Nm = {quote(thr)} must be a number in [0, 1e4) Nm")
         section = {"transition_Nm": DEFAULT_TRANSITION_NM, **section}
         theta = read_values(cls.name, section, cls(joint).params, where, ("joint", "threshold_Nm"))
         return cls(joint, theta[0], theta[1], float(thr))

@@ -39,8 +39,8 @@ COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 
 def spring_param(component: str) -> Param:
     if component in ("x", "y", "z"):
-        return Param(f"{component}_m_per_N", "m/N", 1e-9)
-    return Param(f"{component}_rad_per_Nm", "rad/Nm", 1e-7)
+        return Param(f"{component}_m_per_N", "m/N", 1e-9, compliance=True)
+    return Param(f"{component}_rad_per_Nm", "rad/Nm", 1e-7, compliance=True)
 
 
 class JointSpring(Effect):

@@ -50,7 +50,7 @@ class LinkBending(Effect):
                 {"effect": "link_bending", "link": 3, "compliance_per_Nm2": 3e-7})
 
     def __init__(self, link: int, compliance: float = 0.0):
-        super().__init__([Param("compliance_per_Nm2", "1/(N m^2)", 1e-10)], np.array([compliance]), link)
+        super().__init__([Param("compliance_per_Nm2", "1/(N m^2)", 1e-10, compliance=True)], np.array([compliance]), link)
 
     @classmethod
     def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> LinkBending:

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, quote
 from .axial import AxialEffect, torque_range
 from .base import Param, read_location, read_values
 from .joint_spring import axial_compliance
@@ -60,10 +60,10 @@ class NonlinearStiffness(AxialEffect):
         joint = read_location(section, "joint", cls.joints, where)
         form = section.get("form", "cubic")
         if form not in FORMS:
-            raise ConfigError(f"{where}: form = {form!r} must be one of {', '.join(FORMS)}")
+            raise ConfigError(f"{where}: form = {quote(form)} must be one of {', '.join(FORMS)}")
         ref = section.get("reference_torque_Nm", 1000.0)
         if not isinstance(ref, (int, float)) or not ref > 0:
-            raise ConfigError(f"{where}: reference_torque_Nm = {ref!r} must be a number > 0")
+            raise ConfigError(f"{where}: reference_torque_Nm = {quote(ref)} must be a number > 0")
         probe = cls(joint, form)
         if form == "two_slope":
             section = {"knee_Nm": 300.0, **section}

@@ -74,3 +74,40 @@ def test_singular_compliance_is_refused():
     axial = StiffnessModel.from_yaml(MODELS / "kr125_axial.yaml")
     with pytest.raises(ValueError, match="singular"):
         tcp_stiffness(axial, np.array([10.0, -75.0, 90.0, 0.0, 0.0, 0.0]))   # q5 = 0: a wrist singularity
+
+
+def test_eq15_refuses_moments_that_are_only_noise(robot, model6):
+    """Forces at one lever plus sensor noise on the moments (the walk's campaign): the noise must not
+    pass for a load direction, as it did when each column was scaled to unit RMS."""
+    import pytest
+    rng = np.random.default_rng(3)
+    F = rng.normal(size=(150, 3)) * 700
+    W = np.c_[F, np.cross([0.0, 0.0, 0.1], F) + rng.normal(size=(150, 3)) * 0.3]
+    data = tcp_dataset(robot, W)
+    data = with_deflection(data, model6.predict(data) + rng.normal(size=(150, 6)) * ([0.03] * 3 + [0.002] * 3))
+    W_back, dX = tcp_wrench_and_deflection(data, robot)
+    with pytest.raises(ValueError, match=r"load's lever \(0\.0[89]\d* m\)"):
+        identify_cartesian(W_back, dX)
+
+
+def test_eq15_refuses_a_k_that_is_not_positive_definite():
+    import pytest
+    rng = np.random.default_rng(4)
+    W = rng.normal(size=(60, 6)) * [500, 500, 500, 50, 50, 50]
+    C = np.diag([1e-6, 1e-6, -1e-6, 1e-5, 1e-5, 1e-5])            # a spring pushing the wrong way along z
+    with pytest.raises(ValueError, match=r"not positive definite \(its symmetric part has eigenvalue\(s\) -1e\+06"):
+        identify_cartesian(W, W @ C.T)
+    np.testing.assert_allclose(identify_cartesian(W, W @ np.abs(C).T), np.linalg.inv(np.abs(C)), rtol=1e-6, atol=1e-3)
+
+
+def test_kcart_refuses_the_walks_campaign_and_says_why():
+    import subprocess
+    import sys
+
+    from stiffcomp_testlib import MODELS, ROOT
+    r = subprocess.run([sys.executable, "-m", "tools.cli", "kcart", MODELS / "kr125_6dof.yaml", "--data",
+                        ROOT / "examples" / "campaign_backlash.csv"], cwd=ROOT, capture_output=True, text=True,
+                       check=False, timeout=180)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 5 and all("refused: the wrenches do not span six directions" in x for x in lines)

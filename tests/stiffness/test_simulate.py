@@ -10,6 +10,7 @@ from stiffness.identify import fit
 from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign, simulate
+from stiffness.yamlio import dump_yaml
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
@@ -22,7 +23,7 @@ CONFIGS = [{"name": "R1", "q_deg": [10, -75, 90, 0, 75, 0]},
 def write_campaign(tmp_path, name="c.yaml", **spec):
     body = {"truth": str(TRUTH), "configurations": CONFIGS, "seed": 5} | spec
     path = tmp_path / name
-    path.write_text(yaml.safe_dump(body))
+    path.write_text(dump_yaml(body))           # a configuration given twice is written out twice
     return path
 
 
