@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from service.config import GravityConfig
+from service.gravity import GravityConfig
 from stiffness.yamlio import Strict, read_yaml, validate
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -23,7 +23,7 @@ from hil.circle import evaluate_pass
 from hil.payload import TruePayload
 from hil.run import run_pass
 from hil.world import World
-from service.config import GravityConfig
+from service.gravity import GravityConfig
 from service.gravity import PAYLOAD_BODIES, GravityCompensator
 from stiffness.model import StiffnessModel
 
