@@ -23,8 +23,7 @@ from hil.circle import evaluate_pass
 from hil.payload import TruePayload
 from hil.run import run_pass
 from hil.world import World
-from service.gravity import GravityConfig
-from service.gravity import PAYLOAD_BODIES, GravityCompensator
+from service.gravity import PAYLOAD_BODIES, GravityCompensator, GravityConfig
 from stiffness.model import StiffnessModel
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
