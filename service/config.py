@@ -127,6 +127,11 @@ class FaultsConfig(Strict):
     sensor_timeout_ms: float = Field(10.0, gt=0)
     plc_heartbeat_timeout_ms: float = Field(200.0, ge=0)
     overrun_trip_count: int = Field(10, ge=1, le=1000)
+    io_restarts: int = Field(3, ge=0, le=100)
+
+
+class TareConfig(Strict):
+    max_force_N: float = Field(200.0, gt=0)
 
 
 
@@ -139,6 +144,7 @@ class ServiceConfig(Strict):
     gravity: GravityConfig = Field(default_factory=GravityConfig)
     limits: LimitsConfig = Field(default_factory=LimitsConfig)
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
+    tare: TareConfig = Field(default_factory=TareConfig)
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
     monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)

@@ -34,8 +34,9 @@ log = logging.getLogger("stiffcomp.service")
 
 _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
 # the status bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
-_RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN = (int(b) for b in (
-    Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN))
+_RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN, _TARE_REFUSED = (int(b) for b in (
+    Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN,
+    Status.TARE_REFUSED))
 _SENSOR_FAULTS = int(SENSOR_FAULTS)
 
 
@@ -62,10 +63,14 @@ class Compensator:
     predictor, filter, spikes, gravity, limiter : the stages
     faults : FaultMonitor
         Where a correction that is not finite trips ``value_invalid``.
+    tare_max_force_N : float
+        A tare is refused while the compensated force |F| is above this (a tare under load would zero
+        the load); ``tare_refused`` says so until a tare is done or the faults are reset.
     """
 
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
-                 gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor):
+                 gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
+                 tare_max_force_N: float = math.inf):
         self.predictor = predictor
         self.filter = filter
         self.spikes = spikes
@@ -85,13 +90,31 @@ class Compensator:
         self.sample_t: float | None = None
         self.t_first: float | None = None
         self._tare_pending = False            # a tare edge waits for the next sample
+        self.tare_max = float(tare_max_force_N)
+        self.tare_refused = False
 
     @classmethod
     def from_config(cls, cfg, model: StiffnessModel, faults: FaultMonitor) -> Compensator:
         period = cfg.cycle.period_ms / 1000.0
         return cls(FastPredictor.from_config(cfg.model, model), SosLowPass.from_config(cfg.filter, period),
                    SpikeRejector.from_config(cfg.filter.spike), GravityCompensator.from_config(cfg.gravity),
-                   CorrectionLimiter.from_config(cfg.limits, period), faults)
+                   CorrectionLimiter.from_config(cfg.limits, period), faults, cfg.tare.max_force_N)
+
+    def _tare(self, filtered: list[float]) -> None:
+        """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
+        pred = self.predictor
+        fx, fy, fz = self.gravity.compensate(filtered, pred.R_s)[:3]
+        load = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if load > self.tare_max:
+            self.tare_refused = True
+            log.warning("tare refused: the compensated force is %.0f N, above tare.max_force_N = %g N (a tare "
+                        "under load would zero the load); unload the tool and tare again", load, self.tare_max)
+            return
+        self.tare_refused = False
+        self.gravity.tare(filtered, pred.R_s)
+        self.tares += 1
+        pred.reset_history()
+        log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
               hold: bool, reset: bool = False) -> list[float]:
@@ -117,6 +140,7 @@ class Compensator:
             self._tare_pending = True
         if reset:
             pred.reset_history()
+            self.tare_refused = False
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -128,10 +152,7 @@ class Compensator:
             filtered = self.filter.update(x)
             if self._tare_pending:
                 self._tare_pending = False
-                self.gravity.tare(filtered, pred.R_s)
-                self.tares += 1
-                pred.reset_history()
-                log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
+                self._tare(filtered)
             self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
         dX = pred.deflection(self.wrench_base)
@@ -179,7 +200,8 @@ class Cycle:
         self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
                             | (_RAMPING if comp.limiter.ramping else 0)
                             | (_SENSOR_OK if comp.have_sample and not word & _SENSOR_FAULTS else 0)
-                            | (_PLC_SEEN if self.supervisor.plc_seen else 0))
+                            | (_PLC_SEEN if self.supervisor.plc_seen else 0)
+                            | (_TARE_REFUSED if comp.tare_refused else 0))
         return out
 
     def signals(self) -> Signals:
