@@ -6,6 +6,10 @@ not the PLC registers, and gives up after 1 s in total. The endpoint answers JSO
     {"healthy": true, "reason": "running, no fault, 0.2 % of cycles exceeded over 10 s", ...}
 
 Exit code 0 when healthy, 1 otherwise (also when nothing answers); the reason is printed in one line.
+
+From the config it reads only the sections it needs (`read_sections`): a site config copied out of the
+container names a model and a replay inside the image, which this command never opens, so it works
+from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
@@ -13,8 +17,15 @@ from __future__ import annotations
 import http.client
 import json
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
-from service.config import DEFAULT_CONFIG, load_config
+from pydantic import ValidationError
+
+from service.config import DEFAULT_CONFIG, ServiceConfig
+from service.errors import ServiceConfigError
+from stiffness.errors import StiffnessError
+from stiffness.yamlio import format_validation_error, read_yaml
 
 TIMEOUT_S = 1.0
 ANY_ADDRESS = {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}
@@ -28,8 +39,31 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def read_sections(path: str | Path, *names: str) -> SimpleNamespace:
+    """Only the named top-level sections of a service config (``plc``, ``ads``, ``monitoring``), validated
+    as the service validates them; nothing else in the file is read or checked, no file it names is opened.
+
+    Returns a namespace with those sections, ``path`` and ``resolve(relative)`` (relative to the file);
+    ServiceConfigError names the file, key and value."""
+    path = Path(path)
+    if not path.exists():
+        raise ServiceConfigError(f"{path}: config file not found")
+    try:
+        data = read_yaml(path)
+    except StiffnessError as e:
+        raise ServiceConfigError(str(e)) from e
+    out = SimpleNamespace(path=path, resolve=lambda rel: Path(rel) if Path(rel).is_absolute() else path.parent / rel)
+    for name in names:
+        model = ServiceConfig.model_fields[name].annotation
+        try:
+            setattr(out, name, model.model_validate(data.get(name) or {}))
+        except ValidationError as e:
+            raise ServiceConfigError(format_validation_error(str(path), e, prefix=name)) from e
+    return out
+
+
 def run(args) -> int:
-    mon = load_config(args.config).monitoring
+    mon = read_sections(args.config, "monitoring").monitoring
     host = args.host or ANY_ADDRESS.get(mon.host, mon.host)   # a service bound to all interfaces
     port = args.port or mon.port
     healthy, reason = check(host, port)
