@@ -9,8 +9,14 @@
 #
 # Without registry access, build from a local base made of Debian packages (docs/deploy.md):
 #   docker build --network=host --build-arg BASE=stiffcomp-base:bookworm -t stiffcomp .
+#
+# Two stages: the build stage trusts the site's CA certificates and runs pip; the runtime stage starts
+# again from the base and takes only the virtual environment and the project, so the build's
+# certificates, pip, setuptools and the packages' test folders never reach the shipped image.
 ARG BASE=python:3.11-slim
-FROM ${BASE}
+
+# -- build ------------------------------------------------------------------------------------------
+FROM ${BASE} AS build
 
 # pip's index inside the build; empty means pypi.org. A site mirror: --build-arg PIP_INDEX_URL=...
 ARG PIP_INDEX_URL=
@@ -19,20 +25,13 @@ ARG PIP_TRUSTED_HOST=
 # optional extras of the project, e.g. "parquet" (pyarrow, for .parquet measurement files)
 ARG EXTRAS=parquet
 
-ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
-    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
+ENV PYTHONDONTWRITEBYTECODE=1 VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
 WORKDIR /opt/stiffcomp
 
 # Site CA certificates (*.crt) for a TLS-inspecting proxy between the build and the index: `make image`
 # copies them from CA_CERTS_DIR into deploy/ca-certificates/ (empty by default, never committed).
 COPY deploy/ca-certificates/ /usr/local/share/ca-certificates/stiffcomp/
 RUN if ls /usr/local/share/ca-certificates/stiffcomp/*.crt >/dev/null 2>&1; then update-ca-certificates; fi
-
-# pinocchio's wheels need OpenMP's runtime; python:3.11-slim lacks it (a Debian base made as in
-# docs/deploy.md includes it, so an offline build never reaches this apt-get)
-RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
-      apt-get update && apt-get install -y --no-install-recommends libgomp1 && rm -rf /var/lib/apt/lists/*; \
-    fi
 
 COPY pyproject.toml README.md ./
 COPY stiffness ./stiffness
@@ -46,18 +45,39 @@ COPY examples ./examples
 # A virtual environment works alike on python:3.11-slim and on Debian's python3 (which refuses
 # system-wide pip installs). Installed editable so that config/ stays beside the code: the package
 # finds config/default.yaml, the models and the register map where the source tree has them.
-# No compilers or test tools go into the image.
+# Then everything only the build needs goes: pip, setuptools, wheel, the egg-info, the packages' tests.
 RUN python3 -m venv "$VIRTUAL_ENV" \
  && export PIP_CERT=/etc/ssl/certs/ca-certificates.crt PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
            PIP_INDEX_URL="${PIP_INDEX_URL:-https://pypi.org/simple}" PIP_EXTRA_INDEX_URL PIP_TRUSTED_HOST \
  && pip install --upgrade pip \
  && pip install -e ".${EXTRAS:+[$EXTRAS]}" \
- && mkdir -p /etc/stiffcomp \
+ && pip uninstall -y -q pip setuptools wheel \
+ && rm -rf ./*.egg-info \
+ && find "$VIRTUAL_ENV" -depth -type d \( -name tests -o -name __pycache__ \) -path "*/site-packages/*" \
+         -exec rm -rf {} + \
+ && python3 -m compileall -q stiffness service plc_interface tools hil
+
+# -- runtime ----------------------------------------------------------------------------------------
+FROM ${BASE}
+
+ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
+    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
+WORKDIR /opt/stiffcomp
+
+# pinocchio's wheels need OpenMP's runtime; python:3.11-slim lacks it (a Debian base made as in
+# docs/deploy.md includes it, so an offline build never reaches this apt-get)
+RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
+      apt-get update && apt-get install -y --no-install-recommends libgomp1 && rm -rf /var/lib/apt/lists/*; \
+    fi
+
+COPY --from=build /opt/venv /opt/venv
+COPY --from=build /opt/stiffcomp /opt/stiffcomp
+
+RUN mkdir -p /etc/stiffcomp \
  && python3 -c "from pathlib import Path; from hil.testing import write_config; \
 write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, \
   'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020}})" \
- && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp \
- && python3 -m compileall -q stiffness service plc_interface tools hil
+ && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
 USER stiffcomp
 
 # Modbus TCP, ADS (AMS/TCP), HTTP health + metrics

@@ -3,8 +3,10 @@
 Checks, one line each: the container starts with a site config from a mounted volume; Docker reports
 it healthy (its HEALTHCHECK runs `stiffcomp health`); the cycle counter rises when read over Modbus
 and over ADS (pyads, Beckhoff's AdsLib); the metrics endpoint answers text that prometheus-client's
-parser reads; `docker stop` (SIGTERM) ends it with exit code 0. Every check runs even when an
-earlier one failed, so one run shows everything that is missing. Exit code 0 only if all pass.
+parser reads; `docker stop` (SIGTERM) ends it with exit code 0; the image carries none of the build's
+CA certificates, no pip, setuptools, test tools or egg-info, and its size is printed with the largest
+packages. Every check runs even when an earlier one failed, so one run shows everything that is
+missing. Exit code 0 only if all pass.
 
 The container runs with ``--network host`` (an engine started with ``--bridge=none`` offers nothing
 else), so the test picks free ports for Modbus, ADS and HTTP.
@@ -144,6 +146,50 @@ def check_stop(name: str) -> tuple[bool, str]:
     return code == 0, f"docker stop (SIGTERM): exit code {code} after {time.monotonic() - t0:.1f} s"
 
 
+# run inside the image: what the build must not have left there, and the largest installed packages
+_INSPECT = r"""
+import glob, importlib.util, json, os, sys
+site = glob.glob("/opt/venv/lib/python3*/site-packages")[0]
+def du(p):
+    return sum(os.path.getsize(os.path.join(d, f)) for d, _, fs in os.walk(p) for f in fs
+               if not os.path.islink(os.path.join(d, f)))
+sizes = sorted(((du(os.path.join(site, n)), n) for n in os.listdir(site)), reverse=True)
+print(json.dumps({
+    "site_ca_dir": os.path.exists("/usr/local/share/ca-certificates/stiffcomp"),
+    "bundle": open("/etc/ssl/certs/ca-certificates.crt").read() if os.path.exists("/etc/ssl/certs/ca-certificates.crt") else "",
+    "modules": [m for m in ("pip", "setuptools", "wheel", "pytest", "hypothesis", "ruff", "pyte")
+                if importlib.util.find_spec(m)],
+    "egg_info": glob.glob("/opt/stiffcomp/*.egg-info"),
+    "tests_dirs": len(glob.glob(site + "/*/tests")),
+    "venv_mb": du("/opt/venv") / 1e6, "largest": [(n, round(b / 1e6)) for b, n in sizes[:6]]}))
+"""
+
+
+def pem_bodies(folder: Path) -> list[str]:
+    """The base64 body of each certificate in the build's CA folder (what must not be in the image)."""
+    out = []
+    for crt in sorted(folder.glob("*.crt")):
+        text = crt.read_text(errors="replace")
+        for block in text.split("-----BEGIN CERTIFICATE-----")[1:]:
+            out.append("".join(block.split("-----END CERTIFICATE-----")[0].split()))
+    return out
+
+
+def check_contents(image: str) -> tuple[bool, str]:
+    """No site CA certificate, build tool, test extra or egg-info in the runtime image; its size."""
+    got = json.loads(docker("run", "--rm", "--entrypoint", "python3", image, "-c", _INSPECT, timeout=120))
+    bundle = "".join(got.pop("bundle").split())
+    leaked = [b[:16] for b in pem_bodies(ROOT / "deploy" / "ca-certificates") if b and b in bundle]
+    problems = ([f"{len(leaked)} build CA certificate(s) in the trust store"] if leaked else []) \
+        + (["/usr/local/share/ca-certificates/stiffcomp exists"] if got["site_ca_dir"] else []) \
+        + [f"{m} is installed" for m in got["modules"]] + [f"{e} left" for e in got["egg_info"]] \
+        + ([f"{got['tests_dirs']} packages keep their tests/"] if got["tests_dirs"] else [])
+    size_mb = int(docker("image", "inspect", "--format", "{{.Size}}", image)) / 1e6
+    largest = ", ".join(f"{n} {mb} MB" for n, mb in got["largest"])
+    detail = f"image {size_mb:.0f} MB, venv {got['venv_mb']:.0f} MB (largest: {largest})"
+    return not problems, "; ".join(problems + [detail])
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--image", default="stiffcomp")
@@ -163,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
             checks.report("ads", *check_ads(cfg))
             checks.report("metrics", *check_metrics(cfg))
             checks.report("stop", *check_stop(name))
+            checks.report("contents", *check_contents(args.image))
         finally:
             if checks.failed:
                 logs = subprocess.run(["docker", "logs", "--tail", "15", name], check=False, capture_output=True,

@@ -28,6 +28,31 @@ class CircleResult:
     world: World
 
 
+# the share of deadlines exceeded per cycle run (task exceed_count / cycles) that makes a pass's figures doubtful
+BUSY_SHARE, OVERLOADED_SHARE = 0.01, 0.2
+
+
+def timing_verdict(cycles: int, exceeded: int) -> dict:
+    """Whether a pass's cycle timing lets its path errors stand for the service, in words.
+
+    ``exceeded`` is the task's exceed counter (overrunning cycles plus the deadlines skipped after them),
+    so the share may pass 100 % when the host could not even run every cycle."""
+    share = exceeded / cycles if cycles else 1.0
+    pct = f"{100 * share:.0f} %" if share >= 0.01 else f"{100 * share:.2f} %"
+    if share <= BUSY_SHARE:
+        return {"exceeded_share": round(share, 4), "trustworthy": True,
+                "verdict": f"the 1 ms cycle kept its deadlines ({pct} exceeded): the figures show the service"}
+    if share <= OVERLOADED_SHARE:
+        return {"exceeded_share": round(share, 4), "trustworthy": True,
+                "verdict": f"the host was busy ({pct} of deadlines exceeded): the correction was late in places, "
+                           "so the compensated error is a little worse than on a quiet host"}
+    return {"exceeded_share": round(share, 4), "trustworthy": False,
+            "verdict": f"the host was too loaded for a 1 ms cycle ({pct} of deadlines exceeded): the correction "
+                       "was stale for much of the pass, so the compensated error is an upper bound, not what the "
+                       "service does; run again on a quiet machine (or with cycle.realtime_priority and a "
+                       "cycle.cpu of its own) before trusting these figures"}
+
+
 def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, dict]:
     world = World(scenario, truth.robot)
     return world, evaluate(world, RobotStub(truth, scenario.robot.structure_hz), result.log)
@@ -60,6 +85,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     summary = {"mean_error_mm": round(mean_c, 4), "max_error_mm": round(max_c, 4),
                "mean_error_mm_uncompensated": round(mean_u, 4), "max_error_mm_uncompensated": round(max_u, 4),
                "cycles": int(last.get("cycles", 0)), "exceed_count": int(last.get("exceed_count", 0))}
+    summary["timing"] = timing_verdict(summary["cycles"], summary["exceed_count"])
     if report is not None:
         write_report(Path(report), world, evals, passes, summary)
     return CircleResult(summary, passes, evals, world)

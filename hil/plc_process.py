@@ -31,6 +31,6 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
             time.sleep(0.005)
         log = plc.run(world.t_start, world.t_end, go_value.value)
         np.savez(out_file, **log.arrays(), written=np.array(sorted(plc.written)), overruns=plc.overruns,
-                 errors=plc.errors, period=plc.period)
+                 errors=plc.errors, period=plc.period, t0=go_value.value)
     finally:
         plc.close()

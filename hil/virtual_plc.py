@@ -13,8 +13,10 @@ Safe state (docs/hil.md). The PLC applies the service's correction only while th
 a read succeeded and the service heartbeat changed within ``service_timeout_s``. Otherwise the target
 is zero. The applied correction moves towards its target at most ``max_rate_deg_s`` per joint, so
 a lost link brings the robot back to its uncorrected path without a jump. After a link loss, once
-the service answers again, the PLC pulses the reset bit once (the faults the loss caused in the
-service, e.g. plc_heartbeat, are cleared; a fault whose cause persists trips again). The first contact
+the service answers again, the PLC raises the reset bit (the faults the loss caused in the service,
+e.g. plc_heartbeat, are cleared; a fault whose cause persists trips again) and holds it until it reads
+the fault word clear or ``reset_hold_s`` has passed: a one-cycle pulse could fall between two cycles
+of a service that a loaded host stalls for longer than a PLC cycle. The first contact
 counts as such a recovery: a PLC starting up resets the service's faults once as it enables.
 
 Fault injection (`PlcFaults`): the heartbeat freezes at a time; the Modbus connection drops at a
@@ -78,6 +80,9 @@ class PlcLogic:
         self.hb_change_t: float | None = None
         self.was_lost = True            # the first contact counts as a recovery: reset, then enable
         self.reset_pulse = False
+        self.reset_hold_s = 0.25
+        self._reset_until = -np.inf
+        self._fw = self.out_names.index("fault_word")
         self.applied = [0.0] * 6
         self.t_prev: float | None = None
         self.link_ok = False
@@ -90,7 +95,9 @@ class PlcLogic:
             self.service_hb = to_plc[self._hb]
             self.hb_change_t = t
         fresh = (to_plc is not None and self.hb_change_t is not None and t - self.hb_change_t <= self.timeout)
-        self.reset_pulse = fresh and self.was_lost
+        if fresh and self.was_lost:
+            self._reset_until = t + self.reset_hold_s
+        self.reset_pulse = fresh and t <= self._reset_until and (self.was_lost or to_plc[self._fw] != 0)
         if not fresh and self.hb_change_t is not None:
             self.was_lost = True
         elif fresh:

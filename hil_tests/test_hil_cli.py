@@ -13,7 +13,7 @@ from hil_lib import ROOT
 from hil.testing import BEYOND_SPRINGS, truth_with
 
 KEYS = {"mean_error_mm", "max_error_mm", "mean_error_mm_uncompensated", "max_error_mm_uncompensated", "cycles",
-        "exceed_count"}
+        "exceed_count", "timing"}
 
 
 def stiffcomp(*args: str) -> subprocess.CompletedProcess:
@@ -32,6 +32,7 @@ def test_circle_prints_both_errors_and_writes_the_plot(tmp_path):
     assert p.returncode == 0, p.stderr
     s = json.loads(p.stdout)
     assert set(s) == KEYS
+    assert set(s["timing"]) == {"exceeded_share", "trustworthy", "verdict"}
     assert s["mean_error_mm"] <= 0.10 * s["mean_error_mm_uncompensated"], s
     assert s["max_error_mm"] <= s["max_error_mm_uncompensated"]
     assert (tmp_path / "hil_circle.png").exists()

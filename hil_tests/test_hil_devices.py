@@ -200,6 +200,25 @@ def test_plc_pulses_reset_on_first_contact_and_after_a_loss_only():
     assert [k for k, r in enumerate(resets) if r] == [0, 100]
 
 
+def test_plc_holds_reset_until_the_service_shows_the_faults_cleared():
+    """A service stalled past one PLC cycle must still see the reset edge: the bit stays up while the fault
+    word reads nonzero, at most reset_hold_s, and drops at the first reading with the faults cleared."""
+    logic, dt = plc(), 0.004
+    names = RMAP.codecs["to_plc"].names
+
+    def values(k, fault_word):
+        v = service_values(k, [0.0] * 6)
+        v[names.index("fault_word")] = fault_word
+        return v
+
+    resets = [step(logic, k * dt, values(k, 0x20 if k < 10 else 0))[0]["command_word"] & Command.RESET
+              for k in range(20)]
+    assert [k for k, r in enumerate(resets) if r] == list(range(10))
+    held = plc()
+    resets = [step(held, k * dt, values(k, 0x20))[0]["command_word"] & Command.RESET for k in range(200)]
+    assert sum(1 for r in resets if r) == int(held.reset_hold_s / dt) + 1      # a persisting fault: capped
+
+
 def test_plc_uncompensated_neither_enables_nor_applies():
     logic = plc(compensate=False)
     for k in range(50):

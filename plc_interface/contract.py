@@ -40,6 +40,9 @@ class Command(enum.IntFlag):
     RESET = 0x4         # rising edge: clear latched faults whose cause is gone
 
 
+COMMAND_BITS = int(Command.ENABLE | Command.TARE | Command.RESET)    # every other bit is undefined: a fault
+
+
 class Status(enum.IntFlag):
     """Bits of ``status_word`` (service -> PLC)."""
 
@@ -50,6 +53,8 @@ class Status(enum.IntFlag):
     SENSOR_OK = 0x10    # a sample was seen and no sensor fault is latched
     PLC_SEEN = 0x20     # the PLC heartbeat has changed at least once
     STOPPED = 0x40      # the service stopped (the last value it publishes)
+    TARE_REFUSED = 0x80  # the last tare request was refused (load above tare.max_force_N); cleared by a
+                         # tare that is done or by a reset
 
 
 class Fault(enum.IntFlag):
@@ -64,6 +69,8 @@ class Fault(enum.IntFlag):
     PLC_HEARTBEAT = 1 << 5      # the PLC heartbeat did not change within faults.plc_heartbeat_timeout_ms
     OVERRUN = 1 << 6            # faults.overrun_trip_count consecutive cycles overran their period
     JOINT_LIMITS = 1 << 7       # q outside the robot's joint limits
+    IO_PROCESS = 1 << 8         # the I/O process died (it is restarted or the service stops)
+    COMMAND_INVALID = 1 << 9    # command_word sets a bit the contract does not define
 
     @property
     def kind(self) -> str:
@@ -126,7 +133,7 @@ _DEFLECTION = ("dx", "dy", "dz", "rx", "ry", "rz")
 TO_PLC: tuple[Value, ...] = (
     Value("heartbeat", "uint16", "", "+1 every cycle (wraps at 65535)", "task.heartbeat"),
     Value("status_word", "uint16", "", "Status bits: 0 running, 1 correction active, 2 faulted, 3 ramping, "
-          "4 sensor ok, 5 PLC heartbeat seen, 6 stopped", "signals.status_word"),
+          "4 sensor ok, 5 PLC heartbeat seen, 6 stopped, 7 tare refused", "signals.status_word"),
     Value("fault_word", "uint16", "", "latched Fault bits", "signals.fault_word"),
     Value("task_state", "uint16", "", "TaskState: 0 init, 1 run, 2 stop", "task.task_state", required=False),
     Value("cycle_count", "uint32", "", "cycles run since start", "task.cycle_count"),
@@ -156,7 +163,8 @@ TO_PLC: tuple[Value, ...] = (
 )
 
 FROM_PLC: tuple[Value, ...] = (
-    Value("command_word", "uint16", "", "Command bits: 0 enable, 1 tare (rising edge), 2 reset faults (rising edge)"),
+    Value("command_word", "uint16", "", "Command bits: 0 enable, 1 tare (rising edge), 2 reset faults (rising edge); "
+          "any other bit is the fault command_invalid"),
     Value("plc_heartbeat", "uint16", "", "the PLC changes it at least every faults.plc_heartbeat_timeout_ms"),
     *(Value(f"q{i}", "float32", "deg", f"actual position of joint {i}") for i in _JOINTS),
 )

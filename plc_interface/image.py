@@ -179,6 +179,18 @@ class ProcessImage:
             self._master = got[2]
         return self._master
 
+    def take_over_inputs(self) -> None:
+        """Become the from_plc writer after another one (an I/O process restarted after one that died).
+
+        A writer killed between its two sequence increments leaves its buffer's count odd; the next
+        writer would then leave it odd after each write, and the cycle would keep a stale copy every
+        other write. Make both counts even again (there is no other writer now)."""
+        h, k = self._h, _H["from_plc"]
+        for b in (0, 1):
+            if int(h[k + 1 + b]) & 1:
+                h[k + 1 + b] += 1
+        self._master = None
+
     def timings_since(self, n: int) -> tuple[int, np.ndarray]:
         """(count now, the (exec_us, jitter_us) rows published since count ``n``, at most `TIMING_RING`)."""
         now = int(self._n_timing[0])

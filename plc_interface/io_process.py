@@ -2,7 +2,17 @@
 
 The child is started with the spawn method (nothing inherited from a threaded parent), is kept off
 the cycle's CPU when the cycle is pinned, logs to the parent's stderr in the parent's format, and
-stops when the parent sets its stop event (or dies: the child polls its parent).
+stops when the parent sets its stop event.
+
+Signals. SIGINT, SIGTERM and SIGHUP are the cycle process's to handle (Ctrl-C and a terminal or
+systemd send them to the whole process group): the child ignores them from its first instruction on
+(they are ignored while it is spawned, and an ignored disposition survives exec), so Ctrl-C on
+``make run`` prints no traceback here and the correction still ramps before the I/O stops.
+
+The two processes watch each other (STYLE.md, guideline 16). The child polls its parent: when the
+cycle process dies, it logs that at error level and exits with code 1 (the PLC then sees the service's
+heartbeat stop). The parent watches the child through `IoProcess.alive` and `IoProcess.exit_reason`
+(`service.app.Service.watch_io`).
 """
 
 from __future__ import annotations
@@ -11,14 +21,24 @@ import asyncio
 import logging
 import multiprocessing
 import os
+import signal
+import sys
+import threading
 
 from .errors import PlcError
 from .image import ProcessImage
 from .io_server import IoServer, IoSettings, _serve
 from .log_format import configure_logging, current_format
 
+log = logging.getLogger("stiffcomp.io")
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)      # the cycle process's to handle
+
 
 def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format: str, stop, ready) -> None:
+    for s in SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
     configure_logging(log_level, log_format)
     if settings.avoid_cpu is not None:
         try:
@@ -28,20 +48,43 @@ def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format:
         except (OSError, AttributeError):
             pass
     parent = os.getppid()
+    orphaned = []
+    image.take_over_inputs()            # a predecessor killed mid-write must not leave its buffer half-locked
     server = IoServer(image, settings)
 
     class Started:
         def set(self) -> None:
             ready.send("")
 
+    def stop_requested() -> bool:
+        if os.getppid() != parent:
+            orphaned.append(parent)
+        return bool(orphaned) or stop.is_set()
+
     try:
-        asyncio.run(_serve(server, Started(), lambda: stop.is_set() or os.getppid() != parent))
+        asyncio.run(_serve(server, Started(), stop_requested))
     except PlcError as e:
         ready.send(str(e))
     except Exception as e:  # noqa: BLE001 - reported to the parent, which refuses to start
         ready.send(f"the I/O process failed: {e!r}")
     finally:
         image.close()
+    if orphaned:
+        log.error("the cycle process (pid %d) died: the I/O process stops with exit code 1; the PLC sees the "
+                  "service's heartbeat stop", parent)
+        sys.exit(1)
+
+
+def describe_exit(exitcode: int | None) -> str:
+    """A child's exit code in words: ``killed by SIGKILL``, ``exit code 1``."""
+    if exitcode is None:
+        return "still running"
+    if exitcode < 0:
+        try:
+            return f"killed by {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exit code {exitcode}"
 
 
 class IoProcess:
@@ -56,8 +99,23 @@ class IoProcess:
                                                      current_format(), self._stop, self._child_end),
                                  name="stiffcomp-io", daemon=True)
 
+    def _spawn(self) -> None:
+        """Start the child with SIGINT, SIGTERM and SIGHUP ignored (blocked meanwhile in this thread, so
+        one that arrives now is delivered to this process's own handler afterwards, not lost)."""
+        if threading.current_thread() is not threading.main_thread():
+            self._proc.start()          # only the main thread may change handlers; the child ignores them itself
+            return
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+        handlers = {s: signal.signal(s, signal.SIG_IGN) for s in SIGNALS}
+        try:
+            self._proc.start()
+        finally:
+            for s, h in handlers.items():
+                signal.signal(s, h)
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
     def start(self, timeout: float = 60.0) -> None:
-        self._proc.start()
+        self._spawn()
         # the child holds its own copy now; closing ours lets a child that dies end the wait at once (EOF)
         self._child_end.close()
         if not self._ready.poll(timeout):
@@ -67,7 +125,7 @@ class IoProcess:
             msg = self._ready.recv()
         except EOFError:
             self.stop()
-            raise PlcError(f"the I/O process died while starting (exit code {self._proc.exitcode})") from None
+            raise PlcError(f"the I/O process died while starting ({describe_exit(self._proc.exitcode)})") from None
         if msg:
             self.stop()
             raise PlcError(msg)
@@ -76,8 +134,8 @@ class IoProcess:
         self._stop.set()
         if self._proc.pid is not None:
             self._proc.join(10.0)
-            if self._proc.is_alive():
-                self._proc.terminate()
+            if self._proc.is_alive():       # it ignores SIGTERM (see the module docstring)
+                self._proc.kill()
                 self._proc.join(2.0)
         self._ready.close()
         self._child_end.close()
@@ -85,3 +143,12 @@ class IoProcess:
     @property
     def alive(self) -> bool:
         return self._proc.is_alive()
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid
+
+    @property
+    def exit_reason(self) -> str:
+        """How the child ended, in words (`describe_exit`)."""
+        return describe_exit(self._proc.exitcode)

@@ -11,6 +11,12 @@ Two processes, as TwinCAT separates its real-time task from the ADS router and t
 They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
 builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
 
+The two processes watch each other (STYLE.md, guideline 16). The main thread of this process (the
+caller of `Service.watch_io`, between its waits) notices an I/O process that died, logs it, latches
+``io_process`` (the cycle ramps the correction to zero), and then restarts it, at most
+``faults.io_restarts`` times, or fails the service (`failure`; `stiffcomp run` exits 1). The I/O process
+exits with code 1 when this one dies (`plc_interface.io_process`).
+
 Start-up validates everything before anything starts: the config, the model (and whether the
 real-time predictor supports all its effects), the register map against the contract and the F/T
 source. Then the I/O process starts, then the cycle.
@@ -26,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from plc_interface.contract import Producer, TaskState, TaskValues, ToPlc, stopped
+from plc_interface.contract import Fault, Producer, TaskState, TaskValues, ToPlc, stopped
+from plc_interface.errors import PlcError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
 from stiffness.errors import StiffnessError
@@ -66,6 +73,9 @@ class Service:
         self.io = None
         self.task: CyclicTask | None = None
         self.failed = threading.Event()
+        self.failure: str | None = None         # why the service failed, in words (--stats-json)
+        self.io_deaths: list[str] = []          # how each I/O process ended that died
+        self.io_restarts = 0
         self._closed = False
         self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
         # the checks that can fail come first; the image (shared memory) and then the source open last
@@ -125,6 +135,7 @@ class Service:
 
     def _on_error(self, e: BaseException) -> None:
         log.critical("the cycle stopped on an unexpected error: %r; outputs are zeroed", e)
+        self.failure = f"the cycle stopped on an unexpected error: {e!r}"
         self.cycle.compensator.correction = [0.0] * 6
         self.record = stopped(self.record)._replace(task_state=self.record.task_state)
         self.image.publish(self.record, time.time_ns())
@@ -147,6 +158,7 @@ class Service:
             self.io = IoProcess(self.image, settings)
             try:
                 self.io.start()
+                log.info("I/O process running (pid %d)", self.io.pid)
             except BaseException:
                 self.io = None          # it cleaned up after itself
                 self.stop()             # frees the image and the source
@@ -181,6 +193,65 @@ class Service:
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
 
+    # -- the watch on the I/O process ------------------------------------------------------------
+    def watch_io(self) -> bool:
+        """Check the I/O process (the main thread calls this between its waits); False when the service
+        must stop because it failed (`failure` says why).
+
+        An I/O process that died: one error line; ``io_process`` latched (the PLC sees it once the I/O
+        serves again; it stays until the PLC resets it); the correction ramps to zero; then a new I/O
+        process, or, beyond ``faults.io_restarts``, the failure."""
+        io = self.io
+        if io is None or self._closed or io.alive:
+            return self.failure is None
+        how = io.exit_reason
+        self.io_deaths.append(how)
+        limit = self.cfg.faults.io_restarts
+        message = f"the I/O process (pid {io.pid}) died ({how}): the PLC cannot reach the service"
+        log.error("%s; fault io_process latched, the correction ramps to zero", message)
+        self.cycle.supervisor.held = ((Fault.IO_PROCESS, message),)
+        self._wait_ramped_for_io()
+        io.stop()
+        self.io = None
+        if self.io_restarts >= limit:
+            self.failure = (f"the I/O process died ({how}) and faults.io_restarts = {limit} allows no "
+                            f"{'more ' if limit else ''}restart")
+            log.critical("%s: the service stops (exit code 1)", self.failure)
+            self.failed.set()
+            return False
+        self.io_restarts += 1
+        log.warning("restarting the I/O process (%d of faults.io_restarts = %d)", self.io_restarts, limit)
+        from plc_interface.io_process import IoProcess
+
+        new = IoProcess(self.image, self.io_settings())
+        try:
+            new.start()
+        except PlcError as e:
+            self.failure = f"the I/O process died ({how}) and did not start again: {e}"
+            log.critical("%s: the service stops (exit code 1)", self.failure)
+            self.failed.set()
+            return False
+        self.io = new
+        self.cycle.supervisor.held = ()
+        log.warning("the I/O process serves again (pid %d); fault io_process stays latched until the PLC resets "
+                    "it", new.pid)
+        return True
+
+    def _wait_ramped_for_io(self) -> None:
+        """Until the cycle has latched io_process and ramped the correction to zero (bounded as the stop is)."""
+        task = self.task
+        deadline = time.monotonic() + 5 * self.cfg.limits.fault_ramp_s + 1.0
+        while task is not None and task.running and time.monotonic() < deadline:
+            if int(self.record.fault_word) & Fault.IO_PROCESS and not any(self.cycle.correction):
+                return
+            time.sleep(0.005)
+
+    def on_hangup(self) -> None:
+        """SIGHUP: the one place where a reload will go (issue 21, live parameters). For now it is logged
+        and the service keeps running unchanged; no signal drops the correction without the ramp."""
+        log.warning("SIGHUP received: no reload yet (the live-parameters issue adds it); the service keeps "
+                    "running unchanged")
+
     @property
     def task_state(self) -> TaskState:
         return TaskState(int(self.record.task_state))
@@ -196,5 +267,7 @@ class Service:
     def write_stats(self, path: str | Path) -> dict:
         stats = self.info.stats()
         stats["status"] = "stopped" if self.task_state == TaskState.STOP else "running"
+        stats["failure"] = self.failure
+        stats["io_process"] = {"deaths": self.io_deaths, "restarts": self.io_restarts}
         Path(path).write_text(json.dumps(stats, indent=2) + "\n")
         return stats

@@ -16,6 +16,7 @@ Paths in the file (model, replay log, register map, DBC) are relative to the con
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 from pydantic import Field, ValidationError
 
@@ -31,6 +32,7 @@ from .errors import ServiceConfigError
 from .filters import FilterConfig
 from .gravity import GravityConfig
 from .limits import LimitsConfig
+from .pipeline import TareConfig
 from .sources import SourceConfig
 from .supervision import FaultsConfig
 from .task import CycleConfig
@@ -46,6 +48,7 @@ class ServiceConfig(Strict):
     gravity: GravityConfig = Field(default_factory=GravityConfig)
     limits: LimitsConfig = Field(default_factory=LimitsConfig)
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
+    tare: TareConfig = Field(default_factory=TareConfig)
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
     monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)
@@ -55,8 +58,7 @@ class ServiceConfig(Strict):
 
     def resolve(self, relative: str) -> Path:
         """A path written in the config, relative to the config file's folder."""
-        p = Path(relative)
-        return p if p.is_absolute() else self.path.parent / p
+        return _resolve(self.path, relative)
 
     def files(self) -> dict[str, str]:
         """Every file the config names and uses, by dotted key, as written (`resolve` finds it)."""
@@ -69,10 +71,53 @@ class ServiceConfig(Strict):
     def register_map(self) -> RegisterMap:
         """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
         naming this config file, the key and its value, then what is wrong in the map."""
+        return _register_map(self.path, self.plc.register_map)
+
+
+def _resolve(config_path: Path, relative: str) -> Path:
+    p = Path(relative)
+    return p if p.is_absolute() else config_path.parent / p
+
+
+def _register_map(config_path: Path, relative: str) -> RegisterMap:
+    try:
+        return RegisterMap.from_yaml(_resolve(config_path, relative))
+    except RegisterMapError as e:
+        raise ServiceConfigError(f"{config_path}: plc.register_map = {quote(relative)}: {e}") from e
+
+
+class ConfigSections(SimpleNamespace):
+    """Some top-level sections of a service config (`read_sections`), with ``path``, ``resolve`` and
+    ``register_map`` as `ServiceConfig` has them."""
+
+    def resolve(self, relative: str) -> Path:
+        return _resolve(self.path, relative)
+
+    def register_map(self) -> RegisterMap:
+        return _register_map(self.path, self.plc.register_map)
+
+
+def read_sections(path: str | Path, *names: str) -> ConfigSections:
+    """Only the named top-level sections of a service config (e.g. ``plc``, ``ads``, ``monitoring``),
+    validated as the service validates them; nothing else in the file is read or checked and no file
+    it names is opened. So a site config copied out of the container, whose model and replay are
+    paths inside the image, serves the host-side `health` and `status` (docs/deploy.md).
+    ServiceConfigError names the file, key and value."""
+    path = Path(path)
+    if not path.exists():
+        raise ServiceConfigError(f"{path}: config file not found")
+    try:
+        data = read_yaml(path)
+    except StiffnessError as e:
+        raise ServiceConfigError(str(e)) from e
+    out = ConfigSections(path=path)
+    for name in names:
+        section = ServiceConfig.model_fields[name].annotation
         try:
-            return RegisterMap.from_yaml(self.resolve(self.plc.register_map))
-        except RegisterMapError as e:
-            raise ServiceConfigError(f"{self.path}: plc.register_map = {self.plc.register_map!r}: {e}") from e
+            setattr(out, name, section.model_validate(data.get(name) or {}))
+        except ValidationError as e:
+            raise ServiceConfigError(format_validation_error(str(path), e, prefix=name)) from e
+    return out
 
 
 def load_config(path: str | Path | None = None) -> ServiceConfig:

@@ -16,10 +16,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from pydantic import Field
 
 from plc_interface.contract import SENSOR_FAULTS, Fault, Status
 from stiffness.model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
+from stiffness.yamlio import Strict
 
 from .ati import Reading
 from .compensation import FastPredictor, ModelConfig
@@ -34,8 +36,9 @@ log = logging.getLogger("stiffcomp.service")
 
 _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
 # the status bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
-_RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN = (int(b) for b in (
-    Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN))
+_RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN, _TARE_REFUSED = (int(b) for b in (
+    Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN,
+    Status.TARE_REFUSED))
 _SENSOR_FAULTS = int(SENSOR_FAULTS)
 
 
@@ -54,6 +57,13 @@ class Signals(NamedTuple):
     sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
 
 
+class TareConfig(Strict):
+    """``tare``: a tare is refused while the compensated force exceeds ``max_force_N`` (a tare under a
+    cutting load would zero the load)."""
+
+    max_force_N: float = Field(200.0, gt=0)
+
+
 class Compensator:
     """The signal path: from a sample and the joint positions to the limited joint correction.
 
@@ -62,10 +72,14 @@ class Compensator:
     predictor, filter, spikes, gravity, limiter : the stages
     faults : FaultMonitor
         Where a correction that is not finite trips ``value_invalid``.
+    tare_max_force_N : float
+        A tare is refused while the compensated force |F| is above this (a tare under load would zero
+        the load); ``tare_refused`` says so until a tare is done or the faults are reset.
     """
 
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
-                 gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor):
+                 gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
+                 tare_max_force_N: float = math.inf):
         self.predictor = predictor
         self.filter = filter
         self.spikes = spikes
@@ -85,14 +99,33 @@ class Compensator:
         self.sample_t: float | None = None
         self.t_first: float | None = None
         self._tare_pending = False            # a tare edge waits for the next sample
+        self.tare_max = float(tare_max_force_N)
+        self.tare_refused = False
 
     @classmethod
     def from_config(cls, model_section: ModelConfig, filter_section: FilterConfig, gravity: GravityConfig,
-                    limits: LimitsConfig, period_s: float, model: StiffnessModel, faults: FaultMonitor) -> Compensator:
-        """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``."""
+                    limits: LimitsConfig, tare: TareConfig, period_s: float, model: StiffnessModel,
+                    faults: FaultMonitor) -> Compensator:
+        """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare``."""
         return cls(FastPredictor.from_config(model_section, model), SosLowPass.from_config(filter_section, period_s),
                    SpikeRejector.from_config(filter_section.spike), GravityCompensator.from_config(gravity),
-                   CorrectionLimiter.from_config(limits, period_s), faults)
+                   CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N)
+
+    def _tare(self, filtered: list[float]) -> None:
+        """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
+        pred = self.predictor
+        fx, fy, fz = self.gravity.compensate(filtered, pred.R_s)[:3]
+        load = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if load > self.tare_max:
+            self.tare_refused = True
+            log.warning("tare refused: the compensated force is %.0f N, above tare.max_force_N = %g N (a tare "
+                        "under load would zero the load); unload the tool and tare again", load, self.tare_max)
+            return
+        self.tare_refused = False
+        self.gravity.tare(filtered, pred.R_s)
+        self.tares += 1
+        pred.reset_history()
+        log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
               hold: bool, reset: bool = False) -> list[float]:
@@ -118,6 +151,7 @@ class Compensator:
             self._tare_pending = True
         if reset:
             pred.reset_history()
+            self.tare_refused = False
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -129,10 +163,7 @@ class Compensator:
             filtered = self.filter.update(x)
             if self._tare_pending:
                 self._tare_pending = False
-                self.gravity.tare(filtered, pred.R_s)
-                self.tares += 1
-                pred.reset_history()
-                log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
+                self._tare(filtered)
             self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
         dX = pred.deflection(self.wrench_base)
@@ -169,7 +200,8 @@ class Cycle:
         """The cycle as the service config composes it: each part is handed its own section."""
         faults = FaultMonitor()
         return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.plc.enable_on_start),
-                   Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.cycle.period_ms / 1000.0,
+                   Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare,
+                                           cfg.cycle.period_ms / 1000.0,
                                            model, faults))
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
@@ -182,7 +214,8 @@ class Cycle:
         self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
                             | (_RAMPING if comp.limiter.ramping else 0)
                             | (_SENSOR_OK if comp.have_sample and not word & _SENSOR_FAULTS else 0)
-                            | (_PLC_SEEN if self.supervisor.plc_seen else 0))
+                            | (_PLC_SEEN if self.supervisor.plc_seen else 0)
+                            | (_TARE_REFUSED if comp.tare_refused else 0))
         return out
 
     def signals(self) -> Signals:

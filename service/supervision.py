@@ -10,7 +10,12 @@ the cycle's inputs and decides, each cycle, whether the correction may be applie
   starts at the enable's rising edge; 0 switches it off);
 * ``overrun_trip_count`` consecutive exceeded cycles trip the overrun fault;
 * a joint position from the PLC that is not finite or outside the robot's limits trips a fault, and
-  the kinematics keep the last good one.
+  the kinematics keep the last good one;
+* a command word that sets a bit the contract does not define (`COMMAND_BITS`) trips
+  ``command_invalid`` and is not acted on at all: no enable, no tare, no reset, and no edge when a valid
+  word follows it (0xFFFF, then 0x0007 tares nothing);
+* a fault held by the service from outside the cycle (`Supervisor.held`, e.g. ``io_process`` while the
+  I/O process is down) trips every cycle, after a reset, as a sensor error does.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field
 
-from plc_interface.contract import Command, Fault
+from plc_interface.contract import COMMAND_BITS, Command, Fault
 from stiffness.yamlio import Strict
 
 from .errors import SensorError
@@ -38,6 +43,7 @@ class FaultsConfig(Strict):
     sensor_timeout_ms: float = Field(10.0, gt=0)
     plc_heartbeat_timeout_ms: float = Field(200.0, ge=0)
     overrun_trip_count: int = Field(10, ge=1, le=1000)
+    io_restarts: int = Field(3, ge=0, le=100)
 
 
 class Supervision(NamedTuple):
@@ -77,6 +83,8 @@ class Supervisor:
         self.plc_seen = False
         self.overruns = 0
         self._q_last: list[float] | None = None
+        # faults whose cause lives outside the cycle, replaced whole by another thread (never mutated)
+        self.held: tuple[tuple[Fault, str], ...] = ()
 
     @classmethod
     def from_config(cls, section: FaultsConfig, faults: FaultMonitor, joint_limits_deg: np.ndarray,
@@ -89,13 +97,23 @@ class Supervisor:
                errors: list[SensorError]) -> Supervision:
         """One cycle at ``t`` (s)."""
         faults = self.faults
-        rising = command & ~self.prev_command
+        undefined = command & ~COMMAND_BITS
+        rising = 0 if undefined else command & ~self.prev_command
         self.prev_command = command
+        if undefined:
+            command = 0
         reset = bool(rising & _RESET)
         if reset:
             faults.reset()
             self.overruns = 0
-        for e in errors:              # after the reset: a reset clears only faults whose cause is gone
+        # after the reset: a reset clears only faults whose cause is gone
+        if undefined:
+            faults.trip(Fault.COMMAND_INVALID, f"command_word = 0x{self.prev_command:04X} sets undefined bit(s) "
+                        f"{', '.join(str(b) for b in range(16) if undefined >> b & 1)} (defined: 0 enable, "
+                        "1 tare, 2 reset); the word is ignored")
+        for fault, message in self.held:
+            faults.trip(fault, message)
+        for e in errors:
             faults.trip_error(e)
         self._heartbeat(t, plc_heartbeat, bool(rising & _ENABLE), bool(command & _ENABLE))
         self.overruns = self.overruns + 1 if overrun else 0

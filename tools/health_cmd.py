@@ -6,6 +6,10 @@ not the PLC registers, and gives up after 1 s in total. The endpoint answers JSO
     {"healthy": true, "reason": "running, no fault, 0.2 % of cycles exceeded over 10 s", ...}
 
 Exit code 0 when healthy, 1 otherwise (also when nothing answers); the reason is printed in one line.
+
+From the config it reads only the sections it needs (`service.config.read_sections`): a site config
+copied out of the container names a model and a replay inside the image, which this command never
+opens, so it works from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from __future__ import annotations
 import http.client
 
 from plc_interface.monitoring import read_health
-from service.config import DEFAULT_CONFIG, load_config
+from service.config import DEFAULT_CONFIG, read_sections
 
 TIMEOUT_S = 1.0
 ANY_ADDRESS = {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}
@@ -28,7 +32,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    mon = load_config(args.config).monitoring
+    mon = read_sections(args.config, "monitoring").monitoring
     host = args.host or ANY_ADDRESS.get(mon.host, mon.host)   # a service bound to all interfaces
     port = args.port or mon.port
     healthy, reason = check(host, port)

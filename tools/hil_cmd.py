@@ -41,7 +41,7 @@ def run(args) -> int:
             red = 100 * (1 - s["mean_error_mm"] / s["mean_error_mm_uncompensated"])
             print(f"path error with compensation:    mean {s['mean_error_mm']:.3f} mm, "
                   f"max {s['max_error_mm']:.3f} mm ({red:.0f} % less)")
-        print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded")
+        print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded: {s['timing']['verdict']}")
         if args.report:
             print(f"report: {Path(args.report) / 'hil_circle.png'}, {Path(args.report) / 'summary.json'}")
     return 0

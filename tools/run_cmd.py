@@ -1,7 +1,11 @@
 """`stiffcomp run`: the cyclic compensation service (docs/service.md).
 
 Validates the whole config before anything starts (a bad config exits with code 2), then runs
-until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly with exit code 0.
+until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly (the correction ramps to zero) with
+exit code 0. SIGHUP is logged and the service keeps running (`Service.on_hangup`, where the reload
+of the live-parameters issue goes). Between its waits the main thread watches the I/O process
+(`Service.watch_io`); exit code 1 when the service failed (the cycle died, or the I/O process died
+beyond faults.io_restarts), and --stats-json says why (``failure``, ``io_process``).
 """
 
 from __future__ import annotations
@@ -25,6 +29,9 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+WATCH_S = 0.1          # the main thread's longest wait: the I/O process is checked this often
+
+
 def run(args) -> int:
     configure_logging(args.log_level, args.log_format)
     from service.app import Service
@@ -32,17 +39,22 @@ def run(args) -> int:
     cfg = load_config(args.config)
     service = Service(cfg)              # everything validated and opened, nothing started yet
     stop = threading.Event()
+    hangup = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, lambda *_: hangup.set())
     try:
         service.start()                 # inside: a port in use still frees the image and the handlers
         t_end = None if args.duration is None else time.monotonic() + args.duration
         interval = cfg.cycle.stats_log_interval_s or None
         next_log = time.monotonic() + (interval or 0)
-        while not stop.is_set() and not service.failed.is_set():
+        while not stop.is_set() and service.watch_io() and not service.failed.is_set():
+            if hangup.is_set():
+                hangup.clear()
+                service.on_hangup()
             now = time.monotonic()
             if t_end is not None and now >= t_end:
                 break
-            wait = min(x for x in (t_end, next_log if interval else None, now + 0.5) if x is not None) - now
+            wait = min(x for x in (t_end, next_log if interval else None, now + WATCH_S) if x is not None) - now
             stop.wait(max(wait, 0.0))
             if interval and time.monotonic() >= next_log:
                 service.log_stats()

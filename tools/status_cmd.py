@@ -8,6 +8,11 @@ machine as well:
 * over ADS otherwise (``plc.role: client`` or ``none``): the registers' ``GVL_Comp`` symbols in one
   sum read, with pyads, as a TwinCAT project reads them. ``--via`` chooses either.
 
+From the config it reads only the ``plc``, ``ads`` and ``monitoring`` sections (`service.config.read_sections`),
+so a site config copied out of the container works from the host. The register map is the one the
+config names; where that path does not exist here (a path inside the image), the shipped map, with
+a note, or the one ``--register-map`` names.
+
 Without ``--watch`` it prints one screen and exits (exit code 1 when the service does not answer,
 2 when the config offers no way to read it); with ``--watch`` it redraws a few times a second, like
 ``top``, until Ctrl-C.
@@ -19,6 +24,7 @@ import logging
 import signal
 import sys
 import time
+from pathlib import Path
 
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
@@ -27,7 +33,7 @@ from rich.live import Live
 
 from plc_interface.ads.symbols import GVL
 from plc_interface.register_map import RegisterMap
-from service.config import DEFAULT_CONFIG, load_config
+from service.config import DEFAULT_CONFIG, read_sections
 
 from .ads_probe import open_ads
 from .status_view import StatusView
@@ -44,6 +50,8 @@ def register(sub) -> None:
     p.add_argument("--host", default=None, help="the service's host (default: plc.host or ads.host)")
     p.add_argument("--port", type=int, default=None, help="the service's Modbus or AMS/TCP port "
                    "(default: plc.port or ads.port)")
+    p.add_argument("--register-map", default=None, metavar="FILE",
+                   help="the register map (default: the config's plc.register_map, else the shipped one)")
     p.add_argument("--watch", action="store_true", help="redraw a few times a second until Ctrl-C")
     p.set_defaults(func=run)
 
@@ -118,7 +126,23 @@ class AdsReader:
             self.conn = None
 
 
-def reader_for(cfg, via: str, host: str | None, port: int | None):
+SHIPPED_MAP = DEFAULT_CONFIG.parent / "registers.yaml"
+
+
+def register_map_for(cfg, given: str | None) -> RegisterMap:
+    """``--register-map``, else the config's map, else (a path that exists only inside the image) the
+    shipped one, with a note on stderr."""
+    if given is not None:
+        cfg.plc.register_map = str(Path(given).resolve())
+    elif not cfg.resolve(cfg.plc.register_map).exists():
+        print(f"stiffcomp status: note: plc.register_map = {str(cfg.resolve(cfg.plc.register_map))!r} is not on "
+              f"this machine (a path inside the container?); reading with the shipped map {SHIPPED_MAP} "
+              "(--register-map FILE for another)", file=sys.stderr)
+        cfg.plc.register_map = str(SHIPPED_MAP)
+    return cfg.register_map()
+
+
+def reader_for(cfg, via: str, host: str | None, port: int | None, register_map: str | None = None):
     """The reader ``--via`` asks for, and its protocol's name; ValueError naming the keys when the config
     serves neither protocol, or when pyads, which ADS needs, is missing."""
     if via == "auto":
@@ -127,7 +151,7 @@ def reader_for(cfg, via: str, host: str | None, port: int | None):
             raise ValueError(f"plc.role is {cfg.plc.role} and ads.enabled is false: the service serves "
                              "neither Modbus nor ADS to read its status from (--via modbus --host H --port P "
                              "reads another one)")
-    rmap = cfg.register_map()
+    rmap = register_map_for(cfg, register_map)
     local = {"0.0.0.0": "127.0.0.1"}
     if via == "modbus":
         return BlockReader(rmap, host or local.get(cfg.plc.host, cfg.plc.host), port or cfg.plc.port), via
@@ -137,9 +161,9 @@ def reader_for(cfg, via: str, host: str | None, port: int | None):
 
 def run(args) -> int:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the view shows a lost connection itself
-    cfg = load_config(args.config)
+    cfg = read_sections(args.config, "plc", "ads", "monitoring")
     try:
-        reader, via = reader_for(cfg, args.via, args.host, args.port)
+        reader, via = reader_for(cfg, args.via, args.host, args.port, args.register_map)
     except ValueError as e:
         print(f"stiffcomp status: {args.config}: {e}", file=sys.stderr)
         return 2

@@ -3,6 +3,11 @@
 Pure: `StatusView.update` takes one reading (values by name and the time it was read) and keeps a
 short rolling window, from which `render` derives the cycle rate, exec p50/p99 and the exceed rate.
 The registers give only the last cycle's exec time, so the percentiles are over the sampled cycles.
+
+Once a reading fails (`StatusView.failed`), every value is blanked (shown as —) until one succeeds
+again: a view that kept the last values would show "task RUN, rate 1,000 /s" for a service that is
+gone. `why_zero` says, from the status bits, why the correction is zero (enable off, a fault, ramping,
+stopped, no sensor sample yet).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
-from plc_interface.contract import FAULT_BITS, Status, TaskState
+from plc_interface.contract import FAULT_BITS, Fault, Status, TaskState
 
 # the bits and states as the contract names them (plc_interface.contract)
 STATUS_BITS = {f.bit_length() - 1: (f.name or "").lower().replace("_", " ") for f in Status}
@@ -23,6 +28,26 @@ FAULT_NAMES = {bit: kind for kind, bit in FAULT_BITS.items()}
 TASK_STATES = {s.value: s.name for s in TaskState}
 WRENCH = (("fx", "N"), ("fy", "N"), ("fz", "N"), ("mx", "Nm"), ("my", "Nm"), ("mz", "Nm"))
 DEFLECTION = (("dx", "mm"), ("dy", "mm"), ("dz", "mm"), ("rx", "deg"), ("ry", "deg"), ("rz", "deg"))
+
+
+BLANK = "—"
+
+
+def why_zero(status_word: int, fault_word: int) -> str:
+    """Why the correction is zero, in words, from the status and fault bits (the first reason that holds)."""
+    if status_word & Status.STOPPED:
+        return "the service has stopped"
+    if fault_word or status_word & Status.FAULTED:
+        return (f"fault latched ({', '.join(Fault.spell(fault_word)) or 'see fault_word'}): the correction "
+                f"{'is ramping' if status_word & Status.RAMPING else 'has ramped'} to zero until the PLC resets "
+                "(command bit 2)")
+    if not status_word & Status.SENSOR_OK:
+        return "no good sensor sample yet"
+    if status_word & Status.RAMPING:
+        return "ramping to zero: the PLC's enable bit went off, or the service is stopping"
+    if not status_word & Status.ACTIVE:
+        return "the PLC's enable bit (command_word bit 0) is off"
+    return "active: the model asks for no correction at this load"
 
 
 def bit_names(word: int, names: Mapping[int, str]) -> list[str]:
@@ -63,8 +88,12 @@ class StatusView:
             self.counts.popleft()
 
     def failed(self, message: str) -> None:
-        """The last reading failed; shown in place of the values, which stay as they were."""
+        """The last reading failed: every value is blanked until a reading succeeds (rates start afresh)."""
         self.error = message
+        self.values = {}
+        self.counts.clear()
+        self.exec_us.clear()
+        self._last_cycle = None
 
     def rates(self) -> tuple[float | None, float | None]:
         """(cycles per second, fraction of cycles exceeded) over the window; None until two readings."""
@@ -78,17 +107,22 @@ class StatusView:
         v = self.values
         title = Text(f"stiffcomp status  {self.source}", style="bold")
         if self.error:
-            title.append(f"   {self.error}", style="bold red")
+            title.append(f"   {self.error}: every value blank", style="bold red")
         return Group(title, self._task_table(v), self._values_table(v))
 
     def _task_table(self, v: Mapping[str, float]) -> Table:
-        rate, exceed_rate = self.rates()
-        p50, p99 = (np.percentile(self.exec_us, [50, 99]) if self.exec_us else (np.nan, np.nan))
-        fault = int(v.get("fault_word", 0))
-        faults = bit_names(fault, FAULT_NAMES)
         t = Table(show_header=False, box=None, padding=(0, 2))
         t.add_column(style="cyan")
         t.add_column()
+        if not v:                                  # no answer: nothing is known, nothing is shown
+            for row in ("task", "cycles", "exec", "jitter", "exceeded", "status", "faults", "correction"):
+                t.add_row(row, BLANK)
+            return t
+        rate, exceed_rate = self.rates()
+        p50, p99 = (np.percentile(self.exec_us, [50, 99]) if self.exec_us else (np.nan, np.nan))
+        fault = int(v.get("fault_word", 0))
+        status = int(v.get("status_word", 0))
+        faults = bit_names(fault, FAULT_NAMES)
         state = TASK_STATES.get(int(v.get("task_state", -1)), "?")
         t.add_row("task", Text(state, style="green" if state == "RUN" else "yellow"))
         t.add_row("cycles", f"{int(v.get('cycle_count', 0))}   "
@@ -98,10 +132,12 @@ class StatusView:
         t.add_row("jitter", f"{v.get('period_jitter_us', 0):.0f} us (last cycle)")
         t.add_row("exceeded", f"{int(v.get('exceed_count', 0))}"
                   + ("" if exceed_rate is None else f"   {100 * exceed_rate:.2f} % over {self.window_s:g} s"))
-        t.add_row("status", ", ".join(bit_names(int(v.get("status_word", 0)), STATUS_BITS))
-                  or "—")
+        t.add_row("status", ", ".join(bit_names(status, STATUS_BITS)) or BLANK)
         t.add_row("faults", Text(f"0x{fault:04X}  " + (", ".join(faults) or "none"),
                                  style="bold red" if fault else "green"))
+        zero = not any(v.get(f"correction_q{k}", 0.0) for k in range(1, 7))
+        t.add_row("correction", Text(f"zero: {why_zero(status, fault)}", style="yellow") if zero
+                  else Text("applied", style="green"))
         return t
 
     def _values_table(self, v: Mapping[str, float]) -> Table:
@@ -112,6 +148,9 @@ class StatusView:
         t.add_column("deflection", justify="right")
         for k in range(6):
             (w, wu), (d, du) = WRENCH[k], DEFLECTION[k]
+            if not v:
+                t.add_row(f"q{k + 1}", BLANK, f"{w} {BLANK}", f"{d} {BLANK}")
+                continue
             t.add_row(f"q{k + 1}", f"{v.get(f'correction_q{k + 1}', 0.0):+.5f}",
                       f"{w} {v.get(f'wrench_{w}', 0.0):+9.2f} {wu:<2}",
                       f"{d} {v.get(f'deflection_{d}', 0.0):+.4f} {du}")

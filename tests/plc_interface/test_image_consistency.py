@@ -134,3 +134,22 @@ def test_a_published_record_reads_back_by_name():
         assert all(np.isclose(out[k], expected[k]) for k in out)
     finally:
         image.close()
+
+
+def test_a_writer_taking_over_after_one_killed_mid_write_leaves_every_write_readable():
+    """An I/O process killed between its two sequence increments leaves that buffer's count odd; the next
+    one takes the inputs over (`take_over_inputs`) and the cycle reads each of its writes, none stale."""
+    rmap = RegisterMap.from_yaml(CONFIG / "registers.yaml")
+    image = ProcessImage(rmap)
+    try:
+        start = rmap.blocks["from_plc"].start
+        image.write("holding_registers", start, [1])
+        h = image._h
+        h[5 + 1 + ((int(h[5]) + 1) & 1)] += 1        # the next writer's buffer, left half-written
+        image.take_over_inputs()
+        for k in range(2, 8):
+            image.write("holding_registers", start, [k])
+            assert image.inputs().command_word == k
+        assert image.stale_reads == 0
+    finally:
+        image.close()

@@ -116,6 +116,7 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
 
     model = model_with(EXAMPLES["hysteresis"][0])
     cfg = load_config(CONFIG / "default.yaml")
+    cfg.tare.max_force_N = 2500.0           # this test tares under load on purpose (the history restarts)
     cycle = Cycle.from_config(cfg, model)
     state = cycle.compensator.predictor.history[0].state
     q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]

@@ -98,6 +98,8 @@ def case(name):
         return {}, {"overrun": True}
     if name == "joint_limits":
         return {}, {"q": [10.0, -80.0, 100.0, 20.0, 140.0, 30.0]}   # q5 limit is 130
+    if name == "command_invalid":
+        return {}, {"command": 0xFFFF}                         # every undefined bit set, tare and reset too
     raise KeyError(name)
 
 
@@ -105,7 +107,7 @@ FAULT_OF = {"value_invalid_q": "value_invalid", "value_invalid_q_inf": "value_in
             "can_frame_unknown_id": "can_frame"}
 CASES = ["sensor_timeout", "sensor_status", "sensor_saturated", "value_invalid", "value_invalid_q",
          "value_invalid_q_inf",
-         "can_frame", "can_frame_unknown_id", "plc_heartbeat", "overrun", "joint_limits"]
+         "can_frame", "can_frame_unknown_id", "plc_heartbeat", "overrun", "joint_limits", "command_invalid"]
 
 
 @pytest.mark.parametrize("name", CASES)
