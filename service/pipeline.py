@@ -67,6 +67,7 @@ class Compensator:
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
                  gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor):
         self.predictor = predictor
+        predictor.carry(gravity.mass, gravity.cog, gravity.g)      # the payload in the static torque
         self.filter = filter
         self.spikes = spikes
         self.gravity = gravity

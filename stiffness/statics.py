@@ -134,8 +134,13 @@ _ZERO.flags.writeable = False
 
 
 def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD) -> Statics | None:
-    """The `Statics` of ``robot`` carrying ``payload``; None when both weigh nothing (tau_s = 0)."""
-    kg = payload.mass_kg if payload is not None else 0.0
-    if not robot.has_masses and kg == 0.0:
+    """The `Statics` of ``robot`` carrying ``payload``, for the effects at the total torque.
+
+    None (tau_s = 0, every effect at the external torque as before robots had masses) for a robot
+    without masses: a robot description without an ``inertial`` section models no static load, its
+    payload's included, so a model and a service on the same robot always agree on tau_s.
+    """
+    if not robot.has_masses:
         return None
+    kg = payload.mass_kg if payload is not None else 0.0
     return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2)
