@@ -6,7 +6,9 @@ enabled. The models: config/models/kr125_6dof.yaml (springs only), the same with
 and the same with every effect of the library (backlash, hysteresis, nonlinear stiffness, link bending
 of a link whose beam depends on q and of one whose beam does not, sensor misalignment, drift). The
 models run in alternating blocks of cycles in one process, so the machine's drift falls on all alike;
-the figure is the ratio of the medians of the per-block mean cycle times.
+the figure is the ratio of the medians of the per-block mean cycle times. "every effect, preloaded" is the
+every-effect model on the KR 125 with its masses (config/robots/kr125_masses.yaml): the static torque is
+formed at every kinematics and the axial effects act at the total torque.
 
     .venv/bin/python benchmarks/bench_effects.py [--blocks 30] [--cycles 1000] [--json FILE]
 """
@@ -31,6 +33,7 @@ from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.model import StiffnessModel
+from stiffness.robot import load_robot
 
 
 class Runner:
@@ -70,7 +73,11 @@ def main(argv: list[str] | None = None) -> dict:
     for e in BEYOND_SPRINGS:
         m = model_with(e, base="kr125_6dof")
         models[f"+ {m.effects[-1].label}"] = m
-    models["every effect"] = model_with(*BEYOND_SPRINGS, base="kr125_6dof")
+    models["every effect"] = every = model_with(*BEYOND_SPRINGS, base="kr125_6dof")
+    # the same on the KR 125 with its masses: the axial effects at tau_s(q) + tau_ext, tau_s formed at
+    # each kinematics (the arm's weight, its balancer, the gravity section's payload)
+    models["every effect, preloaded"] = StiffnessModel.from_dict(
+        every.to_dict(), "every effect, preloaded", robot=load_robot(ROOT / "config" / "robots" / "kr125_masses.yaml"))
     runners = {k: Runner(m) for k, m in models.items()}
     for r in runners.values():
         r.run(200)                                            # warm up

@@ -19,6 +19,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from stiffness.effects.joint_spring import JointSpring
+
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = 3
 GARBAGE_LINES = 200_000
@@ -48,7 +50,7 @@ def bomb(levels: int) -> str:
     lines = ['  - &a ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
     lines += [f"  - &{names[k]} [{', '.join(['*' + names[k - 1]] * 9)}]" for k in range(1, levels)]
     return (f"robot: {ROOT / 'config/robots/kr125.yaml'}\ndescription:\n" + "\n".join(lines)
-            + f"\nnoise:\n  position_mm: *{names[levels - 1]}\neffects:\n  - {{effect: joint_spring, joint: 1}}\n")
+            + f"\nnoise:\n  position_mm: *{names[levels - 1]}\neffects:\n  - {{effect: {JointSpring.name}, joint: 1}}\n")
 
 
 def run(what: str, path: Path, tree: Path = ROOT) -> dict:

@@ -27,6 +27,13 @@ once. An effect without a real-time term is refused at start-up (ModelUnsupporte
 left out, so the service never sends a correction from a partial model. The tests check every effect of
 the library against the model.
 
+Static torque. Backlash, nonlinear stiffness and hysteresis act at the joint's total torque: the
+static torque tau_s(q) of the arm's weight (the model's robot), its balancer and the payload (the
+``gravity`` section, `carry`), plus the external tau_i. `kinematics` forms tau_s at each change of q
+(one pinocchio gravity pass) and f(tau_s) of every axial term; a cycle then adds
+f(tau_s + tau_i) - f(tau_s), loaded minus unloaded as the campaign measured it. A robot without masses
+carrying nothing has tau_s = 0 and pays nothing.
+
 History. A history term (hysteresis' loading state) keeps its state in this predictor;
 `reset_history` restarts it at its defined start. The compensator calls it at the first sample, after a
 tare and after a fault reset.
@@ -75,6 +82,9 @@ class FastPredictor:
         terms = fast_terms(model)
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
+        self.statics = model.statics()
+        self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
+        self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term
         self.history = terms.history
         self.frame_terms = terms.frame_terms
         self.slow_frame_terms = [b for b in self.frame_terms if not b.constant]
@@ -122,6 +132,20 @@ class FastPredictor:
         self.p_s = Ts.translation.tolist()
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
+        if self.statics is not None:
+            self.tau_s = tau_s = self.statics.total_at(q_rad).tolist()
+            self._axial_at_rest = [term.f(tau_s[term.joint - 1]) for term in self.axial]
+
+    def carry(self, payload_kg: float, cog_m, g_mps2) -> None:
+        """The payload the sensor carries now (the ``gravity`` section: mass, centre of gravity in the
+        sensor frame, gravity in base axes) in the static torque; takes effect at the next `kinematics`."""
+        from stiffness.statics import PayloadConfig, statics_for
+
+        payload = PayloadConfig(mass_kg=payload_kg, cog_mm=[1000.0 * float(c) for c in cog_m])
+        self.statics = statics_for(self.robot, payload, g_mps2)
+        if self.statics is None:
+            self.tau_s = [0.0] * 6
+            self._axial_at_rest = [0.0] * len(self.axial)
 
     def wrench_base(self, w_sensor) -> list[float]:
         """[F; M] in base axes, M about the sensor origin, from a wrench in sensor axes (six floats)."""
@@ -141,8 +165,10 @@ class FastPredictor:
         w[:] = (fx, fy, fz, mx + y * fz - z * fy, my + z * fx - x * fz, mz + x * fy - y * fx)
         local = w @ self.Ad                              # row i: W_i = Ad_i^T w0
         delta = local * self.compliance
-        for term in self.axial:
-            delta[term.joint - 1, 5] += term.f(float(local[term.joint - 1, 5]))
+        tau_s, at_rest = self.tau_s, self._axial_at_rest
+        for k, term in enumerate(self.axial):
+            j = term.joint - 1
+            delta[j, 5] += term.f(tau_s[j] + float(local[j, 5])) - at_rest[k]
         for h in self.history:
             delta[h.joint - 1, 5] += h.gain * h.state.update(float(local[h.joint - 1, 5]))
         for b in self.frame_terms:

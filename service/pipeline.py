@@ -81,6 +81,7 @@ class Compensator:
                  gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
                  tare_max_force_N: float = math.inf):
         self.predictor = predictor
+        predictor.carry(gravity.mass, gravity.cog, gravity.g)      # the payload in the static torque
         self.filter = filter
         self.spikes = spikes
         self.gravity = gravity

@@ -40,10 +40,13 @@ class Context:
     ----------
     robot : Robot
     data : Dataset
+    statics : Statics, optional
+        tau_s(q) of the robot's weight and the payload (`stiffness.statics`); None: tau_s = 0.
     """
 
-    def __init__(self, robot: Robot, data: Dataset):
+    def __init__(self, robot: Robot, data: Dataset, statics=None):
         self.robot = robot
+        self.statics = statics
         self.data = data
         first, self.row_reading = data.readings()
         self.first_row = first
@@ -63,6 +66,14 @@ class Context:
         self.chain_frame = np.minimum(data.body + 1, 6)      # A_k on frame k, TCP on frame 6
         self.frame_wrench = self.wrenches_at_frames(self.wrench_sensor)
         self.cache: dict = {}                                # per-campaign values effects reuse
+
+    @cached_property
+    def static_torque(self) -> np.ndarray:
+        """tau_s (R, 6) Nm: each reading's static joint torque (the arm's weight, its balancer and the
+        payload), signed like the external joint torque W_i[rz]; zeros without ``statics``."""
+        if self.statics is None:
+            return np.zeros((self.n_readings, 6))
+        return self.statics(self.q).total
 
     def _time_in_config(self) -> np.ndarray:
         t0 = np.full(len(self.config_labels), np.inf)

@@ -127,7 +127,8 @@ def candidate_variants(model: StiffnessModel, ctx: Context) -> list[list[Effect]
 
 def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np.ndarray:
     """(N, 6, Pc) deflection per unit of the effect's parameters, at the fitted model."""
-    aug = StiffnessModel(model.robot, model.effects + [effect], noise=model.noise, source=model.source)
+    aug = StiffnessModel(model.robot, model.effects + [effect], noise=model.noise, source=model.source,
+                         payload=model.payload)
     th = np.concatenate([model.theta, effect.theta])
     if effect.linear:      # closed form for its columns alone (the candidates' shapes are fixed)
         return design(aug, ctx, aug.frame_wrenches(ctx, th), th, [effect])

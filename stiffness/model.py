@@ -23,11 +23,12 @@ from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
 from .measurements import Dataset
 from .robot import Robot, load_robot
+from .statics import PayloadConfig, Statics, statics_for
 from .spatial import log_so3, twist_transform
 from .units import M_TO_MM, RAD_TO_DEG
-from .yamlio import dump_yaml, read_yaml
+from .yamlio import dump_yaml, read_yaml, validate
 
-TOP_KEYS = {"name", "description", "robot", "noise", "effects"}
+TOP_KEYS = {"name", "description", "robot", "noise", "payload", "effects"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
 
 
@@ -43,12 +44,16 @@ class StiffnessModel:
         The robot file as written in the YAML (kept when the model is saved).
     noise : dict
         Expected measurement noise, ``position_mm`` and ``rotation_deg`` (weights of the fit).
+    payload : PayloadConfig, optional
+        What the sensor carried while the campaign was measured: with the robot's masses it gives the
+        static joint torque tau_s at which backlash, nonlinear stiffness and hysteresis act.
     """
 
     def __init__(self, robot: Robot, effects: list[Effect], name: str = "model", description: str = "",
                  robot_ref: str | None = None, noise: dict[str, float] | None = None,
-                 source: str = "<model>"):
+                 source: str = "<model>", payload: PayloadConfig | None = None):
         self.robot = robot
+        self.payload = payload
         self.effects = list(effects)
         self.name = name
         self.description = description
@@ -87,6 +92,11 @@ class StiffnessModel:
         for k, v in noise.items():
             if not isinstance(v, (int, float)) or not v > 0:
                 raise ConfigError(f"{source}: noise.{k} = {quote(v)} must be a number > 0")
+        payload = None
+        if data.get("payload") is not None:
+            if not isinstance(data["payload"], dict):
+                raise ConfigError(f"{source}: payload must be a mapping with mass_kg and cog_mm")
+            payload = validate(PayloadConfig, data["payload"], source, "payload")
         entries = data.get("effects")
         if not isinstance(entries, list) or not entries:
             raise ConfigError(f"{source}: effects must be a non-empty list of effect entries")
@@ -102,7 +112,7 @@ class StiffnessModel:
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             effects.append(EFFECTS[name].from_config(entry, robot, where))
         return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),
-                   robot_ref, noise, source)
+                   robot_ref, noise, source, payload)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"name": self.name}
@@ -110,6 +120,8 @@ class StiffnessModel:
             out["description"] = self.description
         out["robot"] = self.robot_ref
         out["noise"] = {k: float(v) for k, v in self.noise.items()}
+        if self.payload is not None:
+            out["payload"] = self.payload.model_dump()
         effects = []
         for e in self.effects:
             entry = e.to_config()
@@ -210,8 +222,12 @@ class StiffnessModel:
         return any(e.name == name and (joint is None or e.joint == joint) for e in self.effects)
 
     # -- evaluation -----------------------------------------------------------------------------
+    def statics(self) -> Statics | None:
+        """tau_s(q) of this model's robot and payload (`stiffness.statics`); None when nothing weighs."""
+        return statics_for(self.robot, self.payload)
+
     def context(self, data: Dataset) -> Context:
-        return Context(self.robot, data)
+        return Context(self.robot, data, self.statics())
 
     def frame_wrenches(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
         """Wrenches at DH frames 0..6 after the input effects (R, 7, 6)."""

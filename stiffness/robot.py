@@ -20,9 +20,9 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, field_validator
 
-from .errors import ConfigError
+from .errors import ConfigError, quote
 from .spatial import rpy_matrix, transform
-from .yamlio import Strict, read_yaml, validate
+from .yamlio import Strict, deep_update, read_yaml, validate
 
 N_JOINTS = 6
 BODIES = ("A1", "A2", "A3", "A4", "A5", "A6", "TCP")
@@ -160,7 +160,7 @@ class Robot:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> Robot:
-        data = read_yaml(path)
+        data = read_extended(Path(path))
         config = validate(RobotConfig, data, str(path))
         config.check_sources(str(path))
         if config.urdf is not None:
@@ -265,6 +265,23 @@ def _tx(a: float) -> np.ndarray:
     T = np.eye(4)
     T[0, 3] = a
     return T
+
+
+def read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+    """A robot YAML's mapping; ``extends: OTHER.yaml`` (relative to it) starts from that robot's file
+    and this one's keys merged in at every depth (e.g. the kinematic KR 125 plus its masses)."""
+    data = read_yaml(path)
+    base = data.pop("extends", None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise ConfigError(f"{path}: extends = {quote(base)} must name a robot YAML file (relative to this one)")
+    other = (path.parent / base).resolve()
+    if other in seen or other == path.resolve():
+        raise ConfigError(f"{path}: extends = {quote(base)} comes back to a file it extends")
+    if not other.exists():
+        raise ConfigError(f"{path}: extends = {quote(base)}: file {other} not found")
+    return deep_update(read_extended(other, (*seen, path.resolve())), data)
 
 
 def load_robot(path: str | Path) -> Robot:

@@ -18,7 +18,10 @@ payload's centre. All in Nm. A robot without masses gives tau_arm = tau_balancer
 tau_s = 0. The balancer carries a share of the arm's weight only: a spring set for the arm knows
 nothing of the tool.
 
-The effects do not use tau_s yet (docs/effects.md, "Static torque").
+Backlash, nonlinear stiffness and hysteresis act at the joint's total torque tau_s + tau_ext
+(docs/effects.md, "Static torque"): offline tau_s comes from the model's robot (masses, balancer) and
+the model's ``payload`` (`PayloadConfig`, what the sensor carried while the campaign was measured); in
+the service from the robot and the ``gravity`` section's payload, recomputed when the joints move.
 """
 
 from __future__ import annotations
@@ -26,10 +29,20 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from pydantic import Field
 
 from .robot import Robot
+from .yamlio import Strict
 
 G_STANDARD = (0.0, 0.0, -9.81)   # m/s^2, base axes: a floor-mounted robot
+
+
+class PayloadConfig(Strict):
+    """A model's ``payload``: what the sensor carried while the campaign was measured (spindle, holder,
+    tool), its mass and its centre of gravity in the sensor frame."""
+
+    mass_kg: float = Field(0.0, ge=0.0, le=1e4)
+    cog_mm: list[float] = Field(default_factory=lambda: [0.0, 0.0, 0.0], min_length=3, max_length=3)
 
 
 class StaticTorques(NamedTuple):
@@ -118,3 +131,16 @@ class Statics:
 
 _ZERO = np.zeros(6)
 _ZERO.flags.writeable = False
+
+
+def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD) -> Statics | None:
+    """The `Statics` of ``robot`` carrying ``payload``, for the effects at the total torque.
+
+    None (tau_s = 0, every effect at the external torque as before robots had masses) for a robot
+    without masses: a robot description without an ``inertial`` section models no static load, its
+    payload's included, so a model and a service on the same robot always agree on tau_s.
+    """
+    if not robot.has_masses:
+        return None
+    kg = payload.mass_kg if payload is not None else 0.0
+    return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2)

@@ -1,7 +1,13 @@
 """Shared pieces of the per-joint axial effects (backlash, hysteresis, nonlinear stiffness).
 
-Each adds to joint i's axial spring twist rz (site i-1) a function of the joint's axial torque
-tau_i = W_i[rz], the external moment about joint i's axis (Nm).
+Each adds to joint i's axial spring twist rz (site i-1) a function of the joint's axial torque. A
+gearbox's play and its soft zone sit at zero *total* torque: the static torque tau_s(q) of the arm's
+weight, its balancer and the payload (`Context.static_torque`, `stiffness.statics`) plus the external
+tau_i = W_i[rz] (Nm). A campaign measures loaded minus unloaded, so the deflection an effect adds is
+
+    delta_rz = f(tau_s + tau_i) - f(tau_s)
+
+which is f(tau_i) for a robot without masses (tau_s = 0, f(0) = 0).
 """
 
 from __future__ import annotations
@@ -34,8 +40,8 @@ def torque_range(ctx: Context, joint: int) -> float:
 class AxialEffect(Effect):
     """An effect on joint i's axial twist of the form delta_rz = theta[0] * shape(tau_i; theta).
 
-    ``axial_twist`` is the effect's equation, in one place: the model's basis and the service's
-    real-time path both call it.
+    ``axial_twist`` is the effect's equation f, in one place: the model's basis and the service's
+    real-time path both call it, at the total torque (module docstring).
     """
 
     evidence_plot = "axial"
@@ -50,9 +56,11 @@ class AxialEffect(Effect):
         return theta[0] * self.shape(tau, theta)
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        return axial_basis(ctx, self.joint, [self.shape(joint_torque(W, self.joint), theta)])
+        tau_s = ctx.static_torque[:, self.joint - 1]
+        tau = tau_s + joint_torque(W, self.joint)
+        return axial_basis(ctx, self.joint, [self.shape(tau, theta) - self.shape(tau_s, theta)])
 
     def realtime(self, robot) -> list[AxialTerm]:
-        """delta_rz = `axial_twist`(tau_i), the parameters frozen."""
+        """f = `axial_twist`, the parameters frozen; the service evaluates f(tau_s + tau) - f(tau_s)."""
         theta = self.theta.copy()
         return [AxialTerm(self.joint, lambda tau: float(self.axial_twist(tau, theta)))]

@@ -15,7 +15,7 @@ def model_on(robot_file: str) -> StiffnessModel:
 
 
 def test_urdf_robot_model_and_fast_path_equal_the_dh_robot():
-    dh, urdf = model_on("kr125.yaml"), model_on("kr125_urdf.yaml")
+    dh, urdf = model_on("kr125_masses.yaml"), model_on("kr125_urdf.yaml")
     data = random_dataset(dh.robot, 12, seed=7)
     np.testing.assert_allclose(urdf.predict(data), dh.predict(data), rtol=0, atol=1e-9)   # mm, deg
     fa, fb = FastPredictor(dh), FastPredictor(urdf)

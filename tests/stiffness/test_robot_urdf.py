@@ -4,22 +4,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from stiffcomp_testlib import ROOT
 
 from stiffness.errors import ConfigError
-from stiffness.robot import BODIES, Robot
+from stiffness.robot import BODIES, Robot, read_extended
 from stiffness.statics import Statics
 from stiffness.urdf import urdf_text
+from stiffness.yamlio import dump_yaml
 
 ROBOTS = ROOT / "config" / "robots"
 
 
 @pytest.fixture(scope="module")
 def dh_robot() -> Robot:
-    return Robot.from_yaml(ROBOTS / "kr125.yaml")
+    return Robot.from_yaml(ROBOTS / "kr125_masses.yaml")
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +66,7 @@ def test_shipped_urdf_has_the_yaml_limits_masses_and_statics(dh_robot, urdf_robo
 
 
 def test_shipped_urdf_is_what_urdf_text_writes_from_the_yaml(dh_robot):
-    """kr125.urdf is not edited by hand: regenerate it with urdf_text when kr125.yaml changes."""
+    """kr125.urdf is not edited by hand: regenerate it with urdf_text when kr125_masses.yaml changes."""
     assert (ROBOTS / "kr125.urdf").read_text() == urdf_text(dh_robot)
 
 
@@ -88,10 +88,10 @@ def test_any_dh_robot_round_trips_through_urdf(tmp_path_factory, dh, masses, com
               "tcp": {"xyz_mm": [0.0, 10.0, 200.0], "rpy_deg": [0.0, 90.0, 0.0]}}
     links = [{"mass_kg": m, "com_mm": c} for m, c in zip(masses, coms)]
     dh_doc = {**common, "dh": dh, "joint_limits_deg": [[-170, 170]] * 6, "inertial": {"links": links}}
-    (folder / "dh.yaml").write_text(yaml.safe_dump(dh_doc))
+    (folder / "dh.yaml").write_text(dump_yaml(dh_doc))
     robot = Robot.from_yaml(folder / "dh.yaml")
     (folder / "r.urdf").write_text(urdf_text(robot))
-    (folder / "u.yaml").write_text(yaml.safe_dump({**common, "urdf": {"file": "r.urdf"}}))
+    (folder / "u.yaml").write_text(dump_yaml({**common, "urdf": {"file": "r.urdf"}}))
     other = Robot.from_yaml(folder / "u.yaml")
     q = np.random.default_rng(0).uniform(-2.9, 2.9, size=(10, 6))
     np.testing.assert_allclose(other.frames(q), robot.frames(q), rtol=0, atol=1e-9)
@@ -161,7 +161,7 @@ def test_missing_or_broken_urdf(urdf_folder):
 # -- the inertial section ------------------------------------------------------------------------
 
 def kr125_doc() -> dict:
-    return yaml.safe_load((ROBOTS / "kr125.yaml").read_text())
+    return read_extended(ROBOTS / "kr125_masses.yaml")     # the kinematic KR 125 and its masses, merged
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -184,7 +184,7 @@ def kr125_doc() -> dict:
 def test_bad_inertial_section_names_file_key_value_and_range(tmp_path, edit, message):
     doc = kr125_doc()
     edit(doc)
-    (tmp_path / "r.yaml").write_text(yaml.safe_dump(doc))
+    (tmp_path / "r.yaml").write_text(dump_yaml(doc))
     with pytest.raises(ConfigError, match=message):
         Robot.from_yaml(tmp_path / "r.yaml")
 
@@ -194,7 +194,7 @@ def test_bad_inertial_section_names_file_key_value_and_range(tmp_path, edit, mes
     ({"inertial": {"links": kr125_doc()["inertial"]["links"]}}, "inertial.links is not allowed with urdf"),
 ])
 def test_urdf_robot_takes_limits_and_masses_from_the_urdf(urdf_folder, extra, message):
-    (urdf_folder / "u.yaml").write_text(yaml.safe_dump({"urdf": {"file": "r.urdf"}, **extra}))
+    (urdf_folder / "u.yaml").write_text(dump_yaml({"urdf": {"file": "r.urdf"}, **extra}))
     with pytest.raises(ConfigError, match=message):
         Robot.from_yaml(urdf_folder / "u.yaml")
 
@@ -202,7 +202,7 @@ def test_urdf_robot_takes_limits_and_masses_from_the_urdf(urdf_folder, extra, me
 def test_masses_leave_the_kinematics_alone(dh_robot, tmp_path):
     doc = kr125_doc()
     del doc["inertial"]
-    (tmp_path / "r.yaml").write_text(yaml.safe_dump(doc))
+    (tmp_path / "r.yaml").write_text(dump_yaml(doc))
     bare = Robot.from_yaml(tmp_path / "r.yaml")
     assert not bare.has_masses and bare.balancer is None and dh_robot.has_masses
     q = np.random.default_rng(5).uniform(-2, 2, size=(7, 6))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from stiffcomp_testlib import ROOT
@@ -13,24 +12,31 @@ from stiffcomp_testlib import ROOT
 from stiffness.context import Context
 from stiffness.effects.axial import joint_torque
 from stiffness.measurements import Dataset
-from stiffness.robot import Robot
+from stiffness.robot import Robot, read_extended
 from stiffness.spatial import transform, transport_wrench
 from stiffness.statics import G_STANDARD, Statics
+from stiffness.yamlio import dump_yaml
 
-KR125 = ROOT / "config" / "robots" / "kr125.yaml"
+KR125 = ROOT / "config" / "robots" / "kr125_masses.yaml"
 G = np.array(G_STANDARD)
+
+
+@pytest.fixture(scope="module")
+def robot() -> Robot:
+    """The KR 125 with its shipped masses and balancer (the kinematic kr125.yaml has none)."""
+    return Robot.from_yaml(KR125)
 
 
 def robot_with(tmp_path, inertial: dict | None, sensor: dict | None = None) -> Robot:
     """The KR 125 with the given inertial section (None: no masses) and optionally another sensor pose."""
-    doc = yaml.safe_load(KR125.read_text())
+    doc = read_extended(KR125)
     doc.pop("inertial", None)
     if inertial is not None:
         doc["inertial"] = inertial
     if sensor is not None:
         doc["sensor"] = sensor
     path = tmp_path / f"r{len(list(tmp_path.iterdir()))}.yaml"
-    path.write_text(yaml.safe_dump(doc))
+    path.write_text(dump_yaml(doc))
     return Robot.from_yaml(path)
 
 
@@ -113,7 +119,7 @@ def test_no_masses_no_payload_is_zero_and_the_balancer_takes_its_share(tmp_path,
     q = random_q(bare, 30, 1)
     t = Statics(bare)(q)
     assert not t.total.any()
-    share_robot = robot_with(tmp_path, {**yaml.safe_load(KR125.read_text())["inertial"],
+    share_robot = robot_with(tmp_path, {**read_extended(KR125)["inertial"],
                                         "balancer": {"joint": 3, "share": 0.25}})
     s = Statics(share_robot, 40.0, (0, 0, 100))(q)
     np.testing.assert_allclose(s.balancer[:, 2], -0.25 * s.arm[:, 2])

@@ -5,13 +5,23 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.model import StiffnessModel
 from stiffness.statics import Statics
 
-MODEL = MODELS / "kr125_6dof.yaml"
 Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]
+
+
+@pytest.fixture(scope="module")
+def MODEL(tmp_path_factory):
+    """kr125_6dof on the KR 125 with its masses (config/robots/kr125_masses.yaml)."""
+    model = StiffnessModel.from_yaml(MODELS / "kr125_6dof.yaml")
+    data = model.to_dict() | {"robot": str(ROOT / "config" / "robots" / "kr125_masses.yaml")}
+    path = tmp_path_factory.mktemp("torques") / "kr125_6dof_masses.yaml"
+    StiffnessModel.from_dict(data, str(path)).to_yaml(path)
+    return path
 
 
 def stiffcomp(*args):
@@ -19,7 +29,7 @@ def stiffcomp(*args):
                           capture_output=True, check=False, text=True, timeout=120)
 
 
-def test_torques_json_equals_statics_and_sums():
+def test_torques_json_equals_statics_and_sums(MODEL):
     r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", 80, "--payload-cog-mm", 0, 10, 150, "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)["static_torque_Nm"]
@@ -31,7 +41,7 @@ def test_torques_json_equals_statics_and_sums():
     assert abs(out["arm"][1]) > 100 and abs(out["payload"][1]) > 100 and out["balancer"][1] != 0
 
 
-def test_torques_table_has_a_line_per_joint_with_the_parts_that_add_up():
+def test_torques_table_has_a_line_per_joint_with_the_parts_that_add_up(MODEL):
     r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", 50)
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
@@ -43,7 +53,7 @@ def test_torques_table_has_a_line_per_joint_with_the_parts_that_add_up():
     assert "50 kg" in r.stdout and "balancer on joint 2" in r.stdout
 
 
-def test_kcart_prints_the_static_torques_of_its_configuration():
+def test_kcart_prints_the_static_torques_of_its_configuration(MODEL):
     r = stiffcomp("kcart", MODEL, "--q", *Q, "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)["model"]["static_torque_Nm"]
@@ -53,7 +63,7 @@ def test_kcart_prints_the_static_torques_of_its_configuration():
     assert "static joint torques" in text and "A6" in text
 
 
-def test_bad_options_exit_2_naming_the_option():
+def test_bad_options_exit_2_naming_the_option(MODEL):
     r = stiffcomp("torques", MODEL, "--q", 0, 40, 0, 0, 0, 0)
     assert r.returncode == 2 and "--q: joint 2 = 40 deg is outside its limits [-155, 35]" in r.stderr
     r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", "-2")
