@@ -23,8 +23,8 @@ from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
 from .measurements import Dataset
 from .robot import Robot, load_robot
-from .statics import PayloadConfig, Statics, statics_for
 from .spatial import log_so3, twist_transform
+from .statics import PayloadConfig, Statics, statics_for
 from .units import M_TO_MM, RAD_TO_DEG
 from .yamlio import dump_yaml, read_yaml, validate
 

@@ -21,7 +21,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from .errors import ConfigError, quote
-from .spatial import rpy_matrix, transform
+from .spatial import rot_x, rot_z, rpy_matrix, trans_x, trans_z, transform
 from .yamlio import Strict, deep_update, read_yaml, validate
 
 N_JOINTS = 6
@@ -225,12 +225,12 @@ class Robot:
         parent = 0
         tail = np.eye(4)  # from the previous joint's frame to DH frame i-1
         for i in range(N_JOINTS):
-            rz_off = _rz(self.offset[i])
+            rz_off = rot_z(self.offset[i])
             placement = pin.SE3(tail @ rz_off)
             parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
             model.lowerPositionLimit[i] = np.radians(self.limits_deg[i, 0])
             model.upperPositionLimit[i] = np.radians(self.limits_deg[i, 1])
-            tail = _tz(self.d[i]) @ _tx(self.a[i]) @ _rx(self.alpha[i])
+            tail = trans_z(self.d[i]) @ trans_x(self.a[i]) @ rot_x(self.alpha[i])
             com = (tail @ np.append(self.link_com[i], 1.0))[:3]
             model.appendBodyToJoint(parent, pin.Inertia(self.link_mass[i], com, np.zeros((3, 3))), pin.SE3.Identity())
             model.addFrame(pin.Frame(BODIES[i], parent, pin.SE3(tail), pin.FrameType.OP_FRAME))
@@ -243,28 +243,6 @@ class Robot:
             sensor = model.frames[model.getFrameId(BODIES[j - 1])].placement * pin.SE3(self.T_frame_sensor)
             model.addFrame(pin.Frame("sensor", j, sensor, pin.FrameType.OP_FRAME))
         return model
-
-
-def _rz(t: float) -> np.ndarray:
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-
-def _rx(t: float) -> np.ndarray:
-    c, s = np.cos(t), np.sin(t)
-    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
-
-
-def _tz(d: float) -> np.ndarray:
-    T = np.eye(4)
-    T[2, 3] = d
-    return T
-
-
-def _tx(a: float) -> np.ndarray:
-    T = np.eye(4)
-    T[0, 3] = a
-    return T
 
 
 def read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict:

@@ -40,6 +40,32 @@ def rpy_matrix(rpy_rad: np.ndarray) -> np.ndarray:
     return Rotation.from_euler("xyz", rpy_rad).as_matrix()
 
 
+def rot_z(t: float) -> np.ndarray:
+    """The homogeneous rotation (4, 4) by ``t`` rad about z (a DH joint's turn)."""
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def rot_x(t: float) -> np.ndarray:
+    """The homogeneous rotation (4, 4) by ``t`` rad about x (a DH twist alpha)."""
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+
+def trans_z(d: float) -> np.ndarray:
+    """The homogeneous translation (4, 4) by ``d`` m along z (a DH offset d)."""
+    T = np.eye(4)
+    T[2, 3] = d
+    return T
+
+
+def trans_x(a: float) -> np.ndarray:
+    """The homogeneous translation (4, 4) by ``a`` m along x (a DH length a)."""
+    T = np.eye(4)
+    T[0, 3] = a
+    return T
+
+
 def transform(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Homogeneous 4x4 transforms from rotations (...,3,3) and translations (...,3)."""
     R = np.asarray(R, dtype=float)

@@ -21,13 +21,13 @@ does), the centre moved into DH frame i. Rotational inertia is not kept: the sta
 
 from __future__ import annotations
 
-import reprlib
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .errors import ConfigError
+from .errors import ConfigError, quote
+from .spatial import rot_x, rot_z, trans_x, trans_z
 from .units import M_TO_MM
 
 TOLERANCE = 1e-9      # m and rad: how close a placement must be to its DH form
@@ -35,13 +35,12 @@ TOLERANCE = 1e-9      # m and rad: how close a placement must be to its DH form
 
 def _dh_from_placement(L: np.ndarray) -> tuple[dict[str, float], float]:
     """(offset, d, a, alpha) with Rz(offset) Tz(d) Tx(a) Rx(alpha) closest to L, and the misfit."""
-    from .robot import _rx, _rz, _tx, _tz
 
     R, p = L[:3, :3], L[:3, 3]
     theta = np.arctan2(R[1, 0], R[0, 0])
     alpha = np.arctan2(R[2, 1], R[2, 2])
     a = p[0] * np.cos(theta) + p[1] * np.sin(theta)
-    rebuilt = _rz(theta) @ _tz(p[2]) @ _tx(a) @ _rx(alpha)
+    rebuilt = rot_z(theta) @ trans_z(p[2]) @ trans_x(a) @ rot_x(alpha)
     dh = {"offset_deg": float(np.degrees(theta)), "d_mm": float(p[2] * M_TO_MM),
           "a_mm": float(a * M_TO_MM), "alpha_deg": float(np.degrees(alpha))}
     return dh, float(np.abs(rebuilt - L).max())
@@ -74,15 +73,15 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
     names = list(model.names)[1:]
     kinds = [model.joints[j].shortname() for j in range(1, model.njoints)]
     if model.njoints != 7 or model.nq != 6 or any(model.parents[j] != j - 1 for j in range(1, 7)):
-        raise ConfigError(f"{path}: needs six revolute joints in one chain, has {_short(names)} "
-                          f"of kinds {_short(kinds)}")
+        raise ConfigError(f"{path}: needs six revolute joints in one chain, has {quote(list(names))} "
+                          f"of kinds {quote(list(kinds))}")
     for name, kind in zip(names, kinds):
         if kind != "JointModelRZ":
             raise ConfigError(f"{path}: joint {name!r} ({kind}) must be revolute about its frame's z axis "
                               "(axis xyz=\"0 0 1\"), as DH joints are")
     if not model.existFrame(flange):
         raise ConfigError(f"{path}: flange = {flange!r} is not a frame of the URDF (links and fixed joints: "
-                          f"{_short([f.name for f in model.frames if f.parentJoint == 6])})")
+                          f"{quote([f.name for f in model.frames if f.parentJoint == 6])})")
     frame = model.frames[model.getFrameId(flange)]
     if frame.parentJoint != 6:
         raise ConfigError(f"{path}: flange = {flange!r} is not on the last joint's link")
@@ -111,19 +110,14 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
     return table, limits, links
 
 
-def _short(items: list) -> str:
-    return reprlib.repr(list(items))
-
-
 def urdf_text(robot) -> str:
     """The robot (a `stiffness.robot.Robot`) as a URDF in the form `read_urdf` accepts.
 
     Links ``base_link``, ``link1`` .. ``link6`` and ``flange`` (DH frame 6, a fixed joint); each link's
     mass is a point mass at its centre; effort and velocity limits are 0 (stiffcomp does not use them).
     """
-    from .robot import _rx, _rz, _tx, _tz
 
-    L = [_rz(o) @ _tz(d) @ _tx(a) @ _rx(al) for o, d, a, al in zip(robot.offset, robot.d, robot.a, robot.alpha)]
+    L = [rot_z(o) @ trans_z(d) @ trans_x(a) @ rot_x(al) for o, d, a, al in zip(robot.offset, robot.d, robot.a, robot.alpha)]
     lines = ['<?xml version="1.0"?>',
              (f"<!-- {robot.name}: written by stiffness.urdf.urdf_text from {Path(robot.source).name}; "
               "DH frame i is joint i's frame moved by the next joint's origin (docs/model_format.md) -->"),
