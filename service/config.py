@@ -97,6 +97,16 @@ class ConfigSections(SimpleNamespace):
         return _register_map(self.path, self.plc.register_map)
 
 
+def _read(path: Path) -> dict:
+    """The config file's mapping through the one YAML loader; ServiceConfigError names the file."""
+    if not path.exists():
+        raise ServiceConfigError(f"{path}: config file not found")
+    try:
+        return read_yaml(path)
+    except StiffnessError as e:
+        raise ServiceConfigError(str(e)) from e
+
+
 def read_sections(path: str | Path, *names: str) -> ConfigSections:
     """Only the named top-level sections of a service config (e.g. ``plc``, ``ads``, ``monitoring``),
     validated as the service validates them; nothing else in the file is read or checked and no file
@@ -104,12 +114,7 @@ def read_sections(path: str | Path, *names: str) -> ConfigSections:
     paths inside the image, serves the host-side `health` and `status` (docs/deploy.md).
     ServiceConfigError names the file, key and value."""
     path = Path(path)
-    if not path.exists():
-        raise ServiceConfigError(f"{path}: config file not found")
-    try:
-        data = read_yaml(path)
-    except StiffnessError as e:
-        raise ServiceConfigError(str(e)) from e
+    data = _read(path)
     out = ConfigSections(path=path)
     for name in names:
         section = ServiceConfig.model_fields[name].annotation
@@ -123,12 +128,7 @@ def read_sections(path: str | Path, *names: str) -> ConfigSections:
 def load_config(path: str | Path | None = None) -> ServiceConfig:
     """Read and validate the service config; ServiceConfigError names file, key, value and range."""
     path = Path(path) if path is not None else DEFAULT_CONFIG
-    if not path.exists():
-        raise ServiceConfigError(f"{path}: config file not found")
-    try:
-        data = read_yaml(path)
-    except StiffnessError as e:
-        raise ServiceConfigError(str(e)) from e
+    data = _read(path)
     if "path" in data:
         raise ServiceConfigError(f"{path}: path is not a known key")
     try:
