@@ -48,6 +48,7 @@ from pydantic import Field
 from stiffness.model import StiffnessModel
 from stiffness.robot import BODIES
 from stiffness.spatial import damped_pinv_solve
+from stiffness.statics import PayloadConfig, statics_for
 from stiffness.yamlio import Strict
 
 from .fast_effects import fast_terms
@@ -139,8 +140,6 @@ class FastPredictor:
     def carry(self, payload_kg: float, cog_m, g_mps2) -> None:
         """The payload the sensor carries now (the ``gravity`` section: mass, centre of gravity in the
         sensor frame, gravity in base axes) in the static torque; takes effect at the next `kinematics`."""
-        from stiffness.statics import PayloadConfig, statics_for
-
         payload = PayloadConfig(mass_kg=payload_kg, cog_mm=[1000.0 * float(c) for c in cog_m])
         self.statics = statics_for(self.robot, payload, g_mps2)
         if self.statics is None:
