@@ -11,7 +11,7 @@ from itertools import pairwise
 
 import pyads
 import pytest
-from ads_child import MAP, AdsChild, fake_values
+from ads_child import MAP, fake_values
 
 from plc_interface.ads import symbols_from_map
 from plc_interface.ads.symbols import TASKINFO_PREFIX
@@ -22,20 +22,6 @@ RMAP = RegisterMap.from_yaml(MAP)
 TO_PLC = [r.name for r in RMAP.registers if r.direction == "to_plc"]
 SYMBOLS = {s.name: s for s in symbols_from_map(RMAP)}
 TASK = f"{TASKINFO_PREFIX}."
-
-
-@pytest.fixture
-def server():
-    with AdsChild(net_id=NET_ID) as child:
-        yield child
-
-
-@pytest.fixture
-def plc(server):
-    conn = pyads.Connection(NET_ID, 851, f"{server.host}:{server.port}")
-    conn.open()
-    yield conn
-    conn.close()
 
 
 def ads_error(fn, *args, **kw) -> int:

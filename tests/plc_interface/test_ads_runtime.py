@@ -12,7 +12,7 @@ from itertools import pairwise
 
 import pyads
 import pytest
-from ads_child import MAP, AdsChild, map_variant
+from ads_child import MAP, map_variant
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -24,20 +24,6 @@ from plc_interface.register_map import RegisterMap
 
 NET_ID = "5.6.7.12.1.1"
 TABLE = SymbolTable(RegisterMap.from_yaml(MAP))
-
-
-@pytest.fixture
-def server():
-    with AdsChild(net_id=NET_ID) as child:
-        yield child
-
-
-@pytest.fixture
-def plc(server):
-    conn = pyads.Connection(NET_ID, 851, f"{server.host}:{server.port}")
-    conn.open()
-    yield conn
-    conn.close()
 
 
 def raw_read_write(plc, group: int, data: bytes, rlen: int) -> bytes:
