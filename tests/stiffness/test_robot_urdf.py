@@ -118,33 +118,23 @@ def edit_urdf(folder, old: str, new: str, count: int = 1) -> None:
     p.write_text(text.replace(old, new, count))
 
 
-def test_urdf_joint_axis_must_be_z(urdf_folder):
-    edit_urdf(urdf_folder, '<axis xyz="0 0 1"/>', '<axis xyz="0 1 0"/>')
-    with pytest.raises(ConfigError, match=r"r.urdf: joint 'joint1' .*about its frame's z axis"):
-        Robot.from_yaml(urdf_folder / "u.yaml")
-
-
-def test_urdf_origin_must_have_dh_form(urdf_folder):
-    edit_urdf(urdf_folder, '<origin xyz="1.0 0.0 0.0"', '<origin xyz="1.0 0.05 0.0"')     # joint 3, y offset
-    with pytest.raises(ConfigError, match=r"r.urdf: joint 'joint3''s origin is not a DH transform from DH frame 1"):
-        Robot.from_yaml(urdf_folder / "u.yaml")
-
-
-def test_urdf_first_joint_sits_on_the_root(urdf_folder):
-    edit_urdf(urdf_folder, '<origin xyz="0.0 0.0 0.0" rpy="0.0 0.0 0.0"/>', '<origin xyz="0.1 0.0 0.0" rpy="0.0 0.0 0.0"/>')
-    with pytest.raises(ConfigError, match=r"joint 'joint1': its origin may only turn about z and lift along z"):
+@pytest.mark.parametrize("old, new, message", [
+    ('<axis xyz="0 0 1"/>', '<axis xyz="0 1 0"/>', r"r.urdf: joint 'joint1' .*about its frame's z axis"),
+    ('<origin xyz="1.0 0.0 0.0"', '<origin xyz="1.0 0.05 0.0"',                      # joint 3, y offset
+     r"r.urdf: joint 'joint3''s origin is not a DH transform from DH frame 1"),
+    ('<origin xyz="0.0 0.0 0.0" rpy="0.0 0.0 0.0"/>', '<origin xyz="0.1 0.0 0.0" rpy="0.0 0.0 0.0"/>',
+     r"joint 'joint1': its origin may only turn about z and lift along z"),
+    ('name="joint6" type="revolute"', 'name="joint6" type="fixed"', r"needs six revolute joints in one chain"),
+], ids=["axis-must-be-z", "origin-must-have-dh-form", "first-joint-on-the-root", "six-joints"])
+def test_a_urdf_that_is_no_dh_chain_is_refused_naming_the_joint(urdf_folder, old, new, message):
+    edit_urdf(urdf_folder, old, new)
+    with pytest.raises(ConfigError, match=message):
         Robot.from_yaml(urdf_folder / "u.yaml")
 
 
 def test_urdf_flange_must_exist(urdf_folder):
     (urdf_folder / "u.yaml").write_text("urdf: {file: r.urdf, flange: tool0}\n")
     with pytest.raises(ConfigError, match=r"flange = 'tool0' is not a frame of the URDF"):
-        Robot.from_yaml(urdf_folder / "u.yaml")
-
-
-def test_urdf_needs_six_joints(urdf_folder):
-    edit_urdf(urdf_folder, 'name="joint6" type="revolute"', 'name="joint6" type="fixed"')
-    with pytest.raises(ConfigError, match=r"needs six revolute joints in one chain"):
         Robot.from_yaml(urdf_folder / "u.yaml")
 
 
