@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import multiprocessing
+import socket
 from pathlib import Path
 from typing import Self
 
@@ -20,6 +21,17 @@ from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 
 MAP = Path(__file__).resolve().parents[2] / "config" / "registers.yaml"
+
+
+def recv_exact(s: socket.socket, n: int) -> bytes | None:
+    """Exactly ``n`` bytes from ``s``, or None when the peer closes the connection first."""
+    out = b""
+    while len(out) < n:
+        chunk = s.recv(n - len(out))
+        if not chunk:
+            return None
+        out += chunk
+    return out
 
 
 def map_variant(directory: Path, drop: str | None = None, old: str = "", new: str = "") -> RegisterMap:

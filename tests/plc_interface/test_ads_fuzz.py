@@ -10,7 +10,7 @@ import struct
 import time
 
 import pyads
-from ads_child import MAP, AdsChild
+from ads_child import MAP, AdsChild, recv_exact
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -98,16 +98,6 @@ def delimited(frame: bytes) -> bool:
         return False
     command, length = ams.TCP_HEADER.unpack_from(frame)
     return command in (0, 0x1000, 0x0001) and length == len(frame) - 6
-
-
-def recv_exact(s: socket.socket, n: int) -> bytes | None:
-    out = b""
-    while len(out) < n:
-        chunk = s.recv(n - len(out))
-        if not chunk:
-            return None
-        out += chunk
-    return out
 
 
 def answered_or_closed(s: socket.socket, frame: bytes) -> str:

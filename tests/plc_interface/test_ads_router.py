@@ -10,7 +10,7 @@ import struct
 import time
 
 import pytest
-from ads_child import AdsChild
+from ads_child import AdsChild, recv_exact
 
 from plc_interface.ads import AdsSettings, ams
 from plc_interface.ads.router import PORT_BASE
@@ -21,16 +21,6 @@ ROUTED = "10.0.0.9.1.1"
 
 def connect(child: AdsChild) -> socket.socket:
     return socket.create_connection((child.host, child.port), timeout=10.0)     # a hang fails, nothing timed
-
-
-def recv_exact(s: socket.socket, n: int) -> bytes:
-    out = b""
-    while len(out) < n:
-        chunk = s.recv(n - len(out))
-        if not chunk:
-            break
-        out += chunk
-    return out
 
 
 def router_frame(command: int, data: bytes, length: int | None = None) -> bytes:

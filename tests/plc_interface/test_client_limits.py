@@ -15,6 +15,7 @@ import time
 
 import pyads
 import pytest
+from ads_child import recv_exact
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymodbus.client import ModbusTcpClient
@@ -130,13 +131,7 @@ def answered(s: socket.socket, frame: bytes, size: int) -> bool:
     """Whether ``frame`` gets a ``size``-byte answer on ``s`` (False: the server closed it)."""
     try:
         s.sendall(frame)
-        got = b""
-        while len(got) < size:
-            chunk = s.recv(size - len(got))
-            if not chunk:
-                return False
-            got += chunk
-        return True
+        return recv_exact(s, size) is not None
     except OSError:
         return False
 
