@@ -87,14 +87,15 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
 class ServiceProcess:
     """`stiffcomp run` as a child process; its log goes to a file (a pipe could fill and block it)."""
 
-    def __init__(self, config: Path, folder: Path, index: int = 0, log_level: str = "INFO"):
+    def __init__(self, config: Path, folder: Path, index: int = 0, log_level: str = "INFO",
+                 new_session: bool = False):
         self.config = config
         self.stats = folder / f"service_stats_{index}.json"
         self.log_path = folder / f"service_{index}.log"
         self._log = self.log_path.open("w")
         self.proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(config),
                                       "--stats-json", str(self.stats), "--log-level", log_level], cwd=ROOT,
-                                     stdout=subprocess.DEVNULL, stderr=self._log)
+                                     stdout=subprocess.DEVNULL, stderr=self._log, start_new_session=new_session)
 
     def wait_running(self, timeout: float = START_TIMEOUT_S) -> None:
         """Until the service's ``GET /health`` reports its task running (task state RUN). Healthy or not:

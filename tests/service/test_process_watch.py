@@ -12,8 +12,6 @@ import ctypes
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,6 +19,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
+from hil.run import HilError, ServiceProcess
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.contract import Fault, Status
 from plc_interface.register_map import RegisterMap
@@ -31,19 +30,19 @@ PR_SET_CHILD_SUBREAPER = 36
 
 
 class Running:
-    """`stiffcomp run` in a child process, its log in a file; stopped and reaped on every path."""
+    """`stiffcomp run` in a child process (`hil.run.ServiceProcess`: its log in a file, ready when its
+    /health reports the task running); stopped and reaped on every path."""
 
     def __init__(self, tmp_path: Path, overrides: dict | None = None, new_session: bool = False):
         self.port = free_port()
         cfg = write_config(tmp_path, {"plc": {"port": self.port}, **(overrides or {})})
-        self.stats = tmp_path / "stats.json"
-        self.log = tmp_path / "service.log"
-        with self.log.open("w") as f:
-            self.p = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(cfg),
-                                       "--stats-json", str(self.stats)], cwd=ROOT, stdout=subprocess.DEVNULL,
-                                      stderr=f, start_new_session=new_session)
-        until(lambda: "service running" in self.text() or self.p.poll() is not None, 60, "the service started")
-        assert self.p.poll() is None, self.text()
+        self.service = ServiceProcess(cfg, tmp_path, new_session=new_session)
+        self.p, self.stats, self.log = self.service.proc, self.service.stats, self.service.log_path
+        try:
+            self.service.wait_running(60)
+        except HilError:
+            self.close()
+            raise
 
     def text(self) -> str:
         return self.log.read_text()
@@ -78,13 +77,7 @@ class Running:
             self.close()
 
     def close(self) -> None:
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGTERM)
-            try:
-                self.p.wait(30)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait(10)
+        self.service.stop()
 
 
 def until(condition, timeout: float, what: str):
