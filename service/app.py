@@ -153,15 +153,10 @@ class Service:
         self.image.publish(self.record, time.time_ns())
         settings = self.io_settings()
         if settings is not None:
-            from plc_interface.io_process import IoProcess
-
-            self.io = IoProcess(self.image, settings)
             try:
-                self.io.start()
-                log.info("I/O process running (pid %d)", self.io.pid)
+                self.io = self._start_io(settings)
             except BaseException:
-                self.io = None          # it cleaned up after itself
-                self.stop()             # frees the image and the source
+                self.stop()             # frees the image and the source (the I/O process cleaned up itself)
                 raise
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6)
@@ -193,6 +188,22 @@ class Service:
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
 
+    def _start_io(self, settings: IoSettings):
+        """A running I/O process serving ``settings`` on this image (it cleans up after itself on error)."""
+        from plc_interface.io_process import IoProcess
+
+        io = IoProcess(self.image, settings)
+        io.start()
+        log.info("I/O process running (pid %d)", io.pid)
+        return io
+
+    def _fail(self, reason: str) -> bool:
+        """The service failed for ``reason`` (`failure`, ``--stats-json``; `stiffcomp run` exits 1)."""
+        self.failure = reason
+        log.critical("%s: the service stops (exit code 1)", reason)
+        self.failed.set()
+        return False
+
     # -- the watch on the I/O process ------------------------------------------------------------
     def watch_io(self) -> bool:
         """Check the I/O process (the main thread calls this between its waits); False when the service
@@ -214,27 +225,17 @@ class Service:
         io.stop()
         self.io = None
         if self.io_restarts >= limit:
-            self.failure = (f"the I/O process died ({how}) and faults.io_restarts = {limit} allows no "
-                            f"{'more ' if limit else ''}restart")
-            log.critical("%s: the service stops (exit code 1)", self.failure)
-            self.failed.set()
-            return False
+            return self._fail(f"the I/O process died ({how}) and faults.io_restarts = {limit} allows no "
+                              f"{'more ' if limit else ''}restart")
         self.io_restarts += 1
         log.warning("restarting the I/O process (%d of faults.io_restarts = %d)", self.io_restarts, limit)
-        from plc_interface.io_process import IoProcess
-
-        new = IoProcess(self.image, self.io_settings())
         try:
-            new.start()
+            self.io = self._start_io(self.io_settings())
         except PlcError as e:
-            self.failure = f"the I/O process died ({how}) and did not start again: {e}"
-            log.critical("%s: the service stops (exit code 1)", self.failure)
-            self.failed.set()
-            return False
-        self.io = new
+            return self._fail(f"the I/O process died ({how}) and did not start again: {e}")
         self.cycle.supervisor.held = ()
         log.warning("the I/O process serves again (pid %d); fault io_process stays latched until the PLC resets "
-                    "it", new.pid)
+                    "it", self.io.pid)
         return True
 
     def _wait_ramped_for_io(self) -> None:
