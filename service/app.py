@@ -36,7 +36,7 @@ from plc_interface.contract import Fault, Producer, TaskState, TaskValues, ToPlc
 from plc_interface.errors import PlcError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
-from stiffness.errors import StiffnessError
+from stiffness.errors import StiffnessError, quote
 from stiffness.model import StiffnessModel
 
 from .config import ServiceConfig
@@ -63,7 +63,7 @@ class Service:
             self.model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
             self.model.require_physical()
         except StiffnessError as e:
-            raise ServiceConfigError(f"{cfg.path}: model.file = {cfg.model.file!r}: {e}") from e
+            raise ServiceConfigError(f"{cfg.path}: model.file = {quote(cfg.model.file)}: {e}") from e
         self.cycle = Cycle.from_config(cfg, self.model)
         self.rmap = cfg.register_map()
         self.period = cfg.cycle.period_ms / 1000.0

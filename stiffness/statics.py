@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field
 
+from .errors import quote
 from .robot import Robot
 from .yamlio import Strict
 
@@ -84,11 +85,11 @@ class Statics:
         cog = np.asarray(payload_cog_mm, dtype=float)
         g = np.asarray(g_mps2, dtype=float)
         if not (np.isfinite(self.payload_kg) and self.payload_kg >= 0):
-            raise ValueError(f"payload mass = {payload_kg!r} kg must be a finite number >= 0")
+            raise ValueError(f"payload mass = {quote(payload_kg)} kg must be a finite number >= 0")
         if cog.shape != (3,) or not np.isfinite(cog).all():
-            raise ValueError(f"payload centre of gravity = {payload_cog_mm!r} mm must be three finite numbers")
+            raise ValueError(f"payload centre of gravity = {quote(payload_cog_mm)} mm must be three finite numbers")
         if g.shape != (3,) or not np.isfinite(g).all():
-            raise ValueError(f"gravity = {g_mps2!r} m/s^2 must be three finite numbers")
+            raise ValueError(f"gravity = {quote(g_mps2)} m/s^2 must be three finite numbers")
         self.g = g
         self.arm_loaded = robot.has_masses
         self.balancer = robot.balancer

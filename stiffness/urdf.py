@@ -65,7 +65,7 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
 
     path = Path(path)
     if not path.is_file():
-        raise ConfigError(f"{where} = {str(path)!r}: file not found")
+        raise ConfigError(f"{where} = {quote(str(path))}: file not found")
     try:
         model = pin.buildModelFromUrdf(str(path))
     except (ValueError, RuntimeError) as e:
@@ -77,25 +77,25 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
                           f"of kinds {quote(list(kinds))}")
     for name, kind in zip(names, kinds):
         if kind != "JointModelRZ":
-            raise ConfigError(f"{path}: joint {name!r} ({kind}) must be revolute about its frame's z axis "
+            raise ConfigError(f"{path}: joint {quote(name)} ({kind}) must be revolute about its frame's z axis "
                               "(axis xyz=\"0 0 1\"), as DH joints are")
     if not model.existFrame(flange):
-        raise ConfigError(f"{path}: flange = {flange!r} is not a frame of the URDF (links and fixed joints: "
+        raise ConfigError(f"{path}: flange = {quote(flange)} is not a frame of the URDF (links and fixed joints: "
                           f"{quote([f.name for f in model.frames if f.parentJoint == 6])})")
     frame = model.frames[model.getFrameId(flange)]
     if frame.parentJoint != 6:
-        raise ConfigError(f"{path}: flange = {flange!r} is not on the last joint's link")
+        raise ConfigError(f"{path}: flange = {quote(flange)} is not on the last joint's link")
     X = [model.jointPlacements[j].homogeneous for j in range(1, 7)] + [frame.placement.homogeneous]
     X1 = X[0]
     if np.abs(X1[2, :3] - [0, 0, 1]).max() > TOLERANCE or np.abs(X1[:2, 3]).max() > TOLERANCE:
-        raise ConfigError(f"{path}: joint {names[0]!r}: its origin may only turn about z and lift along z "
+        raise ConfigError(f"{path}: joint {quote(names[0])}: its origin may only turn about z and lift along z "
                           "(DH frame 0 is the URDF's root frame)")
     L = [X1 @ X[1]] + X[2:]
     table = {"a_mm": [], "alpha_deg": [], "d_mm": [], "offset_deg": []}
     for i, Li in enumerate(L):
         dh, misfit = _dh_from_placement(Li)
         if misfit > TOLERANCE:
-            what = f"joint {names[i + 1]!r}'s origin" if i < 5 else f"the flange frame {flange!r}"
+            what = f"joint {quote(names[i + 1])}'s origin" if i < 5 else f"the flange frame {quote(flange)}"
             raise ConfigError(f"{path}: {what} is not a DH transform from DH frame {i} (misfit {misfit:.3g}; "
                               "its x axis must meet the previous joint's axis at a right angle)")
         for k, v in dh.items():

@@ -12,6 +12,7 @@ from collections.abc import Iterable
 import can
 from pydantic import Field
 
+from stiffness.errors import quote
 from stiffness.yamlio import Strict
 
 from ..errors import SourceError
@@ -28,7 +29,7 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, **options
     try:
         return can.Bus(interface=interface, channel=channel, **kw)
     except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as e:
-        raise SourceError(f"cannot open CAN interface {interface!r} channel {channel!r}: {e}") from e
+        raise SourceError(f"cannot open CAN interface {quote(interface)} channel {quote(channel)}: {e}") from e
 
 
 

@@ -16,6 +16,7 @@ from typing import Literal
 import can
 import numpy as np
 
+from stiffness.errors import quote
 from stiffness.yamlio import Strict
 
 from ..ati import AtiProtocol
@@ -31,7 +32,7 @@ def read_log(path: str | Path) -> list[tuple[float, int, bytes, bool]]:
     if not path.exists():
         raise SourceError(f"{path}: replay file not found")
     if path.suffix.lower() not in LOG_SUFFIXES:
-        raise SourceError(f"{path}: replay file type {path.suffix!r} is not one of {', '.join(LOG_SUFFIXES)}")
+        raise SourceError(f"{path}: replay file type {quote(path.suffix)} is not one of {', '.join(LOG_SUFFIXES)}")
     frames = []
     try:
         with can.LogReader(str(path)) as reader:
