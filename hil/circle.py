@@ -55,7 +55,7 @@ def timing_verdict(cycles: int, exceeded: int) -> dict:
 
 def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, dict]:
     world = World(scenario, truth.robot)
-    return world, evaluate(world, RobotStub(truth, scenario.robot.structure_hz), result.log)
+    return world, evaluate(world, RobotStub(truth, scenario.robot.structure_hz, scenario.payload), result.log)
 
 
 def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,

@@ -10,6 +10,9 @@ R_s the sensor's orientation in the base and g the gravity vector in base axes:
     F_i = m_i R_s^T g,    T_i = c_i x F_i        (sensor axes, moments about the sensor origin)
 
 The sensor reads the sum over the bodies, sum_i [F_i; T_i], plus its bias b.
+
+The arm carries the same bodies: their weight is part of the truth's static joint torque tau_s
+(`hil.robot_stub.RobotStub`), as one mass m = sum_i m_i at the centre c = sum_i m_i c_i / m.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.gravity import PAYLOAD_BODIES  # the keys only: the physics below is the HIL's own
+from stiffness.statics import PayloadConfig
 
 
 class TruePayload:
@@ -40,3 +44,10 @@ class TruePayload:
         """sum_i [F_i; T_i], (6,) in N and Nm, sensor axes, for the sensor orientation ``R_s`` (3x3, base)."""
         F = np.outer(self.masses, np.asarray(R_s).T @ self.g)                    # (n, 3) each body's weight
         return np.concatenate([F.sum(0), np.cross(self.cogs, F).sum(0)])
+
+    def carried(self) -> PayloadConfig:
+        """The bodies as one mass (kg) at their common centre of gravity (sensor frame, mm): what the
+        arm carries beyond the sensor, for the truth's static torque."""
+        m = float(self.masses.sum())
+        c = self.masses @ self.cogs / m if m > 0 else np.zeros(3)
+        return PayloadConfig(mass_kg=m, cog_mm=(1000.0 * c).tolist())

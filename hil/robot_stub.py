@@ -17,6 +17,15 @@ carries its state along the pass from a defined start (the first cycle, before t
 A drift in the truth grows from the pass's first cycle as a thermal drift does; the service ignores
 drift, so it stays in the compensated path error.
 
+Static torque. The truth's backlash, nonlinear stiffness and hysteresis act at the joint's total
+torque tau_s(q) + tau_ext (`stiffness.statics`): tau_s from the truth's robot (its masses and balancer)
+and the payload the sensor carries in this run (the scenario's ``payload``, `TruePayload.carried`, in
+its gravity ``g_mps2``), the same bodies whose weight the virtual sensor reports. Not the truth model's
+own ``payload`` key (what a campaign's sensor carried): the HIL's world decides what the arm holds. A
+truth robot without masses has tau_s = 0 (`stiffness.statics.statics_for`), as before robots had masses.
+The deflection is loaded minus unloaded, f(tau_s + tau) - f(tau_s): the path was taught under the
+arm's own weight.
+
 Input effects. The arm deflects under the true wrench W; a misaligned sensor only reports it turned,
 W_measured = L^-1 W with L = `StiffnessModel.input_map` (W_true = L W_measured, the model's
 convention; `World.sensor_wrench` reports the same). The stub hands the truth that measured wrench,
@@ -28,9 +37,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from stiffness.context import Context
 from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.spatial import transform, transport_wrench
+from stiffness.statics import statics_for
+
+from .payload import TruePayload
 
 
 class RobotStub:
@@ -41,13 +54,20 @@ class RobotStub:
     truth : StiffnessModel
     structure_hz : float
         Natural frequency of the arm's first mode (Hz); 0 = static.
+    payload : a payload section (the scenario's ``payload``, `hil.payload.TruePayload`)
+        What the arm carries at the sensor, in the static torque; None: the truth model's own
+        ``payload`` (none when it has no such key).
     """
 
-    def __init__(self, truth: StiffnessModel, structure_hz: float = 0.0):
+    def __init__(self, truth: StiffnessModel, structure_hz: float = 0.0, payload=None):
         self.truth = truth
         self.robot = truth.robot
         self.structure_hz = float(structure_hz)
         self.measured_from_true = np.linalg.inv(truth.input_map())          # L^-1
+        if payload is None:
+            self.statics = truth.statics()
+        else:
+            self.statics = statics_for(truth.robot, TruePayload(payload).carried(), payload.g_mps2)
 
     def structural_load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The force (N, 3) the arm feels at times ``t`` (uniformly spaced, s) for the process force."""
@@ -74,4 +94,4 @@ class RobotStub:
         W_s = transport_wrench(W_tcp, T_tcp_axes, self.robot.sensor_pose(F))
         data = Dataset(t, np.full(n, "pass"), q, W_s @ self.measured_from_true.T, np.full(n, 6),
                        np.zeros((n, 6)))
-        return F[:, 7, :3, 3] + self.truth.predict(data)[:, :3] / 1000.0
+        return F[:, 7, :3, 3] + self.truth.predict(Context(self.robot, data, self.statics))[:, :3] / 1000.0

@@ -80,11 +80,14 @@ def _nested(key: str, value: Any) -> dict[str, Any]:
     return value
 
 
-def truth_with(hidden: list[dict], axial_except: int | None = None) -> StiffnessModel:
+def truth_with(hidden: list[dict], axial_except: int | None = None, robot: Path | None = None) -> StiffnessModel:
     """examples/truth_reference.yaml (read from its file, to the digit) plus the ``hidden`` effect
     entries; with ``axial_except``, every joint but that one keeps only its axial spring (to hide a
-    joint_6dof)."""
+    joint_6dof); with ``robot``, on that robot file (e.g. config/robots/kr125_masses.yaml: the same
+    kinematics with masses) instead of its own."""
     d = yaml.safe_load(TRUTH.read_text())
+    if robot is not None:
+        d["robot"] = str(Path(robot).resolve())
     if axial_except is not None:
         d["effects"] = [e if e["joint"] == axial_except else
                         {"effect": JointSpring.name, "joint": e["joint"], "rz_rad_per_Nm": e["rz_rad_per_Nm"]}
