@@ -46,6 +46,37 @@ BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.03, "width_Nm
 FEED = 60.0                      # mm/s: a 3.7 s circle
 
 
+@settings(max_examples=12, deadline=None)
+@given(st.floats(0.0, 40.0), st.floats(0.0, 300.0))
+def test_the_stub_crosses_the_play_where_the_total_torque_with_the_carried_tool_is_zero(tool_kg, cog_z_mm):
+    """Held at the upright pose, a force ramped along base x turns joint 2 through its whole lost motion,
+    half of it where the external torque meets -tau_s: the arm's share (masses less the balancer's 0.6)
+    plus the tool the scenario's sensor carries, its moment about joint 2's axis worked out here by hand."""
+    sc = scenario(center_q_deg=UPRIGHT_Q_DEG)
+    sc.payload.tool.mass_kg, sc.payload.tool.cog_mm = tool_kg, [0.0, 0.0, cog_z_mm]
+    truth, springs = truth_with([BACKLASH], robot=MASSES), truth_with([], robot=MASSES)
+    q_deg = np.array(UPRIGHT_Q_DEG)
+    F = truth.robot.frames(np.radians(q_deg)[None])
+    axis, p1, tcp = F[0, 1, :3, 2], F[0, 1, :3, 3], F[0, 7, :3, 3]          # joint 2 turns about DH frame 1's z
+    T_s = truth.robot.sensor_pose(F)[0]
+    cog = T_s[:3, :3] @ np.array([0.0, 0.0, cog_z_mm / 1000.0]) + T_s[:3, 3]
+    tool = axis @ np.cross(cog - p1, tool_kg * np.array(sc.payload.g_mps2))
+    tau_s = Statics(truth.robot).total_at(np.radians(q_deg))[1] + tool
+    per_N = axis @ np.cross(tcp - p1, [1.0, 0.0, 0.0])                     # Nm of joint 2 per N along x
+    n = 2001
+    force = np.linspace(0.0, -1.5 * tau_s / per_N, n)[:, None] * [1.0, 0.0, 0.0]   # tau_ext: 0 -> -1.5 tau_s
+    t, q = np.arange(n) * 1e-3, np.tile(q_deg, (n, 1))
+    d = RobotStub(truth, 0.0, sc.payload).tcp(q, force, t) - RobotStub(springs, 0.0, sc.payload).tcp(q, force, t)
+    lever = np.cross(axis, tcp - p1)
+    turn = np.abs(d @ lever) / (lever @ lever)                              # rad about joint 2
+    b, w = np.radians(BACKLASH["lost_motion_deg"]), BACKLASH["width_Nm"]
+    half = 0.5 * b * abs(np.tanh(tau_s / w))                                # f(0) - f(tau_s): at zero total torque
+    assert turn[-1] == pytest.approx(b, rel=1e-2)
+    tau_ext = force[:, 0] * per_N
+    crossed = np.interp(half, turn, tau_ext)                                # turn grows monotonically
+    assert crossed == pytest.approx(-tau_s, abs=1.0), (crossed, tau_s, tool)
+
+
 def test_preload_aware_model_leaves_a_tenth_of_the_path_error_and_less_than_the_blind_one(tmp_path):
     truth = truth_with([BACKLASH], robot=MASSES)
     blind = truth_with([BACKLASH])
