@@ -1,49 +1,39 @@
-"""A preloaded backlash at joint 2: the robot stub's truth carries its own weight, and the service
-compensates it only with a model that knows the preload.
+"""A preloaded backlash at joint 2 (`hil.preload`): the robot stub's truth carries its own weight, and
+the service compensates it only with a model that knows the preload.
 
-The truth is the reference truth (examples/truth_reference.yaml) plus a backlash at joint 2, on
-config/robots/kr125_masses.yaml: the KR 125's approximate masses with its balancer carrying 0.6 of
-joint 2's static torque, and the scenario's 12 kg spindle at the sensor. Its backlash steps where the
-*total* torque tau_s(q) + tau_ext crosses zero (`stiffness.statics`); the stub takes tau_s from the
-truth's robot and the payload the virtual sensor carries (`hil.robot_stub.RobotStub`).
-
-* The preload-aware model is the truth itself: the service forms tau_s from the model's robot and its
-  ``gravity`` section (`service.compensation.FastPredictor.carry`).
-* The preload-blind model is the same springs and backlash on config/robots/kr125.yaml, a robot
-  without masses: tau_s = 0, so its backlash steps at zero *external* torque, as the library did
-  before robots had masses.
+The truth is the reference truth plus a backlash at joint 2 on config/robots/kr125_masses.yaml: the
+KR 125's approximate masses with its balancer carrying 0.6 of joint 2's static torque, and the
+scenario's 12 kg spindle at the sensor. Its backlash steps where the *total* torque tau_s(q) + tau_ext
+crosses zero (`stiffness.statics`); the stub takes tau_s from the truth's robot and the payload the
+virtual sensor carries (`hil.robot_stub.RobotStub`). The preload-aware model is the truth itself (the
+service forms tau_s from the model's robot and its ``gravity`` section); the preload-blind model is the
+same springs and backlash on config/robots/kr125.yaml, a robot without masses, so its play sits at
+zero *external* torque, as the library had it before robots had masses.
 
 Why this pose. With the arm upright (joint 2 at -90 deg, the elbow at 90 deg) joint 2's static torque
 is small, 200-300 Nm along the circle (the balancer takes most of the arm's), while the milling force
-15 cm to 1 m from the axis swings its external torque between about -480 and +180 Nm. So the circle
-crosses the play where the total torque is zero, at an external -200 to -300 Nm (in the entry's
-overshoot and again after half the circle), and the blind model steps at 0 Nm instead, half a
-circle away: between the two its correction is off by the whole lost motion. The TCP stands 0.78 m
-above joint 2, so a turn of joint 2 moves the tool in the circle's plane, where the path error is
-measured. On the lower tables of test_hil_effects.py and the default circle joint 2 carries
-1000-1300 Nm, beyond the process's load range: the play is never crossed there.
-The lost motion, 0.03 deg (1.8 arcmin), is that of a worn or loosely set gearbox; 10 Nm of smoothing
-makes it a step on the scale of the process force.
+swings its external torque between about -480 and +180 Nm. So the circle crosses the play where the
+total torque is zero, at an external -200 to -300 Nm (in the entry's overshoot, and again after half
+the circle until the end). The blind model steps at 0 Nm instead, and takes the unloaded joint for
+centred in its play where the weight holds it against one flank: its correction is off by half the
+lost motion all along the circle, the sign changing wherever either model's step lies. The TCP stands 0.78 m above joint 2, so a
+turn of joint 2 moves the tool in the circle's plane, where the path error is measured. On the lower
+table of test_hil_effects.py and on the default circle joint 2 carries 1000-1300 Nm, beyond the
+process's load range: the play is never crossed there, and the blind model's error is small.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from hil_lib import compensated, mean_error, scenario, write_model
+from hil_lib import scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.report import evaluate_uncompensated
+from hil.preload import MASSES, PRELOADED_BACKLASH, UPRIGHT_Q_DEG, preload_models, preload_path_errors
 from hil.robot_stub import RobotStub
-from hil.testing import CONFIG, truth_with
-from hil.world import World
+from hil.testing import truth_with
 from stiffness.statics import Statics
-
-MASSES = CONFIG / "robots" / "kr125_masses.yaml"
-UPRIGHT_Q_DEG = [0.0, -90.0, 90.0, 0.0, 90.0, 0.0]
-BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.03, "width_Nm": 10.0}
-FEED = 60.0                      # mm/s: a 3.7 s circle
 
 
 @settings(max_examples=12, deadline=None)
@@ -54,7 +44,7 @@ def test_the_stub_crosses_the_play_where_the_total_torque_with_the_carried_tool_
     plus the tool the scenario's sensor carries, its moment about joint 2's axis worked out here by hand."""
     sc = scenario(center_q_deg=UPRIGHT_Q_DEG)
     sc.payload.tool.mass_kg, sc.payload.tool.cog_mm = tool_kg, [0.0, 0.0, cog_z_mm]
-    truth, springs = truth_with([BACKLASH], robot=MASSES), truth_with([], robot=MASSES)
+    truth, springs = preload_models()["aware"], truth_with([], robot=MASSES)
     q_deg = np.array(UPRIGHT_Q_DEG)
     F = truth.robot.frames(np.radians(q_deg)[None])
     axis, p1, tcp = F[0, 1, :3, 2], F[0, 1, :3, 3], F[0, 7, :3, 3]          # joint 2 turns about DH frame 1's z
@@ -69,7 +59,7 @@ def test_the_stub_crosses_the_play_where_the_total_torque_with_the_carried_tool_
     d = RobotStub(truth, 0.0, sc.payload).tcp(q, force, t) - RobotStub(springs, 0.0, sc.payload).tcp(q, force, t)
     lever = np.cross(axis, tcp - p1)
     turn = np.abs(d @ lever) / (lever @ lever)                              # rad about joint 2
-    b, w = np.radians(BACKLASH["lost_motion_deg"]), BACKLASH["width_Nm"]
+    b, w = np.radians(PRELOADED_BACKLASH["lost_motion_deg"]), PRELOADED_BACKLASH["width_Nm"]
     half = 0.5 * b * abs(np.tanh(tau_s / w))                                # f(0) - f(tau_s): at zero total torque
     assert turn[-1] == pytest.approx(b, rel=1e-2)
     tau_ext = force[:, 0] * per_N
@@ -78,20 +68,12 @@ def test_the_stub_crosses_the_play_where_the_total_torque_with_the_carried_tool_
 
 
 def test_preload_aware_model_leaves_a_tenth_of_the_path_error_and_less_than_the_blind_one(tmp_path):
-    truth = truth_with([BACKLASH], robot=MASSES)
-    blind = truth_with([BACKLASH])
-    assert truth.statics() is not None and blind.statics() is None
-    sc = scenario(FEED, UPRIGHT_Q_DEG)
-    truth_path = write_model(truth, tmp_path / "truth.yaml")
-    models = {"aware": truth_path, "blind": write_model(blind, tmp_path / "blind.yaml")}
-    stub = RobotStub(truth, sc.robot.structure_hz, sc.payload)
-    e = {"uncompensated": mean_error(evaluate_uncompensated(World(sc, truth.robot), stub, sc.plc.period_ms / 1e3))}
-    exceed = {}
-    for name, path in models.items():
-        r, ev = compensated(sc, truth_path, path, tmp_path / name)
-        e[name] = mean_error(ev)
-        exceed[name] = r.stats[-1].get("exceed_count")
-    print("preloaded backlash at joint 2", {k: round(v, 4) for k, v in e.items()}, "mm; exceed_count", exceed)
+    models = preload_models()
+    assert models["aware"].statics() is not None and models["blind"].statics() is None
+    r = preload_path_errors(tmp_path)
+    e = r["mean_error_mm"]
+    print("preloaded backlash at joint 2", {k: round(v, 4) for k, v in e.items()}, "mm; exceed_count",
+          r["exceed_count"])
     assert e["uncompensated"] > 0.2, e                   # the process force deflects the robot
     assert e["aware"] <= 0.10 * e["uncompensated"], e
     assert e["aware"] < e["blind"], e
