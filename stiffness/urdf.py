@@ -1,7 +1,7 @@
 """A robot from URDF: pinocchio's parser reads the joints, limits and inertials; they become a DH table.
 
 Every robot in stiffcomp is a DH robot: the model's twist sites, the measured bodies A1..A6 and the
-external joint torques are all defined in DH frames (docs/model_format.md). A URDF is read with
+external joint torques are all defined in DH frames (docs/robot_format.md). A URDF is read with
 ``pin.buildModelFromUrdf`` and accepted when its chain *is* a DH chain:
 
 * six revolute joints in one chain, each turning about +z of its own frame (``<axis xyz="0 0 1"/>``);
@@ -120,7 +120,7 @@ def urdf_text(robot) -> str:
     L = [rot_z(o) @ trans_z(d) @ trans_x(a) @ rot_x(al) for o, d, a, al in zip(robot.offset, robot.d, robot.a, robot.alpha)]
     lines = ['<?xml version="1.0"?>',
              (f"<!-- {robot.name}: written by stiffness.urdf.urdf_text from {Path(robot.source).name}; "
-              "DH frame i is joint i's frame moved by the next joint's origin (docs/model_format.md) -->"),
+              "DH frame i is joint i's frame moved by the next joint's origin (docs/robot_format.md) -->"),
              f'<robot name="{robot.name.replace(" ", "_")}">', '  <link name="base_link"/>']
     for i in range(6):
         com = (L[i] @ np.append(robot.link_com[i], 1.0))[:3]
