@@ -29,11 +29,31 @@ import pytest
 from hil_lib import scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
+from hil.payload import TruePayload
 from hil.preload import MASSES, PRELOADED_BACKLASH, UPRIGHT_Q_DEG, preload_models, preload_path_errors
 from hil.robot_stub import RobotStub
 from hil.testing import truth_with
+from service.gravity import PAYLOAD_BODIES, GravityConfig
 from stiffness.statics import Statics
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 50.0), min_size=4, max_size=4),
+       st.lists(st.lists(st.floats(-300.0, 300.0), min_size=3, max_size=3), min_size=4, max_size=4),
+       st.integers(0, 2**31 - 1))
+def test_the_carried_payload_weighs_on_the_sensor_as_its_bodies_do(masses, cogs, seed):
+    """The bodies as one mass at their common centre (what the truth's static torque carries) hang the
+    same wrench on the sensor as the bodies one by one, in any orientation."""
+    sec = GravityConfig(**{b: {"mass_kg": m, "cog_mm": c} for b, m, c in zip(PAYLOAD_BODIES, masses, cogs)})
+    true = TruePayload(sec)
+    one = true.carried()
+    assert one.mass_kg == pytest.approx(sum(masses), rel=1e-12)
+    R = Rotation.random(random_state=seed).as_matrix()
+    f = one.mass_kg * R.T @ np.array(sec.g_mps2)
+    np.testing.assert_allclose(np.concatenate([f, np.cross(np.array(one.cog_mm) / 1000.0, f)]), true.wrench(R),
+                               rtol=1e-9, atol=1e-9)
 
 
 @settings(max_examples=12, deadline=None)
