@@ -24,15 +24,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from hil.testing import write_config  # noqa: E402
-from plc_interface.contract import Command  # noqa: E402
-from service.compensation import load_model  # noqa: E402
-from service.config import load_config  # noqa: E402
-from service.pipeline import Cycle  # noqa: E402
-from service.reload import Prepared, prepare  # noqa: E402
-from service.sources import make_source  # noqa: E402
-from service.sources.replay import write_log  # noqa: E402
-from stiffness.yamlio import deep_update, dump_yaml, read_yaml  # noqa: E402
+from hil.testing import write_config
+from plc_interface.contract import Command
+from service.compensation import load_model
+from service.config import load_config
+from service.pipeline import Cycle
+from service.reload import Prepared, prepare
+from service.sources import make_source
+from service.sources.replay import write_log
+from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 
 LOAD = np.array([300.0, -200.0, 400.0, 15.0, 10.0, 5.0])
 Q0 = np.array([10.0, -80.0, 100.0, 20.0, 40.0, 30.0])

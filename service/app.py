@@ -36,6 +36,7 @@ from plc_interface.contract import Fault, Producer, TaskState, TaskValues, ToPlc
 from plc_interface.errors import PlcError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
+
 from .compensation import load_model
 from .config import ServiceConfig
 from .pipeline import Cycle

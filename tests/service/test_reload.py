@@ -178,7 +178,7 @@ def scaled_model(r: Rig, tmp_path, factor: float, extra: list | None = None):
     data["robot"] = str(r.cfg.resolve(r.cfg.model.file).parent.joinpath(data["robot"]).resolve())
     for e in data["effects"]:
         for k, v in e.items():
-            if k.endswith("_per_N") or k.endswith("_per_Nm"):
+            if k.endswith(("_per_N", "_per_Nm")):
                 e[k] = v * factor
     data["effects"] += extra or []
     path = tmp_path / f"model_{factor:g}_{len(extra or [])}.yaml"

@@ -202,7 +202,7 @@ def model_file(svc: Service, factor: float, extra: list | None = None) -> str:
 
 def test_a_same_structure_model_ramps_and_another_structure_is_refused(svc):
     extra = [{"effect": "backlash", "joint": 3, "lost_motion_deg": 0.01, "width_Nm": 30.0}]
-    code, out, lines = svc.reload({"model": {"file": model_file(svc, 1.0, extra)}})
+    code, out, _ = svc.reload({"model": {"file": model_file(svc, 1.0, extra)}})
     assert code == 1 and "model.file:effects" in out and "restart" in out
     rec = Recorder(svc)
     rec.wait_rows(200)
