@@ -52,7 +52,8 @@ def run(args) -> int:
             run_file.write(service)
         else:
             logging.getLogger("stiffcomp.service").warning(
-                "another service runs with %s: `stiffcomp reload` reaches that one, not this one", args.config)
+                "no run file for stiffcomp reload at %s (another service runs with %s, or the folder is not "
+                "writable): SIGHUP still reloads", run_file.path, args.config)
         t_end = None if args.duration is None else time.monotonic() + args.duration
         interval = cfg.cycle.stats_log_interval_s or None
         next_log = time.monotonic() + (interval or 0)

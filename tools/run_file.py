@@ -46,9 +46,13 @@ class RunFile:
         self._lock = None
 
     def claim(self) -> bool:
-        """Take the lock; False when another running service holds it (it keeps its run file)."""
-        self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        f = self.lock_path.open("a")
+        """Take the lock; False when another running service holds it (it keeps its run file) or the run
+        folder cannot be written (then only SIGHUP reloads)."""
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+            f = self.lock_path.open("a")
+        except OSError:
+            return False
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
