@@ -72,7 +72,7 @@ class Service:
         self.io_restarts = 0
         self._closed = False
         self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
-        self.pending = None             # a prepared reload the cycle swaps in (service.reload), or None
+        self.pending: list = []         # a prepared reload the cycle takes (pop, atomic) and swaps in (service.reload)
         self.reload_attempts = 0
         self.last_reload = None         # the outcome of the last reload (service.reload.Outcome)
         # the checks that can fail come first; the image (shared memory) and then the source open last
@@ -96,10 +96,13 @@ class Service:
         """One cycle: inputs from the image and the source, the cycle, the record to the image.
 
         Returns False when a requested stop has ramped the correction to zero (the task then ends)."""
-        swap = self.pending
-        if swap is not None:            # a reload, between two cycles: references and a few floats
-            self.pending = None
-            swap(self.cycle, self.source)
+        if self.pending:                # a reload, between two cycles: references and a few floats
+            try:
+                swap = self.pending.pop()
+            except IndexError:          # the main thread withdrew it meanwhile
+                swap = None
+            if swap is not None:
+                swap(self.cycle, self.source)
         inp = self.image.inputs()
         reading, errors = self.source.poll(t)
         cyc = self.cycle

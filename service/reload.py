@@ -12,7 +12,8 @@ The main thread does all the work, the cycle only swaps (guideline 14: the cycle
    cycle, the source, the PLC, ADS and monitoring settings, the model's structure, the register map)
    refuses the whole reload by name. ``gravity`` goes through `_apply_gravity`.
 3. It builds the new stages (filter, predictor) and the new parameters, and returns one function that
-   puts them in place. `Service.work` calls it between two cycles (one reference read per cycle); it
+   puts them in place. `Service.work` takes it between two cycles (from a list it pops; one truth test
+   per cycle while there is none); it
    assigns references and a few floats, carries the filter's state over (`SosLowPass.continue_from`)
    and starts the model ramp (`service.model_ramp.PredictorRamp`), and counts the reload
    (``reload_count`` in the contract).
@@ -209,28 +210,40 @@ def _finish(comp, ramp: PredictorRamp, pred: FastPredictor) -> None:
         comp.predictor = pred
 
 
+def _hand_over(service, prepared: Prepared) -> Outcome:
+    """Give ``prepared`` to the cycle and wait until it is applied (or take it back: refused)."""
+    task, cycle = service.task, service.cycle
+    before = cycle.reloads
+    service.pending.append(prepared.swap)
+    deadline = time.monotonic() + HANDOVER_S
+    while service.pending and task is not None and task.running and time.monotonic() < deadline:
+        time.sleep(0.001)
+    try:
+        service.pending.pop()
+        return Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: the cycle did not take it "
+                       f"within {HANDOVER_S:g} s (is it running?)")
+    except IndexError:
+        pass                            # taken: the swap counts the reload as its last step
+    while cycle.reloads == before and time.monotonic() < deadline + HANDOVER_S:
+        time.sleep(0.0005)
+    if cycle.reloads == before:         # the swap raised: the cycle's error policy stops the service
+        return Outcome(False, f"reload of {service.cfg.path} failed while the cycle applied it ({service.failure})")
+    service.cfg, service.model = prepared.cfg, prepared.model
+    return Outcome(True, f"reload {cycle.reloads} of {prepared.cfg.path} accepted: "
+                   f"{describe(prepared.changes) if prepared.changes else 'no change'}")
+
+
 def reload(service) -> Outcome:
     """Reload ``service`` (a running `service.app.Service`) from its config file; one log line, the outcome.
 
-    Main thread only. The prepared swap is handed to the cycle (``service.pending``), which takes it
-    between two cycles; the wait for that is bounded (`HANDOVER_S`)."""
+    Main thread only. The prepared swap is handed to the cycle in ``service.pending``, a list which the
+    cycle pops between two cycles; the wait for that is bounded (`HANDOVER_S`), and a swap not taken by
+    then is popped back here. A pop is atomic, so exactly one side gets it: never applied and refused."""
     try:
         got = prepare(service.cfg, service.model, service.rmap, service.cycle)
     except Exception as e:  # noqa: BLE001 - a reload must never take the running service down
         got = Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: {e!r}")
     if isinstance(got, Prepared):
-        task = service.task
-        service.pending = got.swap
-        deadline = time.monotonic() + HANDOVER_S
-        while service.pending is not None and task is not None and task.running and time.monotonic() < deadline:
-            time.sleep(0.001)
-        if service.pending is not None:
-            service.pending = None
-            got = Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: the cycle is not running")
-        else:
-            service.cfg, service.model = got.cfg, got.model
-            n = service.cycle.reloads
-            got = Outcome(True, f"reload {n} of {got.cfg.path} accepted: "
-                          f"{describe(got.changes) if got.changes else 'no change'}")
+        got = _hand_over(service, got)
     (log.info if got.accepted else log.error)("%s", got.message)
     return got
