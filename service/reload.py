@@ -47,6 +47,7 @@ log = logging.getLogger("stiffcomp.service")
 # and the image laid out by the register map; the model's structure (its robot and effects)
 RESTART = ("cycle", "source", "plc", "ads", "monitoring")
 STRUCTURE = ("model.file:robot.", "model.file:effects")
+LOWPASS = {"filter.type", "filter.order", "filter.cutoff_hz"}          # a new low-pass (the rest: parameters)
 SHOWN = 8               # changed keys named in one log line; the rest are counted
 HANDOVER_S = 5.0        # the cycle takes a prepared reload within a cycle; this bounds the wait on a stalled one
 
@@ -163,9 +164,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
     """Everything the cycle needs from ``new``, built here, and the swap that puts it in place."""
     period = new.cycle.period_ms / 1000.0
     comp = cycle.compensator
-    filt = (SosLowPass.from_config(new.filter, period)
-            if any(k.split(".")[:2] in (["filter", "type"], ["filter", "order"], ["filter", "cutoff_hz"])
-                   for k in changes) else None)
+    filt = SosLowPass.from_config(new.filter, period) if LOWPASS.intersection(changes) else None
     spikes = SpikeRejector.from_config(new.filter.spike)
     limiter = CorrectionLimiter.from_config(new.limits, period)
     sup = Supervisor.from_config(new.faults, cycle.faults, model.robot.limits_deg, new.plc.enable_on_start)
