@@ -244,5 +244,5 @@ def reload(service) -> Outcome:
         got = Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: {e!r}")
     if isinstance(got, Prepared):
         got = _hand_over(service, got)
-    (log.info if got.accepted else log.error)("%s", got.message)
+    (log.info if got.accepted else log.warning)("%s", got.message)       # refused: the service runs on
     return got
