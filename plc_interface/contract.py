@@ -160,6 +160,8 @@ TO_PLC: tuple[Value, ...] = (
           required=False),
     Value("sample_age_ms", "float32", "ms", "age of the newest good sensor sample", "signals.sample_age_ms",
           required=False),
+    Value("reload_count", "uint16", "", "accepted reloads of the config since start (SIGHUP, stiffcomp reload; "
+          "wraps at 65535)", "signals.reload_count", required=False),
 )
 
 FROM_PLC: tuple[Value, ...] = (

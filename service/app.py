@@ -36,11 +36,9 @@ from plc_interface.contract import Fault, Producer, TaskState, TaskValues, ToPlc
 from plc_interface.errors import PlcError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
-from stiffness.errors import StiffnessError, quote
-from stiffness.model import StiffnessModel
 
+from .compensation import load_model
 from .config import ServiceConfig
-from .errors import ServiceConfigError
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
@@ -59,11 +57,7 @@ class Service:
 
     def __init__(self, cfg: ServiceConfig):
         self.cfg = cfg
-        try:
-            self.model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
-            self.model.require_physical()
-        except StiffnessError as e:
-            raise ServiceConfigError(f"{cfg.path}: model.file = {quote(cfg.model.file)}: {e}") from e
+        self.model = load_model(cfg)
         self.cycle = Cycle.from_config(cfg, self.model)
         self.rmap = cfg.register_map()
         self.period = cfg.cycle.period_ms / 1000.0
@@ -78,6 +72,9 @@ class Service:
         self.io_restarts = 0
         self._closed = False
         self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
+        self.pending: list = []         # a prepared reload the cycle takes (pop, atomic) and swaps in (service.reload)
+        self.reload_attempts = 0
+        self.last_reload = None         # the outcome of the last reload (service.reload.Outcome)
         # the checks that can fail come first; the image (shared memory) and then the source open last
         self.image = ProcessImage(self.rmap)
         try:
@@ -99,6 +96,13 @@ class Service:
         """One cycle: inputs from the image and the source, the cycle, the record to the image.
 
         Returns False when a requested stop has ramped the correction to zero (the task then ends)."""
+        if self.pending:                # a reload, between two cycles: references and a few floats
+            try:
+                swap = self.pending.pop()
+            except IndexError:          # the main thread withdrew it meanwhile
+                swap = None
+            if swap is not None:
+                swap(self.cycle, self.source)
         inp = self.image.inputs()
         reading, errors = self.source.poll(t)
         cyc = self.cycle
@@ -247,11 +251,14 @@ class Service:
                 return
             time.sleep(0.005)
 
-    def on_hangup(self) -> None:
-        """SIGHUP: the one place where a reload will go (issue 21, live parameters). For now it is logged
-        and the service keeps running unchanged; no signal drops the correction without the ramp."""
-        log.warning("SIGHUP received: no reload yet (the live-parameters issue adds it); the service keeps "
-                    "running unchanged")
+    def on_hangup(self):
+        """SIGHUP (and `stiffcomp reload`): reload the config file (`service.reload.reload`; one log line,
+        the outcome returned). The correction goes on throughout; nothing is applied from a refused file."""
+        from .reload import reload
+
+        self.reload_attempts += 1
+        self.last_reload = reload(self)
+        return self.last_reload
 
     @property
     def task_state(self) -> TaskState:

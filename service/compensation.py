@@ -45,12 +45,14 @@ import numpy as np
 import pinocchio as pin
 from pydantic import Field
 
+from stiffness.errors import StiffnessError, quote
 from stiffness.model import StiffnessModel
 from stiffness.robot import BODIES
 from stiffness.spatial import damped_pinv_solve
 from stiffness.statics import PayloadConfig, statics_for
 from stiffness.yamlio import Strict
 
+from .errors import ServiceConfigError
 from .fast_effects import fast_terms
 
 _BASE = np.eye(4)
@@ -62,6 +64,17 @@ class ModelConfig(Strict):
     file: str
     refinement_iterations: int = Field(0, ge=0, le=10)
     damping: float = Field(1e-3, ge=0.0, le=1.0)
+
+
+def load_model(cfg) -> StiffnessModel:
+    """The model ``model.file`` of the service config ``cfg`` names, physical (no negative compliance);
+    ServiceConfigError names the config file, the key and its value, then what is wrong."""
+    try:
+        model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
+        model.require_physical()
+    except StiffnessError as e:
+        raise ServiceConfigError(f"{cfg.path}: model.file = {quote(cfg.model.file)}: {e}") from e
+    return model
 
 
 class FastPredictor:

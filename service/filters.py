@@ -52,7 +52,9 @@ class SosLowPass:
         self.sos = np.asarray(sos, dtype=float)
         self.channels = channels
         self._coef = [(float(s[0]), float(s[1]), float(s[2]), float(s[4]), float(s[5])) for s in self.sos]
+        self._zi = [(float(z[0]), float(z[1])) for z in signal.sosfilt_zi(self.sos)]   # the unit step's
         self.state = self.zero_state()
+        self.y: list[float] | None = None           # the last output (None before the first sample)
 
     @classmethod
     def design(cls, kind: str, order: int, cutoff_hz: float, rate_hz: float) -> SosLowPass:
@@ -75,9 +77,20 @@ class SosLowPass:
 
     def steady_state(self, x) -> list[list[list[float]]]:
         """State of a filter that has seen the constant input ``x`` forever (scipy.signal.sosfilt_zi)."""
-        zi = signal.sosfilt_zi(self.sos)                      # (S, 2) for a unit step
         x = [float(v) for v in x]
-        return [[[float(zi[k, 0]) * v for v in x], [float(zi[k, 1]) * v for v in x]] for k in range(len(zi))]
+        return [[[z0 * v for v in x], [z1 * v for v in x]] for z0, z1 in self._zi]
+
+    def continue_from(self, other: SosLowPass) -> None:
+        """Take over from ``other`` (a reload with new parameters): start in the steady state of its last
+        output, so this filter's output goes on from where ``other``'s left off instead of stepping.
+        A filter that has seen no sample yet starts as ``other`` would, at the first sample.
+
+        The first output is then y + b0 (x - y) per section chain, x the new sample and y the last output:
+        it departs from y by a fraction of the noise, not by a step. Cheap (12 products per section): it
+        runs in the cycle, between two samples."""
+        if other.y is not None:
+            self.state = self.steady_state(other.y)
+            self.y = other.y
 
     def step(self, x, z: list) -> tuple[list[float], list]:
         """Filter one sample ``x`` (channels,) from state ``z``; returns (y, new state).
@@ -104,6 +117,7 @@ class SosLowPass:
     def update(self, x) -> list[float]:
         """One sample with the filter's own state (the service's hot path)."""
         y, self.state = self.step(x, self.state)
+        self.y = y
         return y
 
 

@@ -55,6 +55,7 @@ class Signals(NamedTuple):
     tare_count: int
     sensor_samples: int             # good samples since start
     sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
+    reload_count: int               # accepted reloads of the config (service.reload)
 
 
 class TareConfig(Strict):
@@ -194,6 +195,7 @@ class Cycle:
         self.compensator = compensator
         self.faults = compensator.faults
         self.stopping = False           # the stop request: ramp to zero, then the task ends
+        self.reloads = 0                # accepted reloads, counted by the reload's swap (service.reload)
         self.status_word = 0
 
     @classmethod
@@ -225,7 +227,7 @@ class Cycle:
         since = c.sample_t if c.sample_t is not None else c.t_first
         age_ms = 0.0 if since is None else (c.t_prev - since) * 1000.0
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
-                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms)
+                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms, self.reloads & 0xFFFF)
 
     # what a test or a log reads of the last cycle (the signal path's values)
     correction = property(lambda self: self.compensator.correction)

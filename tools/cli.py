@@ -20,6 +20,7 @@ COMMANDS = {
     "kcart": "tools.stiffness_cmd",
     "torques": "tools.torques_cmd",
     "run": "tools.run_cmd",
+    "reload": "tools.reload_cmd",
     "health": "tools.health_cmd",
     "status": "tools.status_cmd",
     "registers": "tools.registers_cmd",

@@ -2,20 +2,23 @@
 
 Validates the whole config before anything starts (a bad config exits with code 2), then runs
 until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly (the correction ramps to zero) with
-exit code 0. SIGHUP is logged and the service keeps running (`Service.on_hangup`, where the reload
-of the live-parameters issue goes). Between its waits the main thread watches the I/O process
+exit code 0. SIGHUP reloads the config file (`Service.on_hangup`, docs/service.md): the run file
+(`tools.run_file`) tells `stiffcomp reload` this process's pid and each reload's outcome. Between its waits the main thread watches the I/O process
 (`Service.watch_io`); exit code 1 when the service failed (the cycle died, or the I/O process died
 beyond faults.io_restarts), and --stats-json says why (``failure``, ``io_process``).
 """
 
 from __future__ import annotations
 
+import logging
 import signal
 import threading
 import time
 
 from plc_interface.log_format import FORMATTERS, configure_logging
 from service.config import DEFAULT_CONFIG, load_config
+
+from .run_file import RunFile
 
 
 def register(sub) -> None:
@@ -40,10 +43,17 @@ def run(args) -> int:
     service = Service(cfg)              # everything validated and opened, nothing started yet
     stop = threading.Event()
     hangup = threading.Event()
+    run_file = RunFile(args.config)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, lambda *_: hangup.set())
     try:
         service.start()                 # inside: a port in use still frees the image and the handlers
+        if run_file.claim():
+            run_file.write(service)
+        else:
+            logging.getLogger("stiffcomp.service").warning(
+                "no run file for stiffcomp reload at %s (another service runs with %s, or the folder is not "
+                "writable): SIGHUP still reloads", run_file.path, args.config)
         t_end = None if args.duration is None else time.monotonic() + args.duration
         interval = cfg.cycle.stats_log_interval_s or None
         next_log = time.monotonic() + (interval or 0)
@@ -51,6 +61,7 @@ def run(args) -> int:
             if hangup.is_set():
                 hangup.clear()
                 service.on_hangup()
+                run_file.write(service)
             now = time.monotonic()
             if t_end is not None and now >= t_end:
                 break
@@ -61,6 +72,7 @@ def run(args) -> int:
                 next_log += interval
     finally:
         service.stop()
+        run_file.release()
         for s, h in previous.items():
             signal.signal(s, h)
         service.log_stats()

@@ -115,7 +115,7 @@ class StatusView:
         t.add_column(style="cyan")
         t.add_column()
         if not v:                                  # no answer: nothing is known, nothing is shown
-            for row in ("task", "cycles", "exec", "jitter", "exceeded", "status", "faults", "correction"):
+            for row in ("task", "cycles", "exec", "jitter", "exceeded", "status", "faults", "correction", "reloads"):
                 t.add_row(row, BLANK)
             return t
         rate, exceed_rate = self.rates()
@@ -138,6 +138,8 @@ class StatusView:
         zero = not any(v.get(f"correction_q{k}", 0.0) for k in range(1, 7))
         t.add_row("correction", Text(f"zero: {why_zero(status, fault)}", style="yellow") if zero
                   else Text("applied", style="green"))
+        t.add_row("reloads", BLANK if "reload_count" not in v else
+                  f"{int(v['reload_count'])} accepted since start (stiffcomp reload)")
         return t
 
     def _values_table(self, v: Mapping[str, float]) -> Table:

@@ -3,7 +3,7 @@
 Against the running service (`stiffcomp run` in a child process): kill -9 of the I/O process is logged,
 latches io_process and is restarted (Modbus answers again within 5 s) or, with ``faults.io_restarts: 0``,
 ends the service with exit code 1 within 5 s; kill -9 of the cycle process makes the I/O process log it
-and exit 1; SIGHUP leaves the service running; Ctrl-C to the process group prints no traceback.
+and exit 1; SIGHUP reloads the config and leaves the service running; Ctrl-C to the process group prints no traceback.
 """
 
 from __future__ import annotations
@@ -156,10 +156,13 @@ def test_cycle_process_killed_the_io_process_logs_it_and_exits_1(service):
     assert f"the cycle process (pid {svc.p.pid}) died: the I/O process stops with exit code 1" in svc.text()
 
 
-def test_sighup_keeps_the_service_running(service):
+def test_sighup_reloads_the_config_and_keeps_the_service_running(service):
     svc = service()
+    assert svc.read()["reload_count"] == 0
     svc.p.send_signal(signal.SIGHUP)
-    until(lambda: "SIGHUP received" in svc.text(), 10.0, "the SIGHUP is logged")
+    until(lambda: "reload 1 of " in svc.text(), 10.0, "the reload is logged")
+    assert "reload 1 of " in svc.text() and "accepted: no change" in svc.text()
+    assert svc.read()["reload_count"] == 1
     before = svc.read()["cycle_count"]
     until(lambda: (v := svc.read()) is not None and v["cycle_count"] > before, 10.0, "the cycle goes on")
     assert svc.p.poll() is None

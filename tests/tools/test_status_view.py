@@ -54,3 +54,11 @@ def test_status_says_why_the_correction_is_zero():
     assert "zero: the PLC's enable bit (command_word bit 0) is off" in text(view)
     view.update(reading(20), 0.25)
     assert any(line.split() == ["correction", "applied"] for line in text(view).splitlines())
+
+
+def test_the_reload_count_is_shown_and_blank_without_an_answer():
+    view = StatusView("modbus 127.0.0.1:5020")
+    view.update({**reading(1000), "reload_count": 3.0}, 0.0)
+    assert any(line.split()[:2] == ["reloads", "3"] for line in text(view).splitlines())
+    view.failed("no answer")
+    assert any(line.split() == ["reloads", "—"] for line in text(view).splitlines())

@@ -1,0 +1,248 @@
+"""Reload the service's YAML while it runs (SIGHUP, `stiffcomp reload`; docs/service.md, "Reload").
+
+The main thread does all the work, the cycle only swaps (guideline 14: the cycle waits on nothing):
+
+1. `prepare` rereads the file the service started with and validates it as a start does: the config
+   (`load_config`, with the checks across sections), the model (`load_model`: found, readable,
+   physical), the register map, and the real-time predictor of the model. An invalid file changes
+   nothing; the log line is the validation's own message (file, key, value, range).
+2. It compares old and new by dotted key (`diff`), the model file's contents included
+   (``model.file:robot.*``, ``model.file:effects``, ``model.file:<effect>.<parameter>``) and the
+   register map's (``plc.register_map:registers``). A key that only a restart applies (`RESTART`: the
+   cycle, the source, the PLC, ADS and monitoring settings, the model's structure, the register map)
+   refuses the whole reload by name. ``gravity`` goes through `_apply_gravity`.
+3. It builds the new stages (filter, predictor) and the new parameters, and returns one function that
+   puts them in place. `Service.work` takes it between two cycles (from a list it pops; one truth test
+   per cycle while there is none); it
+   assigns references and a few floats, carries the filter's state over (`SosLowPass.continue_from`)
+   and starts the model ramp (`service.model_ramp.PredictorRamp`), and counts the reload
+   (``reload_count`` in the contract).
+
+Every reload writes exactly one log line that says ``reload``: accepted, with each changed key as
+``old → new``, or refused, with why.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+from stiffness.errors import quote
+from stiffness.model import StiffnessModel
+
+from .compensation import FastPredictor, load_model
+from .config import ServiceConfig, load_config
+from .errors import ServiceError
+from .filters import SosLowPass, SpikeRejector
+from .gravity import GravityConfig
+from .limits import CorrectionLimiter
+from .model_ramp import PredictorRamp
+from .supervision import Supervisor
+
+log = logging.getLogger("stiffcomp.service")
+
+# what only a restart applies: the sections of sockets, the cycle's timing and thread, the opened sensor
+# and the image laid out by the register map; the model's structure (its robot and effects)
+RESTART = ("cycle", "source", "plc", "ads", "monitoring")
+STRUCTURE = ("model.file:robot.", "model.file:effects")
+LOWPASS = {"filter.type", "filter.order", "filter.cutoff_hz"}          # a new low-pass (the rest: parameters)
+SHOWN = 8               # changed keys named in one log line; the rest are counted
+HANDOVER_S = 5.0        # the cycle takes a prepared reload within a cycle; this bounds the wait on a stalled one
+
+Swap = Callable[[Any, Any], None]        # (cycle, source) -> None, run between two cycles
+
+
+class Outcome(NamedTuple):
+    """What a reload did: accepted or not, and the one log line that says so."""
+
+    accepted: bool
+    message: str
+
+
+class Prepared(NamedTuple):
+    """A validated reload, ready to swap in: the new config and model, and the cycle's part."""
+
+    cfg: ServiceConfig
+    model: StiffnessModel
+    changes: dict[str, tuple[Any, Any]]
+    swap: Swap
+
+
+def flatten(data: Any, prefix: str = "") -> dict[str, Any]:
+    """A nested mapping as {dotted key: value}; lists stay whole values."""
+    if not isinstance(data, dict):
+        return {prefix: data}
+    out: dict[str, Any] = {}
+    for k, v in data.items():
+        out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+def diff(old: dict, new: dict, prefix: str = "") -> dict[str, tuple[Any, Any]]:
+    """{dotted key: (old, new)} for each key whose value differs (None where a key is absent)."""
+    a, b = flatten(old, prefix), flatten(new, prefix)
+    return {k: (a.get(k), b.get(k)) for k in dict.fromkeys([*a, *b]) if a.get(k) != b.get(k)}
+
+
+def model_diff(old: StiffnessModel, new: StiffnessModel) -> dict[str, tuple[Any, Any]]:
+    """The model file's contents by key: ``model.file:robot.<key>`` (the robot), ``model.file:effects``
+    (the structure: which parameters of which effects) and ``model.file:<effect>.<key>`` (values, in the
+    YAML's units), ``model.file:payload.<key>``."""
+    out = diff(old.robot.config.model_dump(), new.robot.config.model_dump(), "model.file:robot")
+    labels_old, labels_new = old.param_labels(), new.param_labels()
+    if labels_old != labels_new:
+        out["model.file:effects"] = (_effects(old), _effects(new))
+        return out
+    factors = [p.yaml_factor for e in new.effects for p in e.params]
+    for label, f, a, b in zip(labels_new, factors, old.theta, new.theta):
+        if a != b:
+            out[f"model.file:{label}"] = (float(a * f), float(b * f))
+    pay = [None if m.payload is None else m.payload.model_dump() for m in (old, new)]
+    out.update(diff(pay[0] or {}, pay[1] or {}, "model.file:payload"))
+    return out
+
+
+def _effects(model: StiffnessModel) -> str:
+    return ", ".join(e.label for e in model.effects)
+
+
+def _map_rows(rmap) -> tuple:
+    return (rmap.as_list(), {d: b.model_dump(exclude={"registers"}) for d, b in rmap.blocks.items()})
+
+
+def describe(changes: dict[str, tuple[Any, Any]]) -> str:
+    """``key old → new`` for each change (the first `SHOWN`, then how many more)."""
+    items = [f"{k} {quote(a)} → {quote(b)}" for k, (a, b) in changes.items()]
+    more = len(items) - SHOWN
+    return ", ".join(items[:SHOWN]) + (f" and {more} more" if more > 0 else "")
+
+
+def _apply_gravity(old: GravityConfig, new: GravityConfig) -> tuple[str | None, Swap | None]:
+    """INTEGRATOR: the ONE place a reload changes the ``gravity`` section (live, through the payload
+    switch of the payload table, issue 21 item 1). Return (None, swap) with swap(cycle, source) starting
+    that switch's bumpless ramp to ``new``; until it is connected, any gravity change refuses the reload
+    by name (returns (reason, None)). Unchanged: (None, None)."""
+    changes = diff(old.model_dump(), new.model_dump(), "gravity")
+    if not changes:
+        return None, None
+    return f"{', '.join(changes)}: gravity changes are not live yet (restart to apply)", None
+
+
+def prepare(old: ServiceConfig, old_model: StiffnessModel, old_rmap, cycle) -> Prepared | Outcome:
+    """Reread ``old.path`` and validate it completely; a `Prepared` reload, or the refusal (`Outcome`).
+
+    Runs in the main thread: it reads files, designs filters and builds a predictor, which the cycle
+    never waits for. ``cycle`` is read only (the current gravity, joints, period)."""
+    path = old.path
+    try:
+        new = load_config(path)
+        model = load_model(new)
+        rmap = new.register_map()
+    except ServiceError as e:
+        return Outcome(False, f"reload refused, nothing changed: {e}")
+    changes = diff(old.model_dump(), new.model_dump())
+    changes.update(model_diff(old_model, model))
+    if _map_rows(old_rmap) != _map_rows(rmap):
+        changes["plc.register_map:registers"] = (old_rmap.source, rmap.source)
+    restart = [k for k in changes if k.split(".")[0] in RESTART or k.startswith(STRUCTURE)]
+    if restart:
+        return Outcome(False, f"reload of {path} refused, nothing changed: {describe({k: changes[k] for k in restart})}"
+                       f": {'this needs' if len(restart) == 1 else 'these need'} a restart of the service")
+    refusal, gravity_swap = _apply_gravity(old.gravity, new.gravity)
+    if refusal is not None:
+        return Outcome(False, f"reload of {path} refused, nothing changed: {refusal}")
+    try:
+        swap = _stages(new, model, changes, cycle, gravity_swap)
+    except ServiceError as e:
+        return Outcome(False, f"reload of {path} refused, nothing changed: {e}")
+    return Prepared(new, model, changes, swap)
+
+
+def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gravity_swap: Swap | None) -> Swap:
+    """Everything the cycle needs from ``new``, built here, and the swap that puts it in place."""
+    period = new.cycle.period_ms / 1000.0
+    comp = cycle.compensator
+    filt = SosLowPass.from_config(new.filter, period) if LOWPASS.intersection(changes) else None
+    spikes = SpikeRejector.from_config(new.filter.spike)
+    limiter = CorrectionLimiter.from_config(new.limits, period)
+    sup = Supervisor.from_config(new.faults, cycle.faults, model.robot.limits_deg, new.plc.enable_on_start)
+    timeout_s, tare_max = new.faults.sensor_timeout_ms / 1000.0, new.tare.max_force_N
+    pred = None
+    if any(k.startswith("model.") for k in changes):
+        pred = FastPredictor.from_config(new.model, model)     # ModelUnsupportedError: refused
+        g = comp.gravity
+        pred.carry(g.mass, g.cog, g.g)
+        q_prep = comp.q_rad
+        pred.kinematics(q_prep)
+    ramp_cycles = round(new.limits.fault_ramp_s / period)
+
+    def swap(cycle, source) -> None:
+        c = cycle.compensator
+        if filt is not None:
+            filt.continue_from(c.filter)
+            c.filter = filt
+        s = c.spikes
+        s.max_step, s.max_held = spikes.max_step, spikes.max_held
+        lim = c.limiter
+        lim.max, lim.rate, lim.ramp_s = limiter.max, limiter.rate, limiter.ramp_s
+        v = cycle.supervisor
+        v.hb_timeout, v.overrun_trip = sup.hb_timeout, sup.overrun_trip
+        source.timeout_s = timeout_s
+        c.tare_max = tare_max
+        if pred is not None:
+            if c.q_rad is not q_prep:          # the joints moved since: one more kinematics pass
+                pred.kinematics(c.q_rad)
+            ramp = PredictorRamp(c.predictor, pred, ramp_cycles, lambda: _finish(c, ramp, pred))
+            c.predictor = ramp
+        if gravity_swap is not None:
+            gravity_swap(cycle, source)
+        cycle.reloads += 1
+
+    return swap
+
+
+def _finish(comp, ramp: PredictorRamp, pred: FastPredictor) -> None:
+    """The ramp's end: the new predictor alone (unless a later reload has started a ramp of its own)."""
+    if comp.predictor is ramp:
+        comp.predictor = pred
+
+
+def _hand_over(service, prepared: Prepared) -> Outcome:
+    """Give ``prepared`` to the cycle and wait until it is applied (or take it back: refused)."""
+    task, cycle = service.task, service.cycle
+    before = cycle.reloads
+    service.pending.append(prepared.swap)
+    deadline = time.monotonic() + HANDOVER_S
+    while service.pending and task is not None and task.running and time.monotonic() < deadline:
+        time.sleep(0.001)
+    try:
+        service.pending.pop()
+        return Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: the cycle did not take it "
+                       f"within {HANDOVER_S:g} s (is it running?)")
+    except IndexError:
+        pass                            # taken: the swap counts the reload as its last step
+    while cycle.reloads == before and time.monotonic() < deadline + HANDOVER_S:
+        time.sleep(0.0005)
+    if cycle.reloads == before:         # the swap raised: the cycle's error policy stops the service
+        return Outcome(False, f"reload of {service.cfg.path} failed while the cycle applied it ({service.failure})")
+    service.cfg, service.model = prepared.cfg, prepared.model
+    return Outcome(True, f"reload {cycle.reloads} of {prepared.cfg.path} accepted: "
+                   f"{describe(prepared.changes) if prepared.changes else 'no change'}")
+
+
+def reload(service) -> Outcome:
+    """Reload ``service`` (a running `service.app.Service`) from its config file; one log line, the outcome.
+
+    Main thread only. The prepared swap is handed to the cycle in ``service.pending``, a list which the
+    cycle pops between two cycles; the wait for that is bounded (`HANDOVER_S`), and a swap not taken by
+    then is popped back here. A pop is atomic, so exactly one side gets it: never applied and refused."""
+    try:
+        got = prepare(service.cfg, service.model, service.rmap, service.cycle)
+    except Exception as e:  # noqa: BLE001 - a reload must never take the running service down
+        got = Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: {e!r}")
+    if isinstance(got, Prepared):
+        got = _hand_over(service, got)
+    (log.info if got.accepted else log.warning)("%s", got.message)       # refused: the service runs on
+    return got

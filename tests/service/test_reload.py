@@ -1,0 +1,214 @@
+"""Reload without a restart, in process: what `service.reload.prepare` accepts, refuses and swaps in.
+
+The cycle is driven as the live loop drives it (`Cycle.step` with explicit time); the swap runs between
+two cycles as `Service.work` runs it. The running service's tests are in test_reload_service.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hil.testing import write_config
+from plc_interface.contract import Command
+from service.config import load_config
+from service.filters import SosLowPass
+from service.pipeline import Cycle
+from service.reload import Outcome, Prepared, prepare
+from service.sources import make_source
+from service.sources.replay import write_log
+from stiffness.model import StiffnessModel
+from stiffness.yamlio import deep_update, dump_yaml, read_yaml
+
+DT = 1e-3
+Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]
+LOAD = np.array([300.0, -200.0, 400.0, 15.0, 10.0, 5.0])
+NOISE = np.array([2.0, 2.0, 2.0, 0.2, 0.2, 0.2])
+
+
+def rewrite(path, changes: dict) -> None:
+    data = read_yaml(path)
+    deep_update(data, changes)
+    path.write_text(dump_yaml(data, sort_keys=False))
+
+
+class Rig:
+    """A cycle, its replay source (a constant load with noise) and its config file, stepped in time."""
+
+    def __init__(self, tmp_path, overrides: dict | None = None, samples: int = 6000):
+        rng = np.random.default_rng(7)
+        log = tmp_path / "ft.blf"
+        write_log(log, LOAD + NOISE * rng.standard_normal((samples, 6)))
+        over = {"source": {"replay": {"file": str(log), "pacing": "fast", "loop": True}},
+                "gravity": {"tool": {"mass_kg": 0.0}, "bias": [0.0] * 6},
+                "limits": {"max_rate_deg_s": 50.0, "fault_ramp_s": 0.1}}
+        deep_update(over, overrides or {})
+        self.path = write_config(tmp_path, over)
+        self.cfg = load_config(self.path)
+        self.model = StiffnessModel.from_yaml(self.cfg.resolve(self.cfg.model.file))
+        self.rmap = self.cfg.register_map()
+        self.cycle = Cycle.from_config(self.cfg, self.model)
+        self.source = make_source(self.cfg)
+        self.k = 0
+
+    def run(self, n: int) -> dict[str, np.ndarray]:
+        rows = {"wrench": [], "deflection": [], "dq": [], "correction": []}
+        for _ in range(n):
+            t = self.k * DT
+            reading, errors = self.source.poll(t)
+            self.cycle.step(t, reading, errors, int(Command.ENABLE), self.k & 0xFFFF, Q)
+            c = self.cycle
+            for key, v in (("wrench", c.wrench_base), ("deflection", c.deflection), ("dq", c.dq_deg),
+                           ("correction", c.correction)):
+                rows[key].append(list(v))
+            self.k += 1
+        return {k: np.array(v) for k, v in rows.items()}
+
+    def reload(self, changes: dict) -> Prepared | Outcome:
+        rewrite(self.path, changes)
+        got = prepare(self.cfg, self.model, self.rmap, self.cycle)
+        if isinstance(got, Prepared):
+            got.swap(self.cycle, self.source)
+            self.cfg, self.model = got.cfg, got.model
+        return got
+
+    def close(self) -> None:
+        self.source.close()
+
+
+@pytest.fixture
+def rig(tmp_path):
+    made = []
+
+    def make(**kw) -> Rig:
+        made.append(Rig(tmp_path, **kw))
+        return made[-1]
+
+    yield make
+    for r in made:
+        r.close()
+
+
+@settings(max_examples=40, deadline=None)
+@given(kind=st.sampled_from(["butterworth", "bessel", "none"]), order=st.integers(1, 8),
+       cut_old=st.floats(1.0, 450.0), cut_new=st.floats(1.0, 450.0),
+       x=st.lists(st.floats(-2000.0, 2000.0), min_size=6, max_size=6))
+def test_a_filter_taking_over_a_settled_one_continues_its_output_without_a_step(kind, order, cut_old, cut_new, x):
+    old = SosLowPass.design("butterworth", 2, cut_old, 1000.0)
+    old.state = old.steady_state(x)
+    y_old = old.update(x)
+    new = SosLowPass.design(kind, order, cut_new, 1000.0)
+    new.continue_from(old)
+    for _ in range(3):
+        assert new.update(x) == pytest.approx(y_old, rel=1e-9, abs=1e-9)
+
+
+def test_a_reload_with_a_new_cutoff_shows_no_step_in_the_filtered_wrench_beyond_the_noise(rig):
+    r = rig()
+    before = r.run(1500)["wrench"]
+    noise_step = np.abs(np.diff(before[500:], axis=0)).max(axis=0)      # settled: cycle-to-cycle noise
+    got = r.reload({"filter": {"cutoff_hz": 20.0, "order": 4}})
+    assert isinstance(got, Prepared), got
+    after = r.run(500)["wrench"]
+    step = np.abs(after[0] - before[-1])
+    assert np.all(step <= noise_step), (step, noise_step)
+    assert np.abs(np.diff(after, axis=0)).max(axis=0) @ [1, 1, 1, 0, 0, 0] > 0     # the wrench goes on
+    # the new filter passes less noise: it is the one in place
+    assert np.abs(np.diff(after[100:], axis=0)).max(axis=0)[2] < noise_step[2]
+    # a filter started afresh would step by the whole load: the check above can fail
+    assert np.abs(LOAD[:3]).min() > 10 * noise_step[:3].max()
+
+
+def test_an_invalid_file_changes_nothing_and_names_file_key_and_range(rig):
+    r = rig()
+    r.run(200)
+    filt, limiter = r.cycle.compensator.filter, r.cycle.compensator.limiter.rate
+    got = r.reload({"filter": {"cutoff_hz": 900.0}, "limits": {"max_rate_deg_s": 1.0}})
+    assert isinstance(got, Outcome) and not got.accepted
+    assert f"{r.path}: filter.cutoff_hz = 900" in got.message and "500" in got.message
+    assert "reload" in got.message and "nothing changed" in got.message
+    assert r.cycle.compensator.filter is filt and r.cycle.compensator.limiter.rate == limiter
+    assert r.cycle.reloads == 0
+
+
+@pytest.mark.parametrize("changes, key", [
+    ({"plc": {"port": 1}}, "plc.port"),
+    ({"cycle": {"period_ms": 2.0}}, "cycle.period_ms"),
+    ({"monitoring": {"port": 2}}, "monitoring.port"),
+    ({"source": {"max_force_N": 2000.0}}, "source.max_force_N"),
+])
+def test_a_change_only_a_restart_applies_refuses_the_whole_reload_by_name(rig, changes, key):
+    r = rig()
+    rate = r.cycle.compensator.limiter.rate
+    got = r.reload({**changes, "limits": {"max_rate_deg_s": 1.0}})
+    assert isinstance(got, Outcome) and not got.accepted
+    assert key in got.message and "restart" in got.message and "limits" not in got.message
+    assert r.cycle.compensator.limiter.rate == rate and r.cycle.reloads == 0
+
+
+def test_a_gravity_change_is_refused_as_not_live_yet(rig):
+    r = rig()
+    got = r.reload({"gravity": {"tool": {"mass_kg": 5.0}}})
+    assert isinstance(got, Outcome) and "gravity.tool.mass_kg" in got.message and "not live yet" in got.message
+
+
+def test_live_keys_land_in_the_running_stages_and_count_one_reload(rig):
+    r = rig()
+    r.run(100)
+    got = r.reload({"limits": {"max_correction_deg": 0.3, "max_rate_deg_s": 2.0, "fault_ramp_s": 0.5},
+                    "faults": {"sensor_timeout_ms": 20.0, "plc_heartbeat_timeout_ms": 0, "overrun_trip_count": 5},
+                    "tare": {"max_force_N": 50.0}, "filter": {"spike": {"max_step_N": 100.0, "max_held": 1}}})
+    assert isinstance(got, Prepared), got
+    c, s = r.cycle.compensator, r.cycle.supervisor
+    assert c.limiter.max == [0.3] * 6 and c.limiter.rate == [2.0] * 6 and c.limiter.ramp_s == 0.5
+    assert r.source.timeout_s == 0.02 and s.hb_timeout == 0 and s.overrun_trip == 5
+    assert c.tare_max == 50.0 and c.spikes.max_step[:3] == [100.0] * 3 and c.spikes.max_held == 1
+    assert set(got.changes) == {"limits.max_correction_deg", "limits.max_rate_deg_s", "limits.fault_ramp_s",
+                                "faults.sensor_timeout_ms", "faults.plc_heartbeat_timeout_ms",
+                                "faults.overrun_trip_count", "tare.max_force_N", "filter.spike.max_step_N",
+                                "filter.spike.max_held"}
+    assert got.changes["limits.max_rate_deg_s"] == ([50.0] * 6, [2.0] * 6)
+    assert r.cycle.reloads == 1 and r.cycle.signals().reload_count == 1
+
+
+def scaled_model(r: Rig, tmp_path, factor: float, extra: list | None = None):
+    data = read_yaml(r.cfg.resolve(r.cfg.model.file))
+    data["robot"] = str(r.cfg.resolve(r.cfg.model.file).parent.joinpath(data["robot"]).resolve())
+    for e in data["effects"]:
+        for k, v in e.items():
+            if k.endswith(("_per_N", "_per_Nm")):
+                e[k] = v * factor
+    data["effects"] += extra or []
+    path = tmp_path / f"model_{factor:g}_{len(extra or [])}.yaml"
+    path.write_text(dump_yaml(data, sort_keys=False))
+    return str(path)
+
+
+def test_a_model_with_the_same_structure_ramps_from_the_old_prediction_to_the_new(rig, tmp_path):
+    r = rig()
+    old = r.run(600)
+    n = round(r.cfg.limits.fault_ramp_s / DT)
+    got = r.reload({"model": {"file": scaled_model(r, tmp_path, 1.5)}})
+    assert isinstance(got, Prepared), got
+    assert any(k.startswith("model.file:joint_spring@joint2") for k in got.changes)
+    ramp = r.run(n + 200)
+    d_old, d_new = old["deflection"][-100:].mean(0), ramp["deflection"][-100:].mean(0)
+    assert np.allclose(d_new, 1.5 * d_old, rtol=0.02)             # the new model's prediction, once ramped
+    # no step: each cycle moves at most by its share of the change, plus the load's noise
+    steps = np.abs(np.diff(np.vstack([old["deflection"][-1:], ramp["deflection"][:n]]), axis=0))
+    noise = np.abs(np.diff(old["deflection"][-300:], axis=0)).max(0)
+    assert np.all(steps <= np.abs(d_new - d_old) / n * 1.05 + 1.5 * noise)
+    assert np.abs(d_new - d_old).max() > 20 * (np.abs(d_new - d_old) / n + noise).max()     # a jump would fail
+    # and the correction never moves faster than its rate limit
+    assert np.abs(np.diff(ramp["correction"], axis=0)).max() <= r.cfg.limits.max_rate_deg_s[0] * DT * (1 + 1e-9)
+    assert r.cycle.compensator.predictor is not None and type(r.cycle.compensator.predictor).__name__ == "FastPredictor"
+
+
+def test_a_model_with_another_structure_is_refused_by_name(rig, tmp_path):
+    r = rig()
+    extra = [{"effect": "backlash", "joint": 3, "lost_motion_deg": 0.01, "width_Nm": 30.0}]
+    got = r.reload({"model": {"file": scaled_model(r, tmp_path, 1.0, extra)}})
+    assert isinstance(got, Outcome) and not got.accepted, got
+    assert "model.file:effects" in got.message and "restart" in got.message
