@@ -140,7 +140,8 @@ class PayloadSelector:
 
     def _ramp(self, dt: float) -> None:
         self._elapsed += dt
-        s = 1.0 if self._elapsed >= self.ramp_s else self._elapsed / self.ramp_s
+        # a ramp of N periods ends in its Nth cycle, whatever the rounding of the summed periods
+        s = 1.0 if self._elapsed >= self.ramp_s - 1e-9 else self._elapsed / self.ramp_s
         if s >= 1.0:
             self._now = self._to
             self.active, self.target = self.target, None
