@@ -94,8 +94,9 @@ class PayloadSelector:
         the pair is replaced whole). The section's ``g_mps2`` is not applied (a restart changes it)."""
         self._pending = (section.payload_sets(), section.switch_ramp_s)
 
-    def update(self, dt: float, requested: int) -> None:
-        """One cycle of ``dt`` seconds with the PLC's ``payload_index`` = ``requested``."""
+    def update(self, dt: float, requested: int) -> bool:
+        """One cycle of ``dt`` seconds with the PLC's ``payload_index`` = ``requested``; True when the payload
+        in use moved (a ramp's step)."""
         if self._pending is not None:
             (self.sets, self.ramp_s), self._pending = self._pending, None
             self._request(requested, "reload")
@@ -103,8 +104,10 @@ class PayloadSelector:
             self._request(requested, "payload_index")
         if self._refused is not None:
             self.faults.trip(Fault.PAYLOAD_INVALID, self._refused)      # again after a reset: the cause persists
-        if self.target is not None:
-            self._ramp(dt)
+        if self.target is None:
+            return False
+        self._ramp(dt)
+        return True
 
     @property
     def destination(self) -> PayloadSet:

@@ -96,6 +96,7 @@ class Compensator:
         self.t_prev: float | None = None
         self.have_sample = False
         self.wrench_sensor = [0.0] * 6
+        self.filtered = [0.0] * 6               # the last sample, filtered (sensor axes)
         self.wrench_base = [0.0] * 6
         self.deflection = [0.0] * 6
         self.dq_deg = [0.0] * 6
@@ -161,7 +162,7 @@ class Compensator:
         if reset:
             pred.reset_history()
             self.tare_refused = False
-        self.payloads.update(dt, payload_index)
+        moved = self.payloads.update(dt, payload_index)
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -170,11 +171,13 @@ class Compensator:
                 self.filter.state = self.filter.steady_state(x)
                 self.have_sample = True
                 pred.reset_history()
-            filtered = self.filter.update(x)
+            self.filtered = filtered = self.filter.update(x)
             if self._tare_pending:
                 self._tare_pending = False
                 self._tare(filtered)
             self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
+        elif moved and self.have_sample:        # a switch's ramp goes on between samples too: no catch-up step
+            self.wrench_sensor = self.gravity.compensate(self.filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
         dX = pred.deflection(self.wrench_base)
         dq = pred.correction(self.q_rad, dX)
