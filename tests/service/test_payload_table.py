@@ -110,6 +110,7 @@ def test_a_missing_index_is_refused_keeps_the_set_and_logs_once(tmp_path, caplog
     run.run(int(RAMP_S / DT) + 10, 3)
     assert run.active[-1] == 3 and cyc.faults.word == 0
     before = np.array(run.wrench[-1])
+    caplog.clear()
     with caplog.at_level(logging.INFO):
         run.run(300, 7)
         refusals = [r for r in caplog.records if "payload_index = 7" in r.getMessage()]
