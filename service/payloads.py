@@ -15,8 +15,9 @@ gravity compensation:
   ``payload_active`` (`active`) names the new set once the ramp has ended; until then the old one.
 * a new index that names no set is refused: the fault ``payload_invalid`` latches (the correction
   ramps to zero: with the mounted tool unknown the wrench is not trusted), the set in use stays, and
-  exactly one line is logged. While ``payload_index`` still names no set the fault trips again after
-  each reset; a reset with a valid index (the one in use or another, which then switches) clears it.
+  exactly one line is logged (while the fault stays latched, at most ``QUIET_AFTER`` further refusals
+  are). While ``payload_index`` still names no set the fault trips again after each reset; a reset with
+  a valid index (the one in use or another, which then switches) clears it.
 
 `reload` is the entry point for a new ``gravity`` section at run time (a reload of the YAML): it may be
 called from another thread; the cycle takes the new table at its next update and treats the PLC's
@@ -36,6 +37,7 @@ from .faults import FaultMonitor
 from .gravity import GravityCompensator, GravityConfig, PayloadSet
 
 log = logging.getLogger("stiffcomp.payload")
+QUIET_AFTER = 10        # refusals logged while payload_invalid stays latched (the first is the fault's own line)
 
 
 def _vector(p: PayloadSet) -> list[float]:
@@ -74,6 +76,7 @@ class PayloadSelector:
         self._from = self._to = self._now
         self._elapsed = 0.0
         self._refused: str | None = None        # the fault message while the requested index names no set
+        self._lines = 0                         # refusals logged since the fault latched
         self._pending: tuple[dict[int, PayloadSet], float] | None = None
         self._apply()
 
@@ -138,8 +141,13 @@ class PayloadSelector:
         self._refused = (f"payload_index = {index} names no payload set (gravity.payloads has "
                          f"{', '.join(str(k) for k in sorted(self.sets))}); set {describe(self.destination)} "
                          "stays in use")
-        if self.faults.word & Fault.PAYLOAD_INVALID:        # latched already: the trip would not log this one
-            log.error("fault payload_invalid: %s", self._refused)
+        if not self.faults.word & Fault.PAYLOAD_INVALID:    # the trip in this cycle logs it
+            self._lines = 0
+            return
+        self._lines += 1                # latched already, so the trip would not log it: this line does
+        if self._lines <= QUIET_AFTER:   # a PLC cycling through bad indices must not fill the disk
+            log.error("fault payload_invalid: %s%s", self._refused, "; further refusals are not logged until a "
+                      "reset" if self._lines == QUIET_AFTER else "")
 
     def _ramp(self, dt: float) -> None:
         self._elapsed += dt

@@ -108,5 +108,5 @@ def test_the_plc_switches_payload_sets_bumplessly_and_a_missing_set_is_refused(t
     refusals = [r for r in caplog.records if "payload_index = 7" in r.getMessage()]
     assert len(refusals) == 1 and "set 1 'spindle + D20 mill' (28 kg) stays in use" in refusals[0].getMessage()
     switches = [r.getMessage() for r in caplog.records if "payload switch" in r.getMessage()]
-    assert switches == ["payload switch (payload_index): 0 'gravity bodies' (0 kg) -> 1 'spindle + D20 mill' "
-                        "(28 kg) over gravity.switch_ramp_s = 0.3 s"]
+    assert switches == [("payload switch (payload_index): 0 'gravity bodies' (0 kg) -> 1 'spindle + D20 mill' "
+                        "(28 kg) over gravity.switch_ramp_s = 0.3 s")]

@@ -20,6 +20,7 @@ from service.compensation import FastPredictor
 from service.config import load_config
 from service.errors import ServiceConfigError
 from service.gravity import GravityConfig
+from service.payloads import QUIET_AFTER
 from service.pipeline import Cycle
 from stiffness.model import StiffnessModel
 from stiffness.statics import PayloadConfig, statics_for
@@ -184,3 +185,14 @@ def test_the_static_torque_follows_a_payload_change_without_a_pinocchio_pass(loa
     fp.carry_payload(m, m * np.array(cog) / 1000.0)
     fresh = statics_for(loaded_predictor.robot, PayloadConfig(mass_kg=m, cog_mm=cog), [0.0, 0.0, -9.81])
     np.testing.assert_allclose(fp.tau_s, fresh.total_at(np.radians(q)), rtol=1e-10, atol=1e-8)
+
+
+def test_a_plc_cycling_through_missing_indices_logs_a_bounded_number_of_lines(tmp_path, caplog):
+    cyc = cycle_for(tmp_path)
+    run = Run(cyc, reading_of(SPINDLE, Q, cyc))
+    with caplog.at_level(logging.INFO):
+        for index in range(100, 400):
+            run.run(1, index)
+    lines = [r.getMessage() for r in caplog.records if "names no payload set" in r.getMessage()]
+    assert len(lines) == 1 + QUIET_AFTER and lines[-1].endswith("further refusals are not logged until a reset")
+    assert cyc.faults.word == Fault.PAYLOAD_INVALID and run.active[-1] == 0
