@@ -46,8 +46,9 @@ def _vector(p: PayloadSet) -> list[float]:
 
 
 def describe(p: PayloadSet) -> str:
-    """The set in words, for log lines: ``3 'spindle + D20 mill' (12.5 kg)``."""
-    return f"{p.index} {p.name!r} ({p.mass_kg:g} kg)"
+    """The set in words, for log lines: ``3 'spindle + D20 mill' (12.5 kg)``, with its TCP if it records one."""
+    tcp = "" if p.tcp_mm is None else f", TCP [{', '.join(f'{v:g}' for v in p.tcp_mm)}] mm"
+    return f"{p.index} {p.name!r} ({p.mass_kg:g} kg{tcp})"
 
 
 class PayloadSelector:

@@ -93,7 +93,7 @@ def test_a_switch_under_load_blends_the_gravity_term_and_the_correction_never_st
         run.run(int(RAMP_S / DT) + 50, 1)
     lines = [r.getMessage() for r in caplog.records if "payload switch" in r.getMessage()]
     assert lines == [("payload switch (payload_index): 0 'gravity bodies' (0 kg) -> 1 'spindle + D20 mill' "
-                     "(14 kg) over gravity.switch_ramp_s = 0.2 s")]
+                     "(14 kg, TCP [0, 0, 300] mm) over gravity.switch_ramp_s = 0.2 s")]
     n = int(RAMP_S / DT) + 50
     w, dq, out = (np.array(a[-n - 1:]) for a in (run.wrench, run.dq, run.out))
     s = np.clip(np.arange(n + 1) * DT / RAMP_S, 0.0, 1.0)           # the ramp's share after each cycle
