@@ -3,9 +3,11 @@
 Side by side in one process, in alternating blocks (so the machine's drift falls on all alike), on the
 KR 125 with link masses and a backlash at joint 2 (so tau_s and the effects at the total torque count):
 
-* ``carry``          `FastPredictor.carry` + `kinematics`: a new Statics per call and a pinocchio pass,
-                     what blending tau_s would cost without the payload basis;
-* ``carry_payload``  `FastPredictor.carry_payload`: tau_s = rest + B [m, m c] and the axial f(tau_s);
+* ``carry``          `FastPredictor.carry` + `kinematics`: a new Statics (a copy of the pinocchio model)
+                     per call, what blending tau_s would cost by rebuilding it;
+* ``carry_payload``  `FastPredictor.carry_payload`: `Statics.carry` moves the payload in place, tau_s
+                     at the last joints and the axial f(tau_s);
+* ``kinematics``     `FastPredictor.kinematics`, what a cycle pays when the joints move, for scale;
 * ``ramp``           `PayloadSelector.update` in a ramp: the blend into the gravity compensation and
                      tau_s, what a cycle pays during a switch;
 * ``idle``           `PayloadSelector.update` with no switch, what every other cycle pays;
@@ -76,6 +78,11 @@ def main() -> int:
         for k in range(n):
             fp.carry_payload(10.0 + (k & 7), (0.0, 0.0, 1.0))
 
+    def run_kinematics(n):
+        for k in range(n):
+            q[0] = 0.1 + 1e-4 * (k & 255)
+            fp.kinematics(q)
+
     def run_ramp(n):
         for k in range(n):
             ramping.update(1e-3, 1 + (k >> 10 & 1))      # a new switch every 1024 calls, blending between
@@ -91,8 +98,8 @@ def main() -> int:
             t[0] += 1e-3
             comp.cycle(t[0], reading, None, False, False)
 
-    items = {"carry": run_carry, "carry_payload": run_carry_payload, "ramp": run_ramp, "idle": run_idle,
-             "cycle": run_cycle}
+    items = {"carry": run_carry, "carry_payload": run_carry_payload, "kinematics": run_kinematics,
+             "ramp": run_ramp, "idle": run_idle, "cycle": run_cycle}
     times: dict[str, list[float]] = {k: [] for k in items}
     for f in items.values():
         f(200)

@@ -5,7 +5,7 @@ Side by side in one process, in alternating blocks (so the machine's drift falls
 * ``total_at``    `stiffness.statics.Statics.total_at` with one q (arm + 80 kg payload + balancer),
                   the call the next step will make when the joints move;
 * ``statics``     the batched `Statics.__call__` given one q (all parts, (1, 6) arrays each);
-* ``pinocchio``   the two pinocchio calls inside it alone (generalized gravity, the sensor's
+* ``pinocchio``   the two pinocchio calls inside it alone (generalized gravity, the payload centre's
                   Jacobian): what a leaner single-q path could reach;
 * ``kinematics``  `service.compensation.FastPredictor.kinematics`, what the cycle already runs when q
                   changes, for scale.
@@ -44,7 +44,7 @@ def main() -> int:
     model = StiffnessModel.from_yaml(ROOT / "config" / "models" / "kr125_6dof.yaml")
     statics = Statics(model.robot, 80.0, (0.0, 0.0, 150.0))
     fp = FastPredictor(model)
-    pm, pd, sensor = statics.pm, statics.pd, statics.sensor_id
+    pm, pd, cog = statics.pm, statics.pd, statics.cog_id
     rng = np.random.default_rng(0)
     lo, hi = np.radians(model.robot.limits_deg).T
     qs = [np.ascontiguousarray(q) for q in rng.uniform(lo, hi, size=(256, 6)) * 0.7]
@@ -61,7 +61,7 @@ def main() -> int:
         for k in range(n):
             q = qs[k & 255]
             pin.computeGeneralizedGravity(pm, pd, q)
-            pin.computeFrameJacobian(pm, pd, q, sensor, pin.LOCAL_WORLD_ALIGNED)
+            pin.computeFrameJacobian(pm, pd, q, cog, pin.LOCAL_WORLD_ALIGNED)
 
     def run_kinematics(n):
         for k in range(n):

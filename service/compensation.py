@@ -84,8 +84,7 @@ class FastPredictor:
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
         self.statics = model.statics()
-        self._payload = np.zeros(4) if self.statics is None else self.statics.p.copy()   # [m, m c]
-        self._basis: np.ndarray | None = None     # B of tau_s = rest + B [m, m c] at the last kinematics
+        self._q: np.ndarray | None = None        # the joints of the last kinematics (rad)
         self._rest = np.zeros(6)
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
         self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term
@@ -137,12 +136,12 @@ class FastPredictor:
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
         if self.statics is not None:
-            self._rest, self._basis = self.statics.rest_and_basis(q_rad)
+            self._q = q_rad
             self._settle()
 
     def _settle(self) -> None:
-        """tau_s = rest + B [m, m c] and f(tau_s) of every axial term, at the last `kinematics`."""
-        self.tau_s = tau_s = (self._rest + self._basis @ self._payload).tolist()
+        """tau_s and f(tau_s) of every axial term at the last `kinematics`' joints."""
+        self.tau_s = tau_s = self.statics.total_at(self._q).tolist()
         self._axial_at_rest = [term.f(tau_s[term.joint - 1]) for term in self.axial]
 
     def carry(self, payload_kg: float, cog_m, g_mps2) -> None:
@@ -150,19 +149,19 @@ class FastPredictor:
         sensor frame, gravity in base axes) in the static torque; takes effect at the next `kinematics`."""
         payload = PayloadConfig(mass_kg=payload_kg, cog_mm=[1000.0 * float(c) for c in cog_m])
         self.statics = statics_for(self.robot, payload, g_mps2)
-        self._payload = np.concatenate([[float(payload_kg)], float(payload_kg) * np.asarray(cog_m, dtype=float)])
-        self._basis = None
         if self.statics is None:
             self.tau_s = [0.0] * 6
             self._axial_at_rest = [0.0] * len(self.axial)
 
     def carry_payload(self, mass_kg: float, mc_kgm) -> None:
         """Change the payload in the static torque at once, for the same gravity (a payload switch's
-        blend, every cycle of its ramp): m (kg) and m c (kg m, sensor frame). tau_s = rest + B [m, m c] is
-        linear in both, so the blend of two payloads is the blend of their tau_s; costs a 6x4 product
-        and the axial terms' f (no pinocchio pass)."""
-        self._payload = np.array([mass_kg, *mc_kgm], dtype=float)
-        if self.statics is not None and self._basis is not None:
+        blend, every cycle of its ramp): m (kg) and m c (kg m, sensor frame). The payload's torque is
+        linear in both, so the blend of two payloads is the blend of their tau_s; `Statics.carry` moves
+        it without a new pinocchio model, and tau_s is formed again at the last joints at once."""
+        if self.statics is None:
+            return
+        self.statics.carry(mass_kg, mc_kgm)
+        if self._q is not None:
             self._settle()
 
     def wrench_base(self, w_sensor) -> list[float]:

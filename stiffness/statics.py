@@ -73,9 +73,8 @@ class Statics:
     g_mps2 : (3,)
         Gravity in base axes, m/s^2.
 
-    Holds its own pinocchio model (a copy of ``robot.pin_model`` with this gravity) and data, so calls
-    are independent of anyone else's use of the robot's model. ``p`` = [m, m c] (kg, kg m, sensor frame)
-    is the payload; its torque is B(q) p (`rest_and_basis`).
+    Holds its own pinocchio model (a copy of ``robot.pin_model`` with this gravity and a frame at the
+    payload's centre) and data, so calls are independent of anyone else's use of the robot's model.
     """
 
     def __init__(self, robot: Robot, payload_kg: float = 0.0, payload_cog_mm=(0.0, 0.0, 0.0),
@@ -100,48 +99,54 @@ class Statics:
         self._with_balancer = 1.0 + self._balancer_gain
         self.pm = pin.Model(robot.pin_model)
         self.pm.gravity = pin.Motion(np.concatenate([g, np.zeros(3)]))
-        self.sensor_id = self.pm.getFrameId("sensor")
+        sensor = self.pm.frames[self.pm.getFrameId("sensor")]
+        self._at_sensor = pin.SE3(sensor.placement)      # a copy: addFrame below moves the frames
+        at_cog = sensor.placement * pin.SE3(np.eye(3), cog / 1000.0)
+        self.cog_id = self.pm.addFrame(pin.Frame("payload_cog", sensor.parentJoint, at_cog, pin.FrameType.OP_FRAME))
         self.pd = self.pm.createData()
-        self._minus_g_cross = -np.array([[0.0, -g[2], g[1]], [g[2], 0.0, -g[0]], [-g[1], g[0], 0.0]])
-        self.p = np.concatenate([[self.payload_kg], self.payload_kg * cog / 1000.0])   # [m, m c], kg, kg m
+        self._weight = self.payload_kg * g
         self._pin = pin
+        self._g = g.tolist()
+        self._offset = pin.SE3.Identity()         # sensor -> centre of gravity (`carry`)
+        self._frames = self.pm.frames
+
+    def carry(self, payload_kg: float, mc_kgm) -> None:
+        """Change the payload in place: mass m (kg, >= 0) and m c (kg m, sensor frame), for the next call.
+
+        No new pinocchio model (a service blending two payloads does this every cycle of the ramp): the
+        weight and the frame at the centre move. tau_payload is linear in m and m c (it is the weight's
+        wrench at the sensor carried to the joints, [m R_s^T g; (m c) x R_s^T g]), so carrying a blend of
+        two payloads gives the blend of their torques."""
+        m = self.payload_kg = float(payload_kg)
+        gx, gy, gz = self._g
+        self._weight = np.array([m * gx, m * gy, m * gz])
+        if m > 0:
+            cx, cy, cz = mc_kgm
+            self._offset.translation = np.array([cx / m, cy / m, cz / m])
+            self._frames[self.cog_id].placement = self._at_sensor * self._offset
 
     def __call__(self, q_rad: np.ndarray) -> StaticTorques:
         """The static torques at joint angles ``q_rad`` ((N, 6) or (6,), rad): each part (N, 6) Nm."""
         q = np.atleast_2d(np.asarray(q_rad, dtype=float))
         arm, payload = np.zeros((len(q), 6)), np.zeros((len(q), 6))
         for k in range(len(q)):
-            arm[k], basis = self._parts(q[k])
-            payload[k] = basis @ self.p
+            arm[k], payload[k] = self._parts(q[k])
         return StaticTorques(arm, payload, arm * self._balancer_gain)
 
     def total_at(self, q_rad: np.ndarray) -> np.ndarray:
         """tau_s (6,) Nm at one configuration (6,) rad: the call to make when the joints move."""
-        rest, basis = self.rest_and_basis(q_rad)
-        return rest + basis @ self.p
-
-    def rest_and_basis(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """At one configuration (6,) rad: the arm's part with its balancer (6,) Nm, and the payload basis
-        B (6, 4), tau_payload = B [m, m c] for any payload (m kg, m c kg m in the sensor frame).
-
-        The payload's torque is linear in m and m c, so a service that blends two payloads blends
-        tau_s exactly with ``B`` formed once per configuration (`service.compensation.FastPredictor`)."""
-        arm, basis = self._parts(q_rad)
-        return arm * self._with_balancer, basis
+        arm, payload = self._parts(q_rad)
+        return arm * self._with_balancer + payload
 
     def _parts(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(arm torque (6,), payload basis B (6, 4)) at one configuration.
-
-        With J_s = [J_v; J_w] the sensor origin's Jacobian (base axes) and R_s its orientation, the
-        payload's centre moves with J_v - [R_s c]x J_w, so J_c^T (m g) = m J_v^T g - J_w^T [g]x R_s (m c):
-        B = [J_v^T g, -J_w^T [g]x R_s]."""
+        """(arm, payload) torques (6,) at one configuration."""
         pin, pm, pd = self._pin, self.pm, self.pd
         arm = -pin.computeGeneralizedGravity(pm, pd, q) if self.arm_loaded else _ZERO
-        J = pin.computeFrameJacobian(pm, pd, q, self.sensor_id, pin.LOCAL_WORLD_ALIGNED)
-        basis = np.empty((6, 4))
-        basis[:, 0] = J[:3].T @ self.g
-        basis[:, 1:] = J[3:].T @ (self._minus_g_cross @ pd.oMf[self.sensor_id].rotation)
-        return arm, basis
+        if self.payload_kg > 0:
+            payload = pin.computeFrameJacobian(pm, pd, q, self.cog_id, pin.LOCAL_WORLD_ALIGNED)[:3].T @ self._weight
+        else:
+            payload = _ZERO
+        return arm, payload
 
 
 _ZERO = np.zeros(6)

@@ -176,15 +176,21 @@ def loaded_predictor():
 
 @settings(max_examples=25, deadline=None)
 @given(m=st.floats(0.0, 120.0), cog=st.lists(st.floats(-300.0, 300.0), min_size=3, max_size=3),
-       q=st.lists(st.floats(-60.0, 30.0), min_size=6, max_size=6))
-def test_the_static_torque_follows_a_payload_change_without_a_pinocchio_pass(loaded_predictor, m, cog, q):
-    """carry_payload(m, m c) gives the tau_s a Statics built for that payload from scratch gives."""
+       q=st.lists(st.floats(-60.0, 30.0), min_size=6, max_size=6), s=st.floats(0.0, 1.0))
+def test_the_static_torque_follows_a_payload_change_and_blends_linearly(loaded_predictor, m, cog, q, s):
+    """carry_payload(m, m c) gives the tau_s a Statics built for that payload from scratch gives, and a
+    blend of two payloads' (m, m c) gives the same blend of their tau_s (what a switch's ramp relies on)."""
     fp = FastPredictor(loaded_predictor)
     fp.carry(40.0, [0.0, 0.0, 0.1], [0.0, 0.0, -9.81])
     fp.kinematics(np.radians(q))
-    fp.carry_payload(m, m * np.array(cog) / 1000.0)
+    tau_old = np.array(fp.tau_s)
+    mc_old, mc_new = 40.0 * np.array([0.0, 0.0, 0.1]), m * np.array(cog) / 1000.0
+    fp.carry_payload(m, mc_new)
     fresh = statics_for(loaded_predictor.robot, PayloadConfig(mass_kg=m, cog_mm=cog), [0.0, 0.0, -9.81])
     np.testing.assert_allclose(fp.tau_s, fresh.total_at(np.radians(q)), rtol=1e-10, atol=1e-8)
+    tau_new = np.array(fp.tau_s)
+    fp.carry_payload((1 - s) * 40.0 + s * m, (1 - s) * mc_old + s * mc_new)
+    np.testing.assert_allclose(fp.tau_s, (1 - s) * tau_old + s * tau_new, rtol=1e-9, atol=1e-8)
 
 
 def test_a_plc_cycling_through_missing_indices_logs_a_bounded_number_of_lines(tmp_path, caplog):
