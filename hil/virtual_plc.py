@@ -86,6 +86,7 @@ class PlcLogic:
         self.applied = [0.0] * 6
         self.t_prev: float | None = None
         self.link_ok = False
+        self.payload_index = 0          # the payload set the program selects (gravity.payloads)
 
     def step(self, t: float, to_plc: list[float] | None) -> tuple[list[float], list[float]]:
         """One cycle at ``t`` (s): the from_plc values (codec order) and q_cmd (deg)."""
@@ -111,7 +112,7 @@ class PlcLogic:
         if self.faults.heartbeat_stop_at is None or t < self.faults.heartbeat_stop_at:
             self.heartbeat = (self.heartbeat + 1) & 0xFFFF
         command = int((Command.ENABLE if self.compensate else 0) | (Command.RESET if self.reset_pulse else 0))
-        values = {"command_word": command, "plc_heartbeat": self.heartbeat,
+        values = {"command_word": command, "plc_heartbeat": self.heartbeat, "payload_index": self.payload_index,
                   **{f"q{i + 1}": v for i, v in enumerate(q_cmd)}}
         return [values[n] for n in self.in_names], q_cmd
 

@@ -71,6 +71,7 @@ class Fault(enum.IntFlag):
     JOINT_LIMITS = 1 << 7       # q outside the robot's joint limits
     IO_PROCESS = 1 << 8         # the I/O process died (it is restarted or the service stops)
     COMMAND_INVALID = 1 << 9    # command_word sets a bit the contract does not define
+    PAYLOAD_INVALID = 1 << 10   # payload_index names no set of gravity.payloads (the set in use stays)
 
     @property
     def kind(self) -> str:
@@ -160,6 +161,9 @@ TO_PLC: tuple[Value, ...] = (
           required=False),
     Value("sample_age_ms", "float32", "ms", "age of the newest good sensor sample", "signals.sample_age_ms",
           required=False),
+    Value("payload_active", "uint16", "", "the payload set in use (gravity.payloads index; 0 the gravity "
+          "section's bodies); during a switch the old one until its ramp ends", "signals.payload_active",
+          required=False),
     Value("reload_count", "uint16", "", "accepted reloads of the config since start (SIGHUP, stiffcomp reload; "
           "wraps at 65535)", "signals.reload_count", required=False),
 )
@@ -169,6 +173,9 @@ FROM_PLC: tuple[Value, ...] = (
           "any other bit is the fault command_invalid"),
     Value("plc_heartbeat", "uint16", "", "the PLC changes it at least every faults.plc_heartbeat_timeout_ms"),
     *(Value(f"q{i}", "float32", "deg", f"actual position of joint {i}") for i in _JOINTS),
+    Value("payload_index", "uint16", "", "the payload set to use (gravity.payloads index; 0 the gravity "
+          "section's bodies; a map without it reads 0); an index with no set is the fault payload_invalid",
+          required=False),
 )
 
 VALUES: dict[str, dict[str, Value]] = {"to_plc": {v.name: v for v in TO_PLC},

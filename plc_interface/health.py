@@ -5,7 +5,8 @@ time they were read, and keeps a window of the last ``window_s`` seconds. `verdi
 that `stiffcomp health` and orchestrators read::
 
     {"healthy": false, "reason": "fault word 0x0001: sensor_timeout", "task_state": 1,
-     "fault_word": 1, "faults": ["sensor_timeout"], "exceed_rate": 0.002, "cycles_per_s": 1000.0}
+     "fault_word": 1, "faults": ["sensor_timeout"], "exceed_rate": 0.002, "cycles_per_s": 1000.0,
+     "payload_active": 3}
 
 Healthy means all of: the task state is RUN, the cycle count rose within ``stall_s``, the fault word
 is 0, and the fraction of exceeded cycles in the window is at most ``max_exceed_rate``. Pure: no
@@ -60,6 +61,8 @@ class HealthMonitor:
         rate, cps = self._rates()
         out = {"task_state": int(v.get("task_state", -1)), "fault_word": word, "faults": faults,
                "exceed_rate": rate, "cycles_per_s": cps}
+        if "payload_active" in v:               # the payload set in use, where the map binds it
+            out["payload_active"] = int(v["payload_active"])
         if not self._samples:
             reason = "no reading of the process image yet"
         elif out["task_state"] != TASK_RUN:

@@ -30,7 +30,7 @@ from multiprocessing.shared_memory import SharedMemory
 
 import numpy as np
 
-from .contract import FromPlc, ToPlc, to_plc
+from .contract import REQUIRED, FromPlc, ToPlc, to_plc
 from .register_map import RegisterMap
 
 RETRIES = 3
@@ -74,7 +74,7 @@ class ProcessImage:
         self.writable = rmap.writable
         self.inner = {a for r in rmap.registers if r.direction == "from_plc"
                       for a in range(r.address + 1, r.address + r.count)}
-        self._read_inputs = self.in_codec.record_reader(FromPlc)
+        self._read_inputs = self.in_codec.record_reader(FromPlc, frozenset(FromPlc._fields) - set(REQUIRED["from_plc"]))
         self._last_inputs: FromPlc | None = None
         self.stale_reads = 0            # cycle side: inputs kept from a previous copy
         self.refused_writes = 0         # I/O side: writes refused by the Modbus rules

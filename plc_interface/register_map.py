@@ -106,16 +106,20 @@ class BlockCodec:
         """Words for a contract record (`ToPlc`, `FromPlc`): each register takes its value by name."""
         return self.encode(self.pick(record))
 
-    def record_reader(self, record_type):
+    def record_reader(self, record_type, optional: frozenset[str] = frozenset()):
         """A function values (``names`` order) -> ``record_type`` (a contract NamedTuple): each field by name.
 
-        Every field of the record must be a register of the block (the contract's required values are)."""
-        missing = [f for f in record_type._fields if f not in self.index]
+        Every field of the record must be a register of the block, but for the ``optional`` ones, which
+        the map may leave out: they read 0."""
+        missing = [f for f in record_type._fields if f not in self.index and f not in optional]
         if missing:
             raise RegisterMapError(f"the block has no register {missing[0]!r} ({record_type.__name__} needs it)")
-        order = [self.index[f] for f in record_type._fields]
+        zero = len(self.names)                  # the index of the 0 appended for the fields left out
+        order = [self.index.get(f, zero) for f in record_type._fields]
         make = record_type._make
-        return lambda values: make(map(values.__getitem__, order))
+        if all(k < zero for k in order):
+            return lambda values: make(map(values.__getitem__, order))
+        return lambda values: make(map([*values, 0.0].__getitem__, order))
 
     def encode(self, values: list[float]) -> list[int]:
         """Words for ``values`` given in ``names`` order (integers are scaled, rounded and clamped)."""

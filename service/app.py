@@ -109,7 +109,7 @@ class Service:
         if self.task is not None and self.task.stop_requested and not cyc.stopping:
             self._begin_stop(t)
         cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat),
-                 [inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6], exceeded)
+                 [inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6], exceeded, int(inp.payload_index))
         self.record = record = self.produce(self._task_values(TaskState.RUN), cyc.signals())
         if cyc.stopping and self._stop_done(t):
             self.record = record = stopped(record)

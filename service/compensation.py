@@ -97,6 +97,8 @@ class FastPredictor:
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
         self.statics = model.statics()
+        self._q: np.ndarray | None = None        # the joints of the last kinematics (rad)
+        self._rest = np.zeros(6)
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
         self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term
         self.history = terms.history
@@ -147,8 +149,13 @@ class FastPredictor:
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
         if self.statics is not None:
-            self.tau_s = tau_s = self.statics.total_at(q_rad).tolist()
-            self._axial_at_rest = [term.f(tau_s[term.joint - 1]) for term in self.axial]
+            self._q = q_rad
+            self._settle()
+
+    def _settle(self) -> None:
+        """tau_s and f(tau_s) of every axial term at the last `kinematics`' joints."""
+        self.tau_s = tau_s = self.statics.total_at(self._q).tolist()
+        self._axial_at_rest = [term.f(tau_s[term.joint - 1]) for term in self.axial]
 
     def carry(self, payload_kg: float, cog_m, g_mps2) -> None:
         """The payload the sensor carries now (the ``gravity`` section: mass, centre of gravity in the
@@ -158,6 +165,17 @@ class FastPredictor:
         if self.statics is None:
             self.tau_s = [0.0] * 6
             self._axial_at_rest = [0.0] * len(self.axial)
+
+    def carry_payload(self, mass_kg: float, mc_kgm) -> None:
+        """Change the payload in the static torque at once, for the same gravity (a payload switch's
+        blend, every cycle of its ramp): m (kg) and m c (kg m, sensor frame). The payload's torque is
+        linear in both, so the blend of two payloads is the blend of their tau_s; `Statics.carry` moves
+        it without a new pinocchio model, and tau_s is formed again at the last joints at once."""
+        if self.statics is None:
+            return
+        self.statics.carry(mass_kg, mc_kgm)
+        if self._q is not None:
+            self._settle()
 
     def wrench_base(self, w_sensor) -> list[float]:
         """[F; M] in base axes, M about the sensor origin, from a wrench in sensor axes (six floats)."""

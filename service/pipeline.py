@@ -30,6 +30,7 @@ from .faults import FaultMonitor
 from .filters import FilterConfig, SosLowPass, SpikeRejector
 from .gravity import GravityCompensator, GravityConfig
 from .limits import CorrectionLimiter, LimitsConfig
+from .payloads import PayloadSelector
 from .supervision import Supervisor
 
 log = logging.getLogger("stiffcomp.service")
@@ -55,6 +56,7 @@ class Signals(NamedTuple):
     tare_count: int
     sensor_samples: int             # good samples since start
     sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
+    payload_active: int             # the payload set in use (service.payloads)
     reload_count: int               # accepted reloads of the config (service.reload)
 
 
@@ -76,13 +78,17 @@ class Compensator:
     tare_max_force_N : float
         A tare is refused while the compensated force |F| is above this (a tare under load would zero
         the load); ``tare_refused`` says so until a tare is done or the faults are reset.
+    payloads : PayloadSelector, optional
+        The payload table the PLC selects from (`service.payloads`; its `PayloadSelector.reload` takes a
+        new ``gravity`` section at run time); by default only the payload ``gravity`` holds, as index 0.
     """
 
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
                  gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
-                 tare_max_force_N: float = math.inf):
+                 tare_max_force_N: float = math.inf, payloads: PayloadSelector | None = None):
         self.predictor = predictor
         predictor.carry(gravity.mass, gravity.cog, gravity.g)      # the payload in the static torque
+        self.payloads = payloads or PayloadSelector.only(gravity, predictor, faults)
         self.filter = filter
         self.spikes = spikes
         self.gravity = gravity
@@ -91,6 +97,7 @@ class Compensator:
         self.t_prev: float | None = None
         self.have_sample = False
         self.wrench_sensor = [0.0] * 6
+        self.filtered = [0.0] * 6               # the last sample, filtered (sensor axes)
         self.wrench_base = [0.0] * 6
         self.deflection = [0.0] * 6
         self.dq_deg = [0.0] * 6
@@ -109,9 +116,11 @@ class Compensator:
                     limits: LimitsConfig, tare: TareConfig, period_s: float, model: StiffnessModel,
                     faults: FaultMonitor) -> Compensator:
         """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare``."""
-        return cls(FastPredictor.from_config(model_section, model), SosLowPass.from_config(filter_section, period_s),
+        comp = cls(FastPredictor.from_config(model_section, model), SosLowPass.from_config(filter_section, period_s),
                    SpikeRejector.from_config(filter_section.spike), GravityCompensator.from_config(gravity),
                    CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N)
+        comp.payloads = PayloadSelector.from_config(gravity, comp.gravity, comp.predictor, faults)
+        return comp
 
     def _tare(self, filtered: list[float]) -> None:
         """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
@@ -130,12 +139,12 @@ class Compensator:
         log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
-              hold: bool, reset: bool = False) -> list[float]:
+              hold: bool, reset: bool = False, payload_index: int = 0) -> list[float]:
         """One cycle at ``t`` (s); returns the limited joint correction (deg, six floats).
 
         ``q_deg``: new joint positions (None: unchanged); ``tare``: a tare edge (applied to the next
         sample); ``hold``: the correction must ramp to zero (not enabled, or stopping); ``reset``: the
-        faults were reset this cycle.
+        faults were reset this cycle; ``payload_index``: the PLC's selection (`service.payloads`).
 
         The model's history (hysteresis) restarts at its defined state at the first sample (what came
         before was no measurement), when a tare is applied (the wrench jumps by the bias, not by a
@@ -154,6 +163,7 @@ class Compensator:
         if reset:
             pred.reset_history()
             self.tare_refused = False
+        moved = self.payloads.update(dt, payload_index)
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -162,11 +172,13 @@ class Compensator:
                 self.filter.state = self.filter.steady_state(x)
                 self.have_sample = True
                 pred.reset_history()
-            filtered = self.filter.update(x)
+            self.filtered = filtered = self.filter.update(x)
             if self._tare_pending:
                 self._tare_pending = False
                 self._tare(filtered)
             self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
+        elif moved and self.have_sample:        # a switch's ramp goes on between samples too: no catch-up step
+            self.wrench_sensor = self.gravity.compensate(self.filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
         dX = pred.deflection(self.wrench_base)
         dq = pred.correction(self.q_rad, dX)
@@ -208,11 +220,11 @@ class Cycle:
                                            model, faults))
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
-             plc_heartbeat: int, q_deg: list[float], overrun: bool = False) -> list[float]:
+             plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0) -> list[float]:
         """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats)."""
         s = self.supervisor.update(t, command, plc_heartbeat, q_deg, overrun, errors)
         comp = self.compensator
-        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset)
+        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index)
         word = self.faults.word
         self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
                             | (_RAMPING if comp.limiter.ramping else 0)
@@ -227,7 +239,8 @@ class Cycle:
         since = c.sample_t if c.sample_t is not None else c.t_first
         age_ms = 0.0 if since is None else (c.t_prev - since) * 1000.0
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
-                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms, self.reloads & 0xFFFF)
+                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms, c.payloads.active.index,
+                       self.reloads & 0xFFFF)
 
     # what a test or a log reads of the last cycle (the signal path's values)
     correction = property(lambda self: self.compensator.correction)

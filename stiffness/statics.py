@@ -100,11 +100,30 @@ class Statics:
         self.pm = pin.Model(robot.pin_model)
         self.pm.gravity = pin.Motion(np.concatenate([g, np.zeros(3)]))
         sensor = self.pm.frames[self.pm.getFrameId("sensor")]
+        self._at_sensor = pin.SE3(sensor.placement)      # a copy: addFrame below moves the frames
         at_cog = sensor.placement * pin.SE3(np.eye(3), cog / 1000.0)
         self.cog_id = self.pm.addFrame(pin.Frame("payload_cog", sensor.parentJoint, at_cog, pin.FrameType.OP_FRAME))
         self.pd = self.pm.createData()
         self._weight = self.payload_kg * g
         self._pin = pin
+        self._g = g.tolist()
+        self._offset = pin.SE3.Identity()         # sensor -> centre of gravity (`carry`)
+        self._frames = self.pm.frames
+
+    def carry(self, payload_kg: float, mc_kgm) -> None:
+        """Change the payload in place: mass m (kg, >= 0) and m c (kg m, sensor frame), for the next call.
+
+        No new pinocchio model (a service blending two payloads does this every cycle of the ramp): the
+        weight and the frame at the centre move. tau_payload is linear in m and m c (it is the weight's
+        wrench at the sensor carried to the joints, [m R_s^T g; (m c) x R_s^T g]), so carrying a blend of
+        two payloads gives the blend of their torques."""
+        m = self.payload_kg = float(payload_kg)
+        gx, gy, gz = self._g
+        self._weight = np.array([m * gx, m * gy, m * gz])
+        if m > 0:
+            cx, cy, cz = mc_kgm
+            self._offset.translation = np.array([cx / m, cy / m, cz / m])
+            self._frames[self.cog_id].placement = self._at_sensor * self._offset
 
     def __call__(self, q_rad: np.ndarray) -> StaticTorques:
         """The static torques at joint angles ``q_rad`` ((N, 6) or (6,), rad): each part (N, 6) Nm."""

@@ -8,7 +8,8 @@ machine as well:
 * over ADS otherwise (``plc.role: client`` or ``none``): the registers' ``GVL_Comp`` symbols in one
   sum read, with pyads, as a TwinCAT project reads them. ``--via`` chooses either.
 
-From the config it reads only the ``plc``, ``ads`` and ``monitoring`` sections (`service.config.read_sections`),
+From the config it reads only the ``plc``, ``ads``, ``monitoring`` and ``gravity`` (the payload sets' names)
+sections (`service.config.read_sections`),
 so a site config copied out of the container works from the host. The register map is the one the
 config names; where that path does not exist here (a path inside the image), the shipped map, with
 a note, or the one ``--register-map`` names.
@@ -161,13 +162,14 @@ def reader_for(cfg, via: str, host: str | None, port: int | None, register_map: 
 
 def run(args) -> int:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the view shows a lost connection itself
-    cfg = read_sections(args.config, "plc", "ads", "monitoring")
+    cfg = read_sections(args.config, "plc", "ads", "monitoring", "gravity")
     try:
         reader, via = reader_for(cfg, args.via, args.host, args.port, args.register_map)
     except ValueError as e:
         print(f"stiffcomp status: {args.config}: {e}", file=sys.stderr)
         return 2
-    view = StatusView(f"{via} {reader.where}")
+    view = StatusView(f"{via} {reader.where}",
+                      payload_names={k: p.name for k, p in cfg.gravity.payload_sets().items()})
     try:
         return watch(reader, view) if args.watch else once(reader, view)
     finally:

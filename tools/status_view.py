@@ -63,10 +63,14 @@ class StatusView:
     source : what is shown in the title, e.g. ``modbus 127.0.0.1:5020``
     window_s : the span of the cycle rate and exceed rate, s
     samples : exec-time samples kept for the percentiles
+    payload_names : the payload sets' names by index (the config's ``gravity.payloads``), for the row
+        that shows ``payload_active``
     """
 
-    def __init__(self, source: str, window_s: float = 2.0, samples: int = 500):
+    def __init__(self, source: str, window_s: float = 2.0, samples: int = 500,
+                 payload_names: Mapping[int, str] | None = None):
         self.source = source
+        self.payload_names = dict(payload_names or {})
         self.window_s = window_s
         self.counts: deque[tuple[float, float, float]] = deque()     # (t, cycle_count, exceed_count)
         self.exec_us: deque[float] = deque(maxlen=samples)
@@ -115,7 +119,8 @@ class StatusView:
         t.add_column(style="cyan")
         t.add_column()
         if not v:                                  # no answer: nothing is known, nothing is shown
-            for row in ("task", "cycles", "exec", "jitter", "exceeded", "status", "faults", "correction", "reloads"):
+            for row in ("task", "cycles", "exec", "jitter", "exceeded", "status", "faults", "payload", "correction",
+                        "reloads"):
                 t.add_row(row, BLANK)
             return t
         rate, exceed_rate = self.rates()
@@ -135,6 +140,9 @@ class StatusView:
         t.add_row("status", ", ".join(bit_names(status, STATUS_BITS)) or BLANK)
         t.add_row("faults", Text(f"0x{fault:04X}  " + (", ".join(faults) or "none"),
                                  style="bold red" if fault else "green"))
+        if "payload_active" in v:
+            index = int(v["payload_active"])
+            t.add_row("payload", f"{index}  {self.payload_names.get(index, '(no set of this index in the config)')}")
         zero = not any(v.get(f"correction_q{k}", 0.0) for k in range(1, 7))
         t.add_row("correction", Text(f"zero: {why_zero(status, fault)}", style="yellow") if zero
                   else Text("applied", style="green"))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from plc_interface.contract import FAULT_BITS
+from plc_interface.contract import FAULT_BITS, Fault
 from plc_interface.health import HealthMonitor
 
 
@@ -53,3 +53,11 @@ def test_old_exceeded_cycles_leave_the_window():
         verdicts.append(m.verdict(t)["healthy"])
     assert verdicts[20] is False              # at 2 s: 50 % of the window
     assert verdicts[-1] is True               # at 14 s the bad start is older than the window
+
+
+def test_health_names_the_payload_set_in_use_and_its_fault():
+    m = HealthMonitor(max_exceed_rate=0.05)
+    m.update(0.0, {"task_state": 1, "cycle_count": 0, "exceed_count": 0, "fault_word": int(Fault.PAYLOAD_INVALID),
+                   "payload_active": 3})
+    v = m.verdict(0.0)
+    assert v["payload_active"] == 3 and v["faults"] == ["payload_invalid"] and not v["healthy"]

@@ -101,13 +101,14 @@ def test_the_cycle_reads_each_plc_write_whole():
                 continue
             base = v.plc_heartbeat
             assert [v.q1, v.q2, v.q3, v.q4, v.q5, v.q6] == [float(base + k) for k in range(6)], v
+            assert v.payload_index == base, v
             checked += 1
     finally:
         stop.set()
         proc.join(20)
         image.close()
     assert proc.exitcode == 0
-    assert checked > 10000 and inp.words == 14
+    assert checked > 10000 and inp.words == 15
 
 
 def plc_writer(image: ProcessImage, stop, started) -> None:
@@ -115,7 +116,7 @@ def plc_writer(image: ProcessImage, stop, started) -> None:
     n = 0
     try:
         while not stop.is_set():
-            values = {"command_word": 1, "plc_heartbeat": n % 60000,
+            values = {"command_word": 1, "plc_heartbeat": n % 60000, "payload_index": n % 60000,
                       **{f"q{i + 1}": float(n % 60000 + i) for i in range(6)}}
             image.write_block(inp.encode([values[k] for k in inp.names]))
             n += 1
@@ -151,5 +152,21 @@ def test_a_writer_taking_over_after_one_killed_mid_write_leaves_every_write_read
             image.write("holding_registers", start, [k])
             assert image.inputs().command_word == k
         assert image.stale_reads == 0
+    finally:
+        image.close()
+
+
+def test_a_map_without_payload_index_reads_it_as_0(tmp_path):
+    """payload_index is optional in a map: a site map from before the payload table selects set 0."""
+    from stiffness.yamlio import dump_yaml, read_yaml
+
+    data = read_yaml(CONFIG / "registers.yaml")
+    data["from_plc"]["registers"] = [r for r in data["from_plc"]["registers"] if r["name"] != "payload_index"]
+    (tmp_path / "old.yaml").write_text(dump_yaml(data))
+    image = ProcessImage(RegisterMap.from_yaml(tmp_path / "old.yaml"))
+    try:
+        image.set_inputs({"q1": 12.5})
+        v = image.inputs()
+        assert v.payload_index == 0.0 and v.q1 == 12.5
     finally:
         image.close()

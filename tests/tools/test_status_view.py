@@ -56,6 +56,16 @@ def test_status_says_why_the_correction_is_zero():
     assert any(line.split() == ["correction", "applied"] for line in text(view).splitlines())
 
 
+def test_status_shows_the_payload_set_in_use_by_index_and_name():
+    view = StatusView("modbus 127.0.0.1:5020", payload_names={0: "gravity bodies", 3: "spindle + D20 mill"})
+    view.update({**reading(1000), "payload_active": 3.0}, 0.0)
+    assert "3  spindle + D20 mill" in text(view)
+    view.update({**reading(2000), "payload_active": 9.0}, 0.25)
+    assert "9  (no set of this index in the config)" in text(view)
+    view.update({k: v for k, v in reading(3000).items() if k != "payload_active"}, 0.5)   # a map without it
+    assert "payload" not in text(view)
+
+
 def test_the_reload_count_is_shown_and_blank_without_an_answer():
     view = StatusView("modbus 127.0.0.1:5020")
     view.update({**reading(1000), "reload_count": 3.0}, 0.0)
