@@ -60,6 +60,10 @@ class PredictorRamp:
         self.old.carry(payload_kg, cog_m, g_mps2)
         self.new.carry(payload_kg, cog_m, g_mps2)
 
+    def carry_payload(self, mass_kg: float, mc_kgm) -> None:
+        self.old.carry_payload(mass_kg, mc_kgm)
+        self.new.carry_payload(mass_kg, mc_kgm)
+
     def wrench_base(self, w_sensor) -> list[float]:
         self._w_sensor = w_sensor
         return self.new.wrench_base(w_sensor)

@@ -47,6 +47,7 @@ log = logging.getLogger("stiffcomp.service")
 # and the image laid out by the register map; the model's structure (its robot and effects)
 RESTART = ("cycle", "source", "plc", "ads", "monitoring")
 STRUCTURE = ("model.file:robot.", "model.file:effects")
+RESTART_KEYS = {"gravity.g_mps2"}         # gravity's direction: the arm's static torque too, not a payload switch
 LOWPASS = {"filter.type", "filter.order", "filter.cutoff_hz"}          # a new low-pass (the rest: parameters)
 SHOWN = 8               # changed keys named in one log line; the rest are counted
 HANDOVER_S = 5.0        # the cycle takes a prepared reload within a cycle; this bounds the wait on a stalled one
@@ -119,15 +120,14 @@ def describe(changes: dict[str, tuple[Any, Any]]) -> str:
     return ", ".join(items[:SHOWN]) + (f" and {more} more" if more > 0 else "")
 
 
-def _apply_gravity(old: GravityConfig, new: GravityConfig) -> tuple[str | None, Swap | None]:
-    """INTEGRATOR: the ONE place a reload changes the ``gravity`` section (live, through the payload
-    switch of the payload table, issue 21 item 1). Return (None, swap) with swap(cycle, source) starting
-    that switch's bumpless ramp to ``new``; until it is connected, any gravity change refuses the reload
-    by name (returns (reason, None)). Unchanged: (None, None)."""
-    changes = diff(old.model_dump(), new.model_dump(), "gravity")
-    if not changes:
-        return None, None
-    return f"{', '.join(changes)}: gravity changes are not live yet (restart to apply)", None
+def _apply_gravity(old: GravityConfig, new: GravityConfig) -> Swap | None:
+    """The one place a reload changes the ``gravity`` section: its payload table and bodies go to the
+    payload switch (`service.payloads.PayloadSelector.reload`), so the set in use ramps to its new values
+    over ``gravity.switch_ramp_s`` and a set that is gone is refused as a PLC's missing index is.
+    ``gravity.g_mps2`` is in `RESTART_KEYS` (it changes the arm's own static torque). None: unchanged."""
+    if old == new:
+        return None
+    return lambda cycle, source: cycle.compensator.payloads.reload(new)
 
 
 def prepare(old: ServiceConfig, old_model: StiffnessModel, old_rmap, cycle) -> Prepared | Outcome:
@@ -146,13 +146,11 @@ def prepare(old: ServiceConfig, old_model: StiffnessModel, old_rmap, cycle) -> P
     changes.update(model_diff(old_model, model))
     if _map_rows(old_rmap) != _map_rows(rmap):
         changes["plc.register_map:registers"] = (old_rmap.source, rmap.source)
-    restart = [k for k in changes if k.split(".")[0] in RESTART or k.startswith(STRUCTURE)]
+    restart = [k for k in changes if k.split(".")[0] in RESTART or k.startswith(STRUCTURE) or k in RESTART_KEYS]
     if restart:
         return Outcome(False, f"reload of {path} refused, nothing changed: {describe({k: changes[k] for k in restart})}"
                        f": {'this needs' if len(restart) == 1 else 'these need'} a restart of the service")
-    refusal, gravity_swap = _apply_gravity(old.gravity, new.gravity)
-    if refusal is not None:
-        return Outcome(False, f"reload of {path} refused, nothing changed: {refusal}")
+    gravity_swap = _apply_gravity(old.gravity, new.gravity)
     try:
         swap = _stages(new, model, changes, cycle, gravity_swap)
     except ServiceError as e:
@@ -173,7 +171,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
     if any(k.startswith("model.") for k in changes):
         pred = FastPredictor.from_config(new.model, model)     # ModelUnsupportedError: refused
         g = comp.gravity
-        pred.carry(g.mass, g.cog, g.g)
+        pred.carry(g.mass, g.cog, g.g)           # the payload now; the swap takes the switch's blend of then
         q_prep = comp.q_rad
         pred.kinematics(q_prep)
     ramp_cycles = round(new.limits.fault_ramp_s / period)
@@ -192,10 +190,11 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
         source.timeout_s = timeout_s
         c.tare_max = tare_max
         if pred is not None:
+            pred.carry_payload(c.gravity.mass, c.gravity.mc)     # a payload switch may be ramping
             if c.q_rad is not q_prep:          # the joints moved since: one more kinematics pass
                 pred.kinematics(c.q_rad)
             ramp = PredictorRamp(c.predictor, pred, ramp_cycles, lambda: _finish(c, ramp, pred))
-            c.predictor = ramp
+            c.predictor = c.payloads.predictor = ramp
         if gravity_swap is not None:
             gravity_swap(cycle, source)
         cycle.reloads += 1
@@ -206,7 +205,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
 def _finish(comp, ramp: PredictorRamp, pred: FastPredictor) -> None:
     """The ramp's end: the new predictor alone (unless a later reload has started a ramp of its own)."""
     if comp.predictor is ramp:
-        comp.predictor = pred
+        comp.predictor = comp.payloads.predictor = pred
 
 
 def _hand_over(service, prepared: Prepared) -> Outcome:

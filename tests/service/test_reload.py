@@ -148,10 +148,31 @@ def test_a_change_only_a_restart_applies_refuses_the_whole_reload_by_name(rig, c
     assert r.cycle.compensator.limiter.rate == rate and r.cycle.reloads == 0
 
 
-def test_a_gravity_change_is_refused_as_not_live_yet(rig):
+def test_a_reloaded_payload_table_ramps_the_set_in_use_and_a_new_set_becomes_selectable(rig):
+    """gravity goes to the payload switch: the set in use (index 0, the section's bodies) ramps to its new
+    mass over switch_ramp_s, without a step in the wrench; a set the reload adds is then selectable."""
+    r = rig(overrides={"gravity": {"switch_ramp_s": 0.05}})
+    before = r.run(200)["wrench"]
+    got = r.reload({"gravity": {"tool": {"mass_kg": 5.0},
+                                "payloads": [{"index": 2, "name": "probe", "mass_kg": 1.0,
+                                              "cog_mm": [0.0, 0.0, 100.0], "bias": [0.0] * 6}]}})
+    assert isinstance(got, Prepared) and "gravity.tool.mass_kg" in got.changes and "gravity.payloads" in got.changes
+    after = r.run(200)["wrench"]
+    w = np.vstack([before[-50:], after])
+    steps = np.abs(np.diff(w[:, :3], axis=0)).max(0)
+    weight = 5.0 * 9.81
+    assert steps.max() < weight / 10, steps              # 50 cycles of ramp: about weight/50 per cycle
+    assert abs(np.linalg.norm(after[-50:, :3].mean(0) - before[-50:, :3].mean(0)) - weight) < 1.0
+    payloads = r.cycle.compensator.payloads
+    assert payloads.active.index == 0 and payloads.active.mass_kg == pytest.approx(5.0)
+    assert 2 in payloads.sets
+
+
+def test_a_change_of_gravitys_direction_needs_a_restart(rig):
     r = rig()
-    got = r.reload({"gravity": {"tool": {"mass_kg": 5.0}}})
-    assert isinstance(got, Outcome) and "gravity.tool.mass_kg" in got.message and "not live yet" in got.message
+    got = r.reload({"gravity": {"g_mps2": [0.0, 0.0, 9.81]}, "limits": {"max_rate_deg_s": 1.0}})
+    assert isinstance(got, Outcome) and not got.accepted
+    assert "gravity.g_mps2" in got.message and "restart" in got.message and r.cycle.reloads == 0
 
 
 def test_live_keys_land_in_the_running_stages_and_count_one_reload(rig):
@@ -203,7 +224,9 @@ def test_a_model_with_the_same_structure_ramps_from_the_old_prediction_to_the_ne
     assert np.abs(d_new - d_old).max() > 20 * (np.abs(d_new - d_old) / n + noise).max()     # a jump would fail
     # and the correction never moves faster than its rate limit
     assert np.abs(np.diff(ramp["correction"], axis=0)).max() <= r.cfg.limits.max_rate_deg_s[0] * DT * (1 + 1e-9)
-    assert r.cycle.compensator.predictor is not None and type(r.cycle.compensator.predictor).__name__ == "FastPredictor"
+    comp = r.cycle.compensator
+    assert comp.predictor is not None and type(comp.predictor).__name__ == "FastPredictor"
+    assert comp.payloads.predictor is comp.predictor        # a later payload switch reaches the new model
 
 
 def test_a_model_with_another_structure_is_refused_by_name(rig, tmp_path):
