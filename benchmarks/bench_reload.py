@@ -24,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from hil.testing import write_config
+from hil.testing import scaled_model_file, write_config
 from plc_interface.contract import Command
 from service.compensation import load_model
 from service.config import load_config
@@ -65,15 +65,8 @@ class Bench:
     def reload_model(self, factor: float, ramp_s: float = 10.0) -> Prepared:
         """A prepared reload of the same model with compliances times ``factor`` (and a new cut-off), ramped
         over ``ramp_s``."""
-        src = self.cfg.resolve(self.cfg.model.file)
-        data = read_yaml(src)
-        data["robot"] = str((src.parent / data["robot"]).resolve())
-        for e in data["effects"]:
-            for key in list(e):
-                if key.endswith(("_per_N", "_per_Nm")):
-                    e[key] *= factor
-        model = self.path.with_name(f"model_{factor:g}.yaml")
-        model.write_text(dump_yaml(data, sort_keys=False))
+        model = scaled_model_file(self.cfg.resolve(self.cfg.model.file), factor,
+                                  self.path.with_name(f"model_{factor:g}.yaml"))
         cfg = read_yaml(self.path)
         deep_update(cfg, {"model": {"file": str(model)}, "filter": {"cutoff_hz": 50.0 * factor},
                           "limits": {"fault_ramp_s": ramp_s}})

@@ -136,3 +136,18 @@ def leaked_threads(before: set[threading.Thread], wait_s: float = 3.0) -> list[s
         if not extra or time.monotonic() > deadline:
             return [t.name for t in extra]
         time.sleep(0.02)
+
+
+def scaled_model_file(source: Path, factor: float, dest: Path, extra: list | None = None) -> Path:
+    """A copy of the model file ``source`` at ``dest`` with every compliance (``*_per_N``, ``*_per_Nm``)
+    times ``factor`` and the ``extra`` effect entries appended (a same-structure reload, or another
+    structure); its robot path is made absolute so the copy can live anywhere."""
+    data = read_yaml(source)
+    data["robot"] = str((Path(source).parent / data["robot"]).resolve())
+    for e in data["effects"]:
+        for k, v in e.items():
+            if k.endswith(("_per_N", "_per_Nm")):
+                e[k] = v * factor
+    data["effects"] += extra or []
+    Path(dest).write_text(dump_yaml(data, sort_keys=False))
+    return Path(dest)

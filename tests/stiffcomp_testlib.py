@@ -54,3 +54,16 @@ def pose_error(fp, q_rad: np.ndarray, dq: np.ndarray, dX: np.ndarray) -> float:
     dp = Tk[:3, 3] - (T0[:3, 3] - dX[:3])
     dr = pin.log3(Tk[:3, :3] @ (pin.exp3(-dX[3:]) @ T0[:3, :3]).T)
     return float(np.linalg.norm(dp) + np.linalg.norm(dr))
+
+
+def wait_for(pred, timeout: float = 20.0, every: float = 0.01) -> bool:
+    """Poll ``pred`` until it is true (True) or ``timeout`` seconds have passed (False): tests wait on
+    an event, never on a fixed window."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(every)
+    return bool(pred())

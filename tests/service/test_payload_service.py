@@ -6,12 +6,12 @@ value without a step beyond the limiter's rate; selecting a set that does not ex
 from __future__ import annotations
 
 import logging
-import time
 
 import can
 import numpy as np
 import pyads
 from pymodbus.client import ModbusTcpClient
+from stiffcomp_testlib import wait_for
 
 from hil.payload import TruePayload
 from hil.testing import free_port, write_config
@@ -28,14 +28,6 @@ SPINDLE = {"index": 1, "name": "spindle + D20 mill", "mass_kg": 28.0, "cog_mm": 
            "bias": [2.0, -1.0, 4.0, 0.1, -0.05, 0.02]}
 RAMP_S, RATE = 0.3, 5.0
 
-
-def wait_for(pred, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_the_plc_switches_payload_sets_bumplessly_and_a_missing_set_is_refused(tmp_path, caplog):

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.testing import write_config
+from hil.testing import scaled_model_file, write_config
 from plc_interface.contract import Command
 from service.config import load_config
 from service.filters import SosLowPass
@@ -194,17 +194,9 @@ def test_live_keys_land_in_the_running_stages_and_count_one_reload(rig):
     assert r.cycle.reloads == 1 and r.cycle.signals().reload_count == 1
 
 
-def scaled_model(r: Rig, tmp_path, factor: float, extra: list | None = None):
-    data = read_yaml(r.cfg.resolve(r.cfg.model.file))
-    data["robot"] = str(r.cfg.resolve(r.cfg.model.file).parent.joinpath(data["robot"]).resolve())
-    for e in data["effects"]:
-        for k, v in e.items():
-            if k.endswith(("_per_N", "_per_Nm")):
-                e[k] = v * factor
-    data["effects"] += extra or []
-    path = tmp_path / f"model_{factor:g}_{len(extra or [])}.yaml"
-    path.write_text(dump_yaml(data, sort_keys=False))
-    return str(path)
+def scaled_model(r: Rig, tmp_path, factor: float, extra: list | None = None) -> str:
+    return str(scaled_model_file(r.cfg.resolve(r.cfg.model.file), factor,
+                                 tmp_path / f"model_{factor:g}_{len(extra or [])}.yaml", extra))
 
 
 def test_a_model_with_the_same_structure_ramps_from_the_old_prediction_to_the_new(rig, tmp_path):

@@ -19,7 +19,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from hil.run import ServiceProcess
-from hil.testing import ROOT, free_port, write_config
+from hil.testing import ROOT, free_port, scaled_model_file, write_config
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from service.sources.replay import write_log
@@ -187,17 +187,8 @@ def test_a_pyads_client_reading_by_handle_keeps_working_across_a_reload(svc):
 
 
 def model_file(svc: Service, factor: float, extra: list | None = None) -> str:
-    src = svc.cfg.resolve(svc.cfg.model.file)
-    data = read_yaml(src)
-    data["robot"] = str((src.parent / data["robot"]).resolve())
-    for e in data["effects"]:
-        for k in list(e):
-            if k.endswith(("_per_N", "_per_Nm")):
-                e[k] *= factor
-    data["effects"] += extra or []
-    path = svc.path.parent / f"model_{factor:g}_{len(extra or [])}.yaml"
-    path.write_text(dump_yaml(data, sort_keys=False))
-    return str(path)
+    return str(scaled_model_file(svc.cfg.resolve(svc.cfg.model.file), factor,
+                                 svc.path.parent / f"model_{factor:g}_{len(extra or [])}.yaml", extra))
 
 
 def test_a_same_structure_model_ramps_and_another_structure_is_refused(svc):

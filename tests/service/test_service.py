@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 import can
 import numpy as np
+from stiffcomp_testlib import wait_for
 
 from hil.testing import free_port, write_config
 from hil.virtual_sensor import VirtualAtiSensor
@@ -15,15 +14,6 @@ from service.app import Service
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.sources.replay import ReplaySource
-
-
-def wait_for(pred, timeout=10.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_service_with_a_live_can_sensor(tmp_path):
