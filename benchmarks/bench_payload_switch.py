@@ -40,6 +40,7 @@ from service.gravity import GravityCompensator, GravityConfig
 from service.limits import CorrectionLimiter
 from service.payloads import PayloadSelector
 from service.pipeline import Compensator
+from stiffness.effects.backlash import Backlash
 from stiffness.model import StiffnessModel
 
 G = [0.0, 0.0, -9.81]
@@ -53,7 +54,7 @@ def main() -> int:
     args = ap.parse_args()
     d = StiffnessModel.from_yaml(ROOT / "config" / "models" / "kr125_6dof.yaml").to_dict()
     d["robot"] = str(ROOT / "config" / "robots" / "kr125_masses.yaml")
-    d["effects"] += [{"effect": "backlash", "joint": 2, "lost_motion_deg": 0.02, "width_Nm": 40.0}]
+    d["effects"] += [{"effect": Backlash.name, "joint": 2, "lost_motion_deg": 0.02, "width_Nm": 40.0}]
     model = StiffnessModel.from_dict(d, "kr125_6dof on kr125_masses")
     q = np.radians([10.0, -80.0, 100.0, 20.0, 40.0, 30.0])
     section = GravityConfig(payloads=[{"index": 1, "name": "a", "mass_kg": 14.0, "cog_mm": [0, 0, 130]},

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from stiffness.effects.backlash import Backlash
 from stiffness.model import StiffnessModel
 
 from .circle import evaluate_pass
@@ -31,7 +32,7 @@ from .world import World
 MASSES = CONFIG / "robots" / "kr125_masses.yaml"
 UPRIGHT_Q_DEG = [0.0, -90.0, 90.0, 0.0, 90.0, 0.0]      # the arm upright, the tool down, 0.78 m above joint 2
 # 1.8 arcmin of lost motion (a worn or loosely set gearbox), a step on the scale of the process force
-PRELOADED_BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.03, "width_Nm": 10.0}
+PRELOADED_BACKLASH = {"effect": Backlash.name, "joint": 2, "lost_motion_deg": 0.03, "width_Nm": 10.0}
 FEED_MM_S = 60.0                                        # a 3.7 s circle
 
 
