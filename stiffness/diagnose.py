@@ -39,6 +39,7 @@ from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
 from .model import StiffnessModel
+from .preload import PreloadTerm, start_from_centres
 from .residuals import pure_error, worst
 
 CV_MIN = 0.005
@@ -87,6 +88,8 @@ class Candidate:
         """The YAML entry that adds this effect with its estimated parameters."""
         return _with_theta(self.effect, self.estimate).to_config()
 
+    preload: dict | None = None      # for an effect found off the model's static torque: the model's preload entry
+
 
 @dataclass
 class Diagnosis:
@@ -133,6 +136,17 @@ def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np
     if effect.linear:      # closed form for its columns alone (the candidates' shapes are fixed)
         return design(aug, ctx, aug.frame_wrenches(ctx, th), th, [effect])
     return jacobian(aug, ctx, th)[:, :, len(model.theta):]
+
+
+def preload_entry(model: StiffnessModel, ctx: Context, effect: Effect) -> dict | None:
+    """For an axial effect found with its centre free per configuration: the model's ``preload`` entry at
+    its joint, started where the centres were found (`preload.start_from_centres`); else None."""
+    centres = getattr(effect, "free_centres", None)
+    if centres is None:
+        return None
+    term = PreloadTerm(model.robot, effect.joint)
+    term.theta = start_from_centres(model, ctx, term, centres, effect.centres_found)
+    return {"joint": effect.joint, **term.to_config()}
 
 
 # -- scoring ------------------------------------------------------------------------------------
@@ -250,7 +264,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
         cv_imp = float(np.clip(1.0 - sse1 / sse0, 0.0, 1.0)) if sse0 > 0 else 0.0
         criteria = {"cross_validation": cv_imp >= CV_MIN, "bic": dbic < -BIC_MIN, "f_test": p_value < alpha}
         candidates.append(Candidate(effect, pc, rms(after[use, :3]), rms(after[use, 3:]), cv_imp, dbic, p_value,
-                                    criteria, est, se, contribution))
+                                    criteria, est, se, contribution, preload=preload_entry(fitted, ctx, effect)))
     noise = pure_error(ctx, np.where(use[:, None], data.deflection, np.nan))
     lof = _lack_of_fit(result, noise, model, ctx)
     structure_left = lof["worst_body"] > lof["threshold"]
