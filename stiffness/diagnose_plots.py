@@ -83,9 +83,13 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         j = e.joint
         s = axial_residual(ctx, resid, sigma, j) * RAD_TO_DEG
         fit = axial_residual(ctx, candidate.contribution, sigma, j) * RAD_TO_DEG
-        tau = ctx.frame_wrench[:, j - 1, 5]
+        tau = ctx.frame_wrench[:, j - 1, 5] + (e.static_torque(ctx) if hasattr(e, "static_torque") else 0.0)
         order = np.argsort(tau)
-        if e.evidence_plot == "axial_branches":
+        if getattr(e, "free_centres", None) is not None:                 # one colour per configuration
+            for c, label in enumerate(ctx.config_labels):
+                mk = ctx.config == c
+                ax.plot(tau[mk], s[mk], ".", ms=4, label=f"residual, {label}")
+        elif e.evidence_plot == "axial_branches":
             z = e.loading(ctx, ctx.frame_wrench, e.theta)
             for mk, lab, col in ((z > 0.5, "torque rising", "C0"), (z < -0.5, "torque falling", "C1"),
                                  (np.abs(z) <= 0.5, "between branches", "0.5")):
@@ -93,7 +97,7 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         else:
             ax.plot(tau, s, ".", ms=4, label="residual (each reading)")
         ax.plot(tau[order], fit[order], "x", color="C3", ms=4, label=f"{e.name} fitted (each reading)")
-        ax.set_xlabel(f"joint {j} torque (Nm)")
+        ax.set_xlabel(f"joint {j} total torque τs + τ{j} (Nm)")
         ax.set_ylabel(f"unexplained axial rotation of joint {j} (deg)")
     else:
         pred = candidate.contribution / sigma

@@ -30,7 +30,8 @@ from .context import Context
 from .identifiability import IDENT_TOL, unidentifiable
 from .measurements import Dataset
 from .model import StiffnessModel
-from .preload import directions, held_preload
+from .preload import directions, fresh_start, held_preload
+from .preload import notes as preload_notes
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale
@@ -59,6 +60,7 @@ class FitResult:
     unidentifiable: list[str] = field(default_factory=list)   # the data cannot determine these at all
     outlier: np.ndarray | None = None      # (N,) bool: rows judged gross errors, weight zero
     lines: np.ndarray | None = None        # (N,) the file line of each row
+    preload: list[str] = field(default_factory=list)   # per identified static torque: what the data determine
 
     def __post_init__(self) -> None:
         if self.outlier is None:
@@ -218,6 +220,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     """
     model = model.copy()
     ctx = data if isinstance(data, Context) else model.context(data)
+    fresh_start(model, ctx, fit)           # an identified preload still at its prior: start where the data step
     measured = ctx.data.measured
     y = np.where(measured, ctx.data.deflection, 0.0)
     stated = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
@@ -271,7 +274,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     if units:
         warnings.append(units)
     result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
-                       ~inlier, ctx.data.line)
+                       ~inlier, ctx.data.line, preload_notes(model, ctx))
     if result.outlier.any():
         warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
                         + ", ".join(map(str, result.outlier_lines[:20]))

@@ -113,7 +113,10 @@ class PreloadTerm(Effect):
         """(R, K): the base columns at each reading of ``ctx``."""
         key = ("preload_phi", self.joint, tuple(self.columns))
         if key not in ctx.cache:
-            ctx.cache[key] = ctx.statics.regressor_rows(ctx.q, self.joint)[:, self.columns]
+            from .statics import Statics
+
+            statics = ctx.statics if ctx.statics is not None else Statics(ctx.robot)   # a robot without masses
+            ctx.cache[key] = statics.regressor_rows(ctx.q, self.joint)[:, self.columns]
         return ctx.cache[key]
 
     def correction(self, ctx, theta: np.ndarray) -> np.ndarray:
@@ -313,3 +316,50 @@ def held_preload(model) -> np.ndarray:
     """Boolean (P,): the model's parameters that belong to an identified preload."""
     return np.concatenate([np.full(len(e.params), isinstance(e, PreloadTerm)) for e in model.effects]) \
         if model.effects else np.zeros(0, dtype=bool)
+
+
+def fresh_start(model, ctx, fit) -> None:
+    """Start each identified preload still at its prior (beta = 0) where the data cross its joint's axial
+    nonlinearity: `fit` the model without its axial effects and preloads, search the residual's steps per
+    configuration (`centre_search`, the effect's own shape) and regress them (`start_from_centres`). In place."""
+    from .effects.axial import AxialEffect
+
+    fresh = [e for e in model.effects if isinstance(e, PreloadTerm) and not np.any(e.theta)]
+    axial = {e.joint: e for e in model.effects if isinstance(e, AxialEffect)}
+    fresh = [e for e in fresh if e.joint in axial]
+    if not fresh:
+        return
+    from .model import StiffnessModel
+
+    plain = [e for e in model.effects if not isinstance(e, (PreloadTerm, AxialEffect))]
+    if not plain:
+        return
+    base = StiffnessModel(model.robot, plain, noise=model.noise, source=model.source, payload=model.payload)
+    result = fit(base, ctx, rounds=1, robust=False)
+    model.bind_preload(ctx)
+    for term in fresh:
+        e = axial[term.joint]
+        theta = e.theta.copy()
+        if theta[0] == 0:
+            theta[0] = 1.0                 # the shape, not the size, is searched
+        tau_s, found = centre_search(ctx, result.residual, result.sigma, term.joint, lambda t: e.shape(t, theta))
+        term.theta = start_from_centres(model, ctx, term, tau_s, found)
+
+
+def notes(model, ctx) -> list[str]:
+    """Per identified preload, in words: where each configuration crosses (or only bounds) the static
+    torque, and how many combinations of its base parameters the data leave at their prior."""
+    from .effects.axial import AxialEffect
+
+    out = []
+    for term in (e for e in model.effects if isinstance(e, PreloadTerm)):
+        model.bind_preload(ctx)
+        first = np.unique(ctx.config, return_index=True)[1]
+        seen = int(np.linalg.matrix_rank(term.phi(ctx)[first], tol=1e-6)) if len(term.columns) else 0
+        has_axial = any(isinstance(e, AxialEffect) and e.joint == term.joint for e in model.effects)
+        where = crossing_text(ctx, term.joint, centres(model, ctx, term.joint)) if has_axial else \
+            "no axial nonlinearity at this joint to locate it"
+        out.append(f"static torque of joint {term.joint} identified: {where}; the configurations see {seen} of its "
+                   f"{len(term.columns)} base parameters, the other {len(term.columns) - seen} combination(s) "
+                   "stay at the prior (the robot's masses, or zero without them)")
+    return out
