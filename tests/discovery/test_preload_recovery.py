@@ -78,5 +78,8 @@ def test_the_loop_names_the_preloaded_effect_and_ends_at_the_noise(tmp_path, sta
         text = texts[0]
         assert "at zero total torque: crossed at external" in text and "the masses are wrong or missing" in text
         assert any(e.kind == "static" and e.joint == expected[1] for e in result.model.effects)
+        assert any(f"static torque of joint {expected[1]} identified" in n for n in result.preload)
+    if expected == ("backlash", 2):        # C1's crossing lies beyond its load range
+        assert "preloaded beyond the load range in C1" in texts[0]
     print(f"{start} {named}: end {result.rms_position_mm / NOISE_MM:.3f} x / {result.rms_rotation_deg / NOISE_DEG:.3f} x"
           " the noise", texts[:1])
