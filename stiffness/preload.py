@@ -250,24 +250,30 @@ def centre_search(ctx, resid: np.ndarray, sigma: np.ndarray, joint: int, shape) 
 
 
 def _best_crossing(t, y, base, shape, size):
-    """(rss, crossing x, size) of the best step over a grid of crossings x in the range of t, refined."""
+    """(rss, crossing x, size) of the best step over a grid of crossings x in the range of t, refined.
+    Each trial is the regression of y on ``base`` and the step (its size free, or held at ``size``),
+    all trials of a grid at once (the step's columns projected off ``base``)."""
     lo, hi = float(t.min()), float(t.max())
     step = (hi - lo) / (GRID + 1)
+    Q = np.linalg.qr(base)[0]
+    ry = y - Q @ (Q.T @ y)
     best = (np.inf, np.nan, 0.0)
     for grid in (np.linspace(lo, hi, GRID + 2)[1:-1], None):
         if grid is None:                       # refine around the coarse best
             grid = best[1] + np.linspace(-step, step, 21)
-        for x in grid:
-            g = shape(t - x) - shape(-x)
-            if size is None:
-                A = np.column_stack([base, g])
-                coef = np.linalg.lstsq(A, y, rcond=None)[0]
-                r, b = float(np.sum((y - A @ coef) ** 2)), coef[2]
-            else:
-                yy = y - size * g
-                r, b = _rss(base, yy), size
-            if r < best[0]:
-                best = (r, x, b)
+        G = shape(t[:, None] - grid[None, :]) - shape(-grid)[None, :]
+        RG = G - Q @ (Q.T @ G)
+        gg = np.einsum("ij,ij->j", RG, RG)
+        gy = RG.T @ ry
+        if size is None:
+            b = np.where(gg > 0, gy / np.where(gg > 0, gg, 1.0), 0.0)
+            rss = ry @ ry - b * gy
+        else:
+            b = np.full(len(grid), size)
+            rss = ry @ ry - 2 * size * gy + size**2 * gg
+        k = int(np.argmin(rss))
+        if rss[k] < best[0]:
+            best = (float(rss[k]), float(grid[k]), float(b[k]))
     return best
 
 

@@ -8,14 +8,19 @@ robot with no masses at all; a linear truth (the control) gives nothing.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from discovery.campaigns import campaign
 from stiffcomp_testlib import MODELS, ROOT
+
+from service.compensation import FastPredictor
+from stiffness.errors import ConfigError
 
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
+from stiffness.units import RAD_TO_DEG
 from stiffness.yamlio import dump_yaml, read_yaml
 
 ROBOTS = ROOT / "config" / "robots"
@@ -83,3 +88,39 @@ def test_the_loop_names_the_preloaded_effect_and_ends_at_the_noise(tmp_path, sta
         assert "preloaded beyond the load range in C1" in texts[0]
     print(f"{start} {named}: end {result.rms_position_mm / NOISE_MM:.3f} x / {result.rms_rotation_deg / NOISE_DEG:.3f} x"
           " the noise", texts[:1])
+
+
+def test_a_preload_asked_for_is_identified_from_no_masses_stored_and_used_by_the_service(tmp_path):
+    """`model add ... --preload identify` on a robot without masses: fit starts where the data step, ends
+    at the noise, names the configuration beyond its load range; the YAML round-trips the identified
+    static torque and the service's FastPredictor evaluates the backlash where the model does."""
+    truth = model_on(robot_scaled(tmp_path, 1.5), [BACKLASH])
+    data = campaign(truth, seed=41, configs=6)
+    result = fit(add_effect(model_on(ROBOTS / "kr125.yaml"), "backlash", 2, preload={"joint": 2}), data)
+    assert result.rms_position_mm <= 1.15 * NOISE_MM and result.rms_rotation_deg <= 1.15 * NOISE_DEG
+    (note,) = result.preload
+    assert "preloaded beyond the load range in C1" in note and "stay at the prior" in note
+    path = tmp_path / "fitted.yaml"
+    result.model.to_yaml(path)
+    again = StiffnessModel.from_yaml(path)
+    assert again.statics() is not None and again.robot.has_masses is False
+    # the YAML keeps 6 digits: the prediction moves by far less than the noise (1 % of the rotation noise)
+    np.testing.assert_allclose(again.predict(data), result.model.predict(data), rtol=0, atol=0.01 * NOISE_DEG)
+    ctx = again.context(data)
+    truth_ctx = truth.context(data)
+    for c in (1, 3):                     # configurations crossed within their load range: tau_s recovered
+        m = ctx.config == c
+        assert ctx.static_torque[m, 1][0] == pytest.approx(truth_ctx.static_torque[m, 1][0], abs=60.0)
+    fp = FastPredictor(again, damping=1e-6)
+    rows = np.nonzero(data.body == 6)[0][::97]
+    linear = again.predict(data, linear=True)
+    for r in rows:
+        fp.reset_history()
+        fp.kinematics(np.radians(data.q_deg[r]))
+        dX = fp.deflection(fp.wrench_base(data.wrench[r].tolist()))
+        np.testing.assert_allclose(np.concatenate([dX[:3] * 1e3, dX[3:] * RAD_TO_DEG]), linear[r],
+                                   rtol=1e-6, atol=1e-9)
+    d = again.to_dict()
+    d["preload"] = [{"joint": 2, "mass_kg": 3.0}]
+    with pytest.raises(ConfigError, match=r"m.yaml: preload\[0\]: mass_kg is not a key of effect 'preload'"):
+        StiffnessModel.from_dict(d, "m.yaml", robot=again.robot)
