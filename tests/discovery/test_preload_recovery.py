@@ -25,6 +25,7 @@ from stiffness.yamlio import dump_yaml, read_yaml
 
 ROBOTS = ROOT / "config" / "robots"
 NOISE_MM, NOISE_DEG = 0.03, 0.002
+STEP_N = 300           # load steps of the campaign ramps (N); coarser ramps leave a crossing between two load states
 BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.02, "width_Nm": 40.0}
 SOFT_ZONE = {"effect": "nonlinear_stiffness", "joint": 3, "form": "two_slope", "soft_rad_per_Nm": 3e-7,
              "knee_Nm": 300.0}
@@ -74,7 +75,7 @@ CASES = [("backlash-j2", [BACKLASH], 1.5, 41, ("backlash", 2)),
 @pytest.mark.parametrize("hidden, factor, seed, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
 def test_the_loop_names_the_preloaded_effect_and_ends_at_the_noise(tmp_path, start, hidden, factor, seed, expected):
     truth = model_on(robot_scaled(tmp_path, factor), hidden)
-    data = campaign(truth, seed=seed, configs=6)
+    data = campaign(truth, seed=seed, configs=6, step_N=STEP_N)
     named, texts, result, last = loop(model_on(ROBOTS / start), data)
     assert named == ([expected] if expected else []), texts
     assert last.verdict == "no_missing_effect", last.message
@@ -95,7 +96,7 @@ def test_a_preload_asked_for_is_identified_from_no_masses_stored_and_used_by_the
     at the noise, names the configuration beyond its load range; the YAML round-trips the identified
     static torque and the service's FastPredictor evaluates the backlash where the model does."""
     truth = model_on(robot_scaled(tmp_path, 1.5), [BACKLASH])
-    data = campaign(truth, seed=41, configs=6)
+    data = campaign(truth, seed=41, configs=6, step_N=STEP_N)
     result = fit(add_effect(model_on(ROBOTS / "kr125.yaml"), "backlash", 2, preload={"joint": 2}), data)
     assert result.rms_position_mm <= 1.15 * NOISE_MM and result.rms_rotation_deg <= 1.15 * NOISE_DEG
     (note,) = result.preload
