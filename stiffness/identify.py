@@ -258,11 +258,12 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     blind = unidentifiable(_weighted(J, w) * scale)
     se, t = _standard_errors(J, resid, w, scale, theta, blind)
     labels = model.param_labels()
-    undetermined = [lab for lab, tv in zip(labels, t) if not tv >= T_DETERMINED]
+    own = held_preload(model)      # an identified preload's unseen combinations are named by its own lines
+    undetermined = [lab for lab, tv, o in zip(labels, t, own) if not tv >= T_DETERMINED and not o]
     for e, sl in zip(model.effects, model.param_slices()):
         e.std_error = se[sl]
     warnings = []
-    unident = [lab for lab, b in zip(labels, blind) if b]
+    unident = [lab for lab, b, o in zip(labels, blind, own) if b and not o]
     if unident:
         warnings.append(f"{len(unident)} parameter(s) cannot be determined by the measured components at all "
                         "(kept at their starting values): " + ", ".join(unident))
