@@ -39,7 +39,7 @@ from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
 from .model import StiffnessModel
-from .preload import PreloadTerm, start_from_centres
+from .preload import PreloadTerm, held_preload, start_from_centres
 from .residuals import pure_error, worst
 
 CV_MIN = 0.005
@@ -228,6 +228,9 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     wt = result.weights
     y_w = np.nan_to_num(resid * wt).reshape(-1)
     J0 = jacobian(fitted, ctx)
+    # an identified preload is held at its fit: its columns are local to each configuration, so a
+    # held-out configuration cannot predict them and they would only blur the cross-validation
+    J0 = J0[:, :, ~held_preload(fitted)]
     A0 = (J0 * wt[:, :, None]).reshape(len(y_w), -1)
     gram = _Gram(A0, y_w, folds_by_configuration(ctx))
     M0, v0 = gram.G00, gram.b0

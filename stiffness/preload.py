@@ -203,7 +203,7 @@ FAR_NM = 1e12           # a static torque beyond every load: the nonlinearity is
 EDGE = 0.05             # a crossing this close to the end of the load range is only a bound
 STEP_NM = 10.0          # the fit's unit of change of an identified static torque (a backlash's width is tens of Nm)
 GRID = 48               # trial crossings per configuration
-MIN_GAIN = 30.0         # a crossing counts when it removes this many noise variances of the axial residual
+MIN_GAIN = 100.0         # a crossing counts when it removes this many noise variances of the axial residual (repeats are correlated)
 
 
 def centre_search(ctx, resid: np.ndarray, sigma: np.ndarray, joint: int, shape) -> tuple[np.ndarray, np.ndarray]:
