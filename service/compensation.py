@@ -97,6 +97,7 @@ class FastPredictor:
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
         self.statics = model.statics()
+        self.preloads = model.preloads()         # identified static torque (stiffness.preload), kept by carry
         self._q: np.ndarray | None = None        # the joints of the last kinematics (rad)
         self._rest = np.zeros(6)
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
@@ -161,7 +162,7 @@ class FastPredictor:
         """The payload the sensor carries now (the ``gravity`` section: mass, centre of gravity in the
         sensor frame, gravity in base axes) in the static torque; takes effect at the next `kinematics`."""
         payload = PayloadConfig(mass_kg=payload_kg, cog_mm=[1000.0 * float(c) for c in cog_m])
-        self.statics = statics_for(self.robot, payload, g_mps2)
+        self.statics = statics_for(self.robot, payload, g_mps2, self.preloads)
         if self.statics is None:
             self.tau_s = [0.0] * 6
             self._axial_at_rest = [0.0] * len(self.axial)

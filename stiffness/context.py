@@ -66,14 +66,21 @@ class Context:
         self.chain_frame = np.minimum(data.body + 1, 6)      # A_k on frame k, TCP on frame 6
         self.frame_wrench = self.wrenches_at_frames(self.wrench_sensor)
         self.cache: dict = {}                                # per-campaign values effects reuse
+        self.preload_torque: np.ndarray | None = None        # (R, 6) identified part of tau_s (model.bind_preload)
 
     @cached_property
-    def static_torque(self) -> np.ndarray:
-        """tau_s (R, 6) Nm: each reading's static joint torque (the arm's weight, its balancer and the
-        payload), signed like the external joint torque W_i[rz]; zeros without ``statics``."""
+    def static_prior(self) -> np.ndarray:
+        """(R, 6) Nm: the static joint torque of the robot's masses, its balancer and the payload, signed
+        like the external joint torque W_i[rz]; zeros without ``statics``."""
         if self.statics is None:
             return np.zeros((self.n_readings, 6))
-        return self.statics(self.q).total
+        return self.statics(self.q).prior
+
+    @property
+    def static_torque(self) -> np.ndarray:
+        """tau_s (R, 6) Nm: each reading's static joint torque, `static_prior` plus the identified
+        correction ``preload_torque`` the model binds for its current parameters (`stiffness.preload`)."""
+        return self.static_prior if self.preload_torque is None else self.static_prior + self.preload_torque
 
     def _time_in_config(self) -> np.ndarray:
         t0 = np.full(len(self.config_labels), np.inf)

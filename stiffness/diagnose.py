@@ -39,6 +39,7 @@ from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
 from .model import StiffnessModel
+from .preload import PreloadTerm, held_preload, start_from_centres
 from .residuals import pure_error, worst
 
 CV_MIN = 0.005
@@ -87,6 +88,8 @@ class Candidate:
         """The YAML entry that adds this effect with its estimated parameters."""
         return _with_theta(self.effect, self.estimate).to_config()
 
+    preload: dict | None = None      # for an effect found off the model's static torque: the model's preload entry
+
 
 @dataclass
 class Diagnosis:
@@ -133,6 +136,17 @@ def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np
     if effect.linear:      # closed form for its columns alone (the candidates' shapes are fixed)
         return design(aug, ctx, aug.frame_wrenches(ctx, th), th, [effect])
     return jacobian(aug, ctx, th)[:, :, len(model.theta):]
+
+
+def preload_entry(model: StiffnessModel, ctx: Context, effect: Effect) -> dict | None:
+    """For an axial effect found with its centre free per configuration: the model's ``preload`` entry at
+    its joint, started where the centres were found (`preload.start_from_centres`); else None."""
+    centres = getattr(effect, "free_centres", None)
+    if centres is None:
+        return None
+    term = PreloadTerm(model.robot, effect.joint)
+    term.theta = start_from_centres(model, ctx, term, centres, effect.centres_found)
+    return {"joint": effect.joint, **term.to_config()}
 
 
 # -- scoring ------------------------------------------------------------------------------------
@@ -214,6 +228,9 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     wt = result.weights
     y_w = np.nan_to_num(resid * wt).reshape(-1)
     J0 = jacobian(fitted, ctx)
+    # an identified preload is held at its fit: its columns are local to each configuration, so a
+    # held-out configuration cannot predict them and they would only blur the cross-validation
+    J0 = J0[:, :, ~held_preload(fitted)]
     A0 = (J0 * wt[:, :, None]).reshape(len(y_w), -1)
     gram = _Gram(A0, y_w, folds_by_configuration(ctx))
     M0, v0 = gram.G00, gram.b0
@@ -250,7 +267,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
         cv_imp = float(np.clip(1.0 - sse1 / sse0, 0.0, 1.0)) if sse0 > 0 else 0.0
         criteria = {"cross_validation": cv_imp >= CV_MIN, "bic": dbic < -BIC_MIN, "f_test": p_value < alpha}
         candidates.append(Candidate(effect, pc, rms(after[use, :3]), rms(after[use, 3:]), cv_imp, dbic, p_value,
-                                    criteria, est, se, contribution))
+                                    criteria, est, se, contribution, preload=preload_entry(fitted, ctx, effect)))
     noise = pure_error(ctx, np.where(use[:, None], data.deflection, np.nan))
     lof = _lack_of_fit(result, noise, model, ctx)
     structure_left = lof["worst_body"] > lof["threshold"]

@@ -83,17 +83,24 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         j = e.joint
         s = axial_residual(ctx, resid, sigma, j) * RAD_TO_DEG
         fit = axial_residual(ctx, candidate.contribution, sigma, j) * RAD_TO_DEG
-        tau = ctx.frame_wrench[:, j - 1, 5]
+        offset = _total_offset(e, ctx)
+        tau = ctx.frame_wrench[:, j - 1, 5] + offset                        # the total torque
         order = np.argsort(tau)
-        if e.evidence_plot == "axial_branches":
+        if getattr(e, "free_centres", None) is not None:                 # one colour per configuration
+            for c, label in enumerate(ctx.config_labels):
+                mk = ctx.config == c
+                beyond = "" if e.centres_found[c] else " (not crossed: beyond its load range)"
+                ax.plot(tau[mk], s[mk], ".", ms=4, label=f"residual, {label}{beyond}")
+        elif e.evidence_plot == "axial_branches":
             z = e.loading(ctx, ctx.frame_wrench, e.theta)
             for mk, lab, col in ((z > 0.5, "torque rising", "C0"), (z < -0.5, "torque falling", "C1"),
                                  (np.abs(z) <= 0.5, "between branches", "0.5")):
                 ax.plot(tau[mk], s[mk], ".", color=col, ms=4, label=f"residual, {lab}")
         else:
             ax.plot(tau, s, ".", ms=4, label="residual (each reading)")
-        ax.plot(tau[order], fit[order], "x", color="C3", ms=4, label=f"{e.name} fitted (each reading)")
-        ax.set_xlabel(f"joint {j} torque (Nm)")
+        mark = "k" if getattr(e, "free_centres", None) is not None else "C3"     # off the configurations' colours
+        ax.plot(tau[order], fit[order], "x", color=mark, ms=4, label=f"{e.name} fitted (each reading)")
+        ax.set_xlabel(f"joint {j} total torque τs + τ{j} (Nm)" if np.any(offset) else f"joint {j} torque (Nm)")
         ax.set_ylabel(f"unexplained axial rotation of joint {j} (deg)")
     else:
         pred = candidate.contribution / sigma
@@ -104,7 +111,17 @@ def evidence(candidate, ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> F
         ax.set_xlabel(f"deflection {e.name} predicts (noise units)")
         ax.set_ylabel("residual (noise units)")
     ax.axhline(0, color="0.6", lw=0.8)
-    legend_below(fig, ax, markerscale=3)
+    legend_below(fig, ax, markerscale=3, ncols=3 if getattr(e, "free_centres", None) is not None else None)
     where = f" at {e.location_key} {e.joint}" if e.joint is not None else ""
     ax.set_title(f"Evidence: {e.name}{where}")
     return fig
+
+
+def _total_offset(e, ctx: Context) -> np.ndarray | float:
+    """tau_s per reading at the effect's joint: its free centres where found, else the model's."""
+    if not hasattr(e, "static_torque"):
+        return 0.0
+    if getattr(e, "free_centres", None) is None:
+        return e.static_torque(ctx)
+    held = ctx.static_torque[:, e.joint - 1]
+    return np.where(e.centres_found[ctx.config], e.free_centres[ctx.config], held)

@@ -8,10 +8,12 @@ from .model import StiffnessModel
 
 
 def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
-               values: dict | None = None) -> StiffnessModel:
+               values: dict | None = None, preload: dict | None = None) -> StiffnessModel:
     """A copy of ``model`` with the library effect ``effect`` added (parameters at their defaults).
 
     ``joint`` is the joint (1..6) or, for link_bending, the link; global effects take none.
+    ``preload``: the model's ``preload`` entry for that joint (`stiffness.preload`; ``{"joint": J}``
+    starts at the robot's masses, a diagnosis gives the start it found), replacing any there.
     """
     if effect not in EFFECTS:
         raise ConfigError(f"effect {quote(effect)} is not in the library (one of {', '.join(sorted(EFFECTS))})")
@@ -26,4 +28,6 @@ def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
     data = model.to_dict()
     data["name"] = f"{model.name}+{effect}" + (f"@{joint}" if joint is not None else "")
     data["effects"] = data["effects"] + [entry]
+    if preload is not None:
+        data["preload"] = [p for p in data.get("preload", []) if p["joint"] != preload["joint"]] + [preload]
     return StiffnessModel.from_dict(data, model.source, robot=model.robot)

@@ -19,7 +19,8 @@ def describe(c, model, ctx, result) -> str:
     change = [f"{before:.{d}f} -> {after:.{d}f} {unit}" for before, after, d, unit in (
         (result.rms_position_mm, c.rms_position_mm_after, 4, "mm"),
         (result.rms_rotation_deg, c.rms_rotation_deg_after, 5, "deg")) if not math.isnan(before)]
-    return (f"{verdict}: {c.name}{where}, {size_text(c, model, ctx)}. It explains {pct:.0f} % of the "
+    centre = getattr(c.effect, "centre_text", lambda m, x: "")(model, ctx)
+    return (f"{verdict}: {c.name}{where}{centre}, {size_text(c, model, ctx)}. It explains {pct:.0f} % of the "
             f"remaining error under cross-validation {folds} (RMS {', '.join(change)}); "
             f"criteria passed: {', '.join(passed) or 'none'}.")
 

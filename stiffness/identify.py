@@ -30,6 +30,8 @@ from .context import Context
 from .identifiability import IDENT_TOL, unidentifiable
 from .measurements import Dataset
 from .model import StiffnessModel
+from .preload import directions, fresh_start, held_preload
+from .preload import notes as preload_notes
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale
@@ -58,6 +60,7 @@ class FitResult:
     unidentifiable: list[str] = field(default_factory=list)   # the data cannot determine these at all
     outlier: np.ndarray | None = None      # (N,) bool: rows judged gross errors, weight zero
     lines: np.ndarray | None = None        # (N,) the file line of each row
+    preload: list[str] = field(default_factory=list)   # per identified static torque: what the data determine
 
     def __post_init__(self) -> None:
         if self.outlier is None:
@@ -156,6 +159,7 @@ def design(model: StiffnessModel, ctx: Context, W: np.ndarray, theta: np.ndarray
     """Design matrix (N, 6, P_linear): d(deflection)/d(linear parameter), mm or deg per SI unit."""
     cols = []
     rr = ctx.row_reading
+    model.bind_preload(ctx, theta)
     for e, sl in zip(model.effects, model.param_slices()):
         if e.kind != "site" or (effects is not None and e not in effects):
             continue
@@ -216,6 +220,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     """
     model = model.copy()
     ctx = data if isinstance(data, Context) else model.context(data)
+    fresh_start(model, ctx, fit)           # an identified preload still at its prior: start where the data step
     measured = ctx.data.measured
     y = np.where(measured, ctx.data.deflection, 0.0)
     stated = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
@@ -253,11 +258,12 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     blind = unidentifiable(_weighted(J, w) * scale)
     se, t = _standard_errors(J, resid, w, scale, theta, blind)
     labels = model.param_labels()
-    undetermined = [lab for lab, tv in zip(labels, t) if not tv >= T_DETERMINED]
+    own = held_preload(model)      # an identified preload's unseen combinations are named by its own lines
+    undetermined = [lab for lab, tv, o in zip(labels, t, own) if not tv >= T_DETERMINED and not o]
     for e, sl in zip(model.effects, model.param_slices()):
         e.std_error = se[sl]
     warnings = []
-    unident = [lab for lab, b in zip(labels, blind) if b]
+    unident = [lab for lab, b, o in zip(labels, blind, own) if b and not o]
     if unident:
         warnings.append(f"{len(unident)} parameter(s) cannot be determined by the measured components at all "
                         "(kept at their starting values): " + ", ".join(unident))
@@ -269,7 +275,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     if units:
         warnings.append(units)
     result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
-                       ~inlier, ctx.data.line)
+                       ~inlier, ctx.data.line, preload_notes(model, ctx))
     if result.outlier.any():
         warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
                         + ", ".join(map(str, result.outlier_lines[:20]))
@@ -329,30 +335,40 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=No
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
+    x0 = np.clip(theta[nl] / scale[nl], lo, hi)
+    T = directions(model, ctx, nl, scale)      # an identified preload moves only where the data see it
     cache = {}
 
-    def inner(x):
+    def inner(z):
         th = theta.copy()
-        th[nl] = x * scale[nl]
+        th[nl] = (z if T is None else x0 + T @ z) * scale[nl]
         th = _solve_linear(model, ctx, y, w, th, lin, lower)
         cache["theta"] = th
         return ((y - model.predict(ctx, th, linear=True)) * w).reshape(-1)
 
-    x0 = np.clip(theta[nl] / scale[nl], lo, hi)
-    sol = least_squares(inner, x0, bounds=(lo, hi), x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev,
-                        method="trf")
+    if T is None:
+        z0, bounds = x0, (lo, hi)
+    else:
+        z0 = np.zeros(T.shape[1])
+        one = np.sum(T != 0, axis=0) == 1            # a parameter moving alone keeps its bounds
+        k = np.argmax(T != 0, axis=0)
+        d = np.where(one, T[k, np.arange(len(k))], 1.0)
+        bounds = (np.where(one, (lo[k] - x0[k]) / d, -np.inf), np.where(one, (hi[k] - x0[k]) / d, np.inf))
+    sol = least_squares(inner, z0, bounds=bounds, x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev, method="trf")
     inner(sol.x)
     return cache["theta"], bool(sol.status > 0), sol.message
 
 
 def _exact_step(model, ctx, y, w, scale, theta, lower=None):
     """One Gauss-Newton step on the exact chain from the linearised optimum (kept within the
-    parameters' bounds and ``lower``)."""
+    parameters' bounds and ``lower``). An identified preload is held: it moves a step function, which
+    a linearisation does not follow (`stiffness.preload`)."""
     lo = np.array([p.bounds[0] for e in model.effects for p in e.params])
     if lower is not None:
         lo = np.maximum(lo, lower)
     hi = np.array([p.bounds[1] for e in model.effects for p in e.params])
     J = _weighted(jacobian(model, ctx, theta), w) * scale
+    J[:, held_preload(model)] = 0.0
     r = ((y - model.predict(ctx, theta)) * w).reshape(-1)
     return np.clip(theta + solve_ls(J, r) * scale, lo, hi)
 

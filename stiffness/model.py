@@ -22,13 +22,14 @@ from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
 from .measurements import Dataset
+from .preload import PreloadTerm
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
 from .statics import PayloadConfig, Statics, statics_for
 from .units import M_TO_MM, RAD_TO_DEG
 from .yamlio import dump_yaml, read_yaml, validate
 
-TOP_KEYS = {"name", "description", "robot", "noise", "payload", "effects"}
+TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
 
 
@@ -111,6 +112,7 @@ class StiffnessModel:
                 raise ConfigError(f"{where}: effect = {quote(name)} is not in the library "
                                   f"(one of {', '.join(sorted(EFFECTS))})")
             effects.append(EFFECTS[name].from_config(entry, robot, where))
+        effects += _read_preload(data.get("preload"), robot, source)
         return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),
                    robot_ref, noise, source, payload)
 
@@ -122,13 +124,15 @@ class StiffnessModel:
         out["noise"] = {k: float(v) for k, v in self.noise.items()}
         if self.payload is not None:
             out["payload"] = self.payload.model_dump()
-        effects = []
+        effects, preload = [], []
         for e in self.effects:
             entry = e.to_config()
             if np.isfinite(e.std_error).any():
                 entry["fit"] = {f"{p.key}_std_error": float(f"{s * p.yaml_factor:.3g}")
                                 for p, s in zip(e.params, e.std_error) if np.isfinite(s)}
-            effects.append(entry)
+            (preload if isinstance(e, PreloadTerm) else effects).append(entry)
+        if preload:
+            out["preload"] = preload
         out["effects"] = effects
         return out
 
@@ -222,12 +226,32 @@ class StiffnessModel:
         return any(e.name == name and (joint is None or e.joint == joint) for e in self.effects)
 
     # -- evaluation -----------------------------------------------------------------------------
+    def preloads(self) -> list[tuple[int, np.ndarray, np.ndarray]]:
+        """The identified static torque corrections (joint, columns, beta) (`stiffness.preload`)."""
+        return [(e.joint, e.columns, e.theta) for e in self.effects if isinstance(e, PreloadTerm)]
+
     def statics(self) -> Statics | None:
-        """tau_s(q) of this model's robot and payload (`stiffness.statics`); None when nothing weighs."""
-        return statics_for(self.robot, self.payload)
+        """tau_s(q) of this model's robot, payload and identified preload (`stiffness.statics`); None when
+        nothing weighs."""
+        return statics_for(self.robot, self.payload, preloads=self.preloads())
 
     def context(self, data: Dataset) -> Context:
-        return Context(self.robot, data, self.statics())
+        ctx = Context(self.robot, data, self.statics())
+        self.bind_preload(ctx)
+        return ctx
+
+    def bind_preload(self, ctx: Context, theta: np.ndarray | None = None) -> None:
+        """Set ``ctx.preload_torque`` to the identified static torque correction at ``theta`` (the
+        model's own by default), so the axial effects act at the total torque these parameters give."""
+        theta = self.theta if theta is None else theta
+        terms = [(e, sl) for e, sl in zip(self.effects, self.param_slices()) if isinstance(e, PreloadTerm)]
+        if not terms or ctx.statics is None:
+            ctx.preload_torque = None
+            return
+        tau = np.zeros((ctx.n_readings, 6))
+        for e, sl in terms:
+            tau[:, e.joint - 1] += e.correction(ctx, theta[sl])
+        ctx.preload_torque = tau
 
     def frame_wrenches(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
         """Wrenches at DH frames 0..6 after the input effects (R, 7, 6)."""
@@ -256,6 +280,7 @@ class StiffnessModel:
     def twists(self, ctx: Context, theta: np.ndarray | None = None) -> np.ndarray:
         """Total site twists (R, 12, 6) in m, rad."""
         theta = self.theta if theta is None else theta
+        self.bind_preload(ctx, theta)
         W = self.frame_wrenches(ctx, theta)
         tw = np.zeros((ctx.n_readings, 12, 6))
         for e, sl in zip(self.effects, self.param_slices()):
@@ -271,6 +296,22 @@ class StiffnessModel:
         if linear:
             return np.einsum("nsab,nsb->na", ctx.G, tw[ctx.row_reading])
         return loaded_deflection(ctx, tw)
+
+
+def _read_preload(entries: Any, robot: Robot, source: str) -> list[PreloadTerm]:
+    """The model's ``preload`` list: one entry per joint whose static torque is identified."""
+    if entries is None:
+        return []
+    if not isinstance(entries, list):
+        raise ConfigError(f"{source}: preload = {quote(entries)} must be a list of entries "
+                          "(joint and the base parameters' corrections, docs/effects.md)")
+    out = []
+    for k, entry in enumerate(entries):
+        where = f"{source}: preload[{k}]"
+        if not isinstance(entry, dict):
+            raise ConfigError(f"{where} = {quote(entry)} must be a mapping with 'joint'")
+        out.append(PreloadTerm.from_config(entry, robot, where))
+    return out
 
 
 def loaded_deflection(ctx: Context, tw: np.ndarray) -> np.ndarray:

@@ -47,16 +47,23 @@ class PayloadConfig(Strict):
 
 
 class StaticTorques(NamedTuple):
-    """Static joint torques per reading, each (N, 6) in Nm, signed like the external joint torque."""
+    """Static joint torques per reading, each (N, 6) in Nm, signed like the external joint torque;
+    ``identified`` is the correction the fit identified (`stiffness.preload`), zero without one."""
 
     arm: np.ndarray
     payload: np.ndarray
     balancer: np.ndarray
+    identified: np.ndarray | float = 0.0
+
+    @property
+    def prior(self) -> np.ndarray:
+        """arm + payload + balancer, (N, 6) Nm: what the masses give."""
+        return self.arm + self.payload + self.balancer
 
     @property
     def total(self) -> np.ndarray:
-        """tau_s = arm + payload + balancer, (N, 6) Nm."""
-        return self.arm + self.payload + self.balancer
+        """tau_s = arm + payload + balancer + identified, (N, 6) Nm."""
+        return self.prior + self.identified
 
 
 class Statics:
@@ -72,13 +79,16 @@ class Statics:
         Its centre of gravity in the sensor frame, mm.
     g_mps2 : (3,)
         Gravity in base axes, m/s^2.
+    preloads : list of (joint, columns, beta)
+        The identified corrections (`stiffness.preload`): joint j's static torque gains
+        ``static_regressor(q)[j - 1, columns] @ beta``.
 
     Holds its own pinocchio model (a copy of ``robot.pin_model`` with this gravity and a frame at the
     payload's centre) and data, so calls are independent of anyone else's use of the robot's model.
     """
 
     def __init__(self, robot: Robot, payload_kg: float = 0.0, payload_cog_mm=(0.0, 0.0, 0.0),
-                 g_mps2=G_STANDARD):
+                 g_mps2=G_STANDARD, preloads=()):
         import pinocchio as pin
 
         self.payload_kg = float(payload_kg)
@@ -106,6 +116,7 @@ class Statics:
         self.pd = self.pm.createData()
         self._weight = self.payload_kg * g
         self._pin = pin
+        self.preloads = [(int(j), np.asarray(c, dtype=int), np.asarray(b, dtype=float)) for j, c, b in preloads]
         self._g = g.tolist()
         self._offset = pin.SE3.Identity()         # sensor -> centre of gravity (`carry`)
         self._frames = self.pm.frames
@@ -129,14 +140,35 @@ class Statics:
         """The static torques at joint angles ``q_rad`` ((N, 6) or (6,), rad): each part (N, 6) Nm."""
         q = np.atleast_2d(np.asarray(q_rad, dtype=float))
         arm, payload = np.zeros((len(q), 6)), np.zeros((len(q), 6))
+        identified = np.zeros((len(q), 6))
         for k in range(len(q)):
             arm[k], payload[k] = self._parts(q[k])
-        return StaticTorques(arm, payload, arm * self._balancer_gain)
+            identified[k] = self._identified(q[k])
+        return StaticTorques(arm, payload, arm * self._balancer_gain, identified)
 
     def total_at(self, q_rad: np.ndarray) -> np.ndarray:
         """tau_s (6,) Nm at one configuration (6,) rad: the call to make when the joints move."""
         arm, payload = self._parts(q_rad)
-        return arm * self._with_balancer + payload
+        out = arm * self._with_balancer + payload
+        return out + self._identified(q_rad) if self.preloads else out
+
+    def regressor_rows(self, q_rad: np.ndarray, joint: int) -> np.ndarray:
+        """(N, 24) row ``joint`` of the arm's static regressor (`stiffness.preload.static_regressor`) at
+        each configuration of ``q_rad`` (N, 6)."""
+        from .preload import static_regressor
+
+        q = np.atleast_2d(np.asarray(q_rad, dtype=float))
+        return np.array([static_regressor(self.pm, self.pd, qk)[joint - 1] for qk in q])
+
+    def _identified(self, q: np.ndarray) -> np.ndarray:
+        out = np.zeros(6)
+        if self.preloads:
+            from .preload import static_regressor
+
+            Y = static_regressor(self.pm, self.pd, q)
+            for j, cols, beta in self.preloads:
+                out[j - 1] += Y[j - 1, cols] @ beta
+        return out
 
     def _parts(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(arm, payload) torques (6,) at one configuration."""
@@ -153,14 +185,18 @@ _ZERO = np.zeros(6)
 _ZERO.flags.writeable = False
 
 
-def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD) -> Statics | None:
-    """The `Statics` of ``robot`` carrying ``payload``, for the effects at the total torque.
+def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD,
+                preloads=()) -> Statics | None:
+    """The `Statics` of ``robot`` carrying ``payload``, with the model's identified ``preloads``
+    ((joint, columns, beta), `stiffness.preload`), for the effects at the total torque.
 
     None (tau_s = 0, every effect at the external torque as before robots had masses) for a robot
-    without masses: a robot description without an ``inertial`` section models no static load, its
-    payload's included, so a model and a service on the same robot always agree on tau_s.
+    without masses and without an identified preload: a robot description without an ``inertial``
+    section models no static load, its payload's included, so a model and a service on the same robot
+    always agree on tau_s. With an identified preload the payload counts (the identified part is the
+    arm's, fitted with the campaign's payload known).
     """
-    if not robot.has_masses:
+    if not robot.has_masses and not preloads:
         return None
     kg = payload.mass_kg if payload is not None else 0.0
-    return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2)
+    return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2, preloads)

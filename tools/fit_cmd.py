@@ -64,6 +64,7 @@ def summary(result: FitResult) -> dict:
                            "rotation_deg": result.sigma[3] if _measured(result, 3) else None},
         "converged": result.converged,
         "warnings": result.warnings,
+        "preload": result.preload,
     }
 
 
@@ -104,6 +105,8 @@ def print_text(result: FitResult, args) -> None:
     if result.unidentifiable:
         print("  not determined by the measured components (kept at the starting value): "
               + ", ".join(result.unidentifiable))
+    for note in result.preload:
+        print(f"  {note}")
     print("  " + result.outlier_text())
     if args.output:
         print(f"  written: {args.output}")

@@ -16,6 +16,9 @@ def register(sub) -> None:
     a.add_argument("model", help="model YAML")
     a.add_argument("effect", choices=sorted(EFFECTS), help="effect name")
     a.add_argument("--joint", "--link", type=int, dest="joint", help="joint 1..6, or the link for an effect placed on a link (`model effects` lists where each goes)")
+    a.add_argument("--preload", choices=["identify"],
+                   help="identify the joint's static torque in `stiffcomp fit` (masses wrong or missing: "
+                        "the model's preload entry, docs/effects.md)")
     a.add_argument("-o", "--output", required=True, help="where to write the new model YAML")
     a.set_defaults(func=run_add)
     e = msub.add_parser("effects", help="list the effect library with each effect's equation")
@@ -24,7 +27,8 @@ def register(sub) -> None:
 
 def run_add(args) -> int:
     model = StiffnessModel.from_yaml(args.model)
-    new = add_effect(model, args.effect, args.joint)
+    preload = {"joint": args.joint} if args.preload == "identify" and args.joint is not None else None
+    new = add_effect(model, args.effect, args.joint, preload=preload)
     header = (f"# {args.model} with {args.effect} added" + (f" at {args.joint}" if args.joint else "")
               + "; fit it with `stiffcomp fit`")
     write_output(args.output, lambda p: new.to_yaml(p, header))

@@ -8,12 +8,19 @@ tau_i = W_i[rz] (Nm). A campaign measures loaded minus unloaded, so the deflecti
     delta_rz = f(tau_s + tau_i) - f(tau_s)
 
 which is f(tau_i) for a robot without masses (tau_s = 0, f(0) = 0).
+
+The diagnosis also tries each of these effects with its centre free per configuration
+(`with_free_centres`): tau_s found where each configuration's residual steps (`stiffness.preload`),
+for a preload the model does not know (masses wrong or missing).
 """
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
+from .. import preload as _preload
 from ..context import Context
 from .base import Effect
 from .realtime import AxialTerm
@@ -45,6 +52,8 @@ class AxialEffect(Effect):
     """
 
     evidence_plot = "axial"
+    free_centres: np.ndarray | None = None     # (C,) tau_s per configuration found by the diagnosis, NaN: beyond
+    centres_found: np.ndarray | None = None    # (C,) bool: where the step was found
 
     def shape(self, tau, theta: np.ndarray):
         """delta_rz per unit of the linear parameter theta[0], for torque tau (Nm, scalar or array)."""
@@ -55,12 +64,57 @@ class AxialEffect(Effect):
         theta = self.theta if theta is None else theta
         return theta[0] * self.shape(tau, theta)
 
+    def static_torque(self, ctx: Context) -> np.ndarray:
+        """tau_s (R,) at this joint: the model's, or the free centres the diagnosis found."""
+        if self.free_centres is None:
+            return ctx.static_torque[:, self.joint - 1]
+        return np.nan_to_num(self.free_centres, nan=_preload.FAR_NM)[ctx.config]
+
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        tau_s = ctx.static_torque[:, self.joint - 1]
+        tau_s = self.static_torque(ctx)
         tau = tau_s + joint_torque(W, self.joint)
         return axial_basis(ctx, self.joint, [self.shape(tau, theta) - self.shape(tau_s, theta)])
+
+    def centre_text(self, model, ctx: Context) -> str:
+        """For a variant with free centres: where each configuration crosses it, and that its centre moves
+        away from the model's static torque (the masses are wrong or missing); else ''."""
+        if self.free_centres is None:
+            return ""
+        found = np.where(self.centres_found, self.free_centres, np.nan)
+        held = [f"{-v:+.0f} Nm in {lab}" for lab, v, ok in
+                zip(ctx.config_labels, _preload.centres(model, ctx, self.joint), self.centres_found) if ok]
+        return (f" at zero total torque: {_preload.crossing_text(ctx, self.joint, found)}. Its centre moves from "
+                "one configuration to the next, away from where the model's static torque puts it (external "
+                f"{_preload._and(held)}): the masses are wrong or missing. Add it with its preload identified "
+                "(`stiffcomp model add MODEL EFFECT --joint J --preload identify`, docs/effects.md)")
 
     def realtime(self, robot) -> list[AxialTerm]:
         """f = `axial_twist`, the parameters frozen; the service evaluates f(tau_s + tau) - f(tau_s)."""
         theta = self.theta.copy()
         return [AxialTerm(self.joint, lambda tau: float(self.axial_twist(tau, theta)))]
+
+
+def with_free_centres(model, ctx: Context, variants: list[AxialEffect]) -> list[AxialEffect]:
+    """Copies of ``variants`` with their centre free per configuration, where the fitted ``model``'s residual
+    shows a step in at least two configurations away from where the model puts it (`preload.centre_search`);
+    none when it does not."""
+    key = ("fitted_residual", id(model))
+    if key not in ctx.cache:
+        resid = ctx.data.deflection - model.predict(ctx)
+        sigma = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
+        ctx.cache[key] = (resid, sigma)
+    resid, sigma = ctx.cache[key]
+    out = []
+    for e in variants:
+        theta = e.theta.copy()
+        centres, found = _preload.centre_search(ctx, resid, sigma, e.joint, lambda t: e.shape(t, theta))
+        if found.sum() < 2:
+            continue
+        held = _preload.centres(model, ctx, e.joint)
+        moved = np.abs(centres[found] - held[found])
+        if not np.any(moved > 0.05 * torque_range(ctx, e.joint)):
+            continue
+        free = copy.copy(e)
+        free.free_centres, free.centres_found = centres, found
+        out.append(free)
+    return out

@@ -10,7 +10,8 @@ tau_w  smoothing torque, the width of the transition (YAML: width_Nm, Nm; fitted
 tau_i  joint i's axial torque, the external moment about its axis (Nm), unloaded geometry.
 
 Diagnosis: tried at every joint that has none, with tau_w fixed at 0.5 %, 2 % and 6 % of the joint's
-largest torque in the campaign. Service: an `AxialTerm`, f = the equation above.
+largest torque in the campaign, centred at the model's static torque and with its centre free per
+configuration (`axial.with_free_centres`). Service: an `AxialTerm`, f = the equation above.
 
 Example: far beyond the width the joint has crossed half its play, and the step is odd in tau.
 
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..units import RAD_TO_DEG
-from .axial import AxialEffect, torque_range
+from .axial import AxialEffect, torque_range, with_free_centres
 from .base import Param, read_location, read_values
 
 
@@ -71,8 +72,12 @@ class Backlash(AxialEffect):
 
     @classmethod
     def candidates(cls, model, ctx) -> list[list[Backlash]]:
-        return [[cls(j, 0.0, w * torque_range(ctx, j), fit_width=False) for w in (0.005, 0.02, 0.06)]
-                for j in cls.joints if not model.has(cls.name, j)]
+        out = []
+        for j in cls.joints:
+            if not model.has(cls.name, j):
+                centred = [cls(j, 0.0, w * torque_range(ctx, j), fit_width=False) for w in (0.005, 0.02, 0.06)]
+                out.append(centred + with_free_centres(model, ctx, centred))
+        return out
 
     def size_text(self, estimate, std_error, model) -> str:
         return (f"lost motion {estimate[0] * RAD_TO_DEG:.4f} deg (± {std_error[0] * RAD_TO_DEG:.4f}), "

@@ -11,7 +11,8 @@ two_slope  delta_rz = c_s * tau_k * tanh(tau_i / tau_k)
            (YAML: knee_Nm, Nm, fitted by least squares): gearboxes are softer near zero torque.
 
 Diagnosis: tried at every joint that has none, as the cubic and as the two-slope form with the knee
-fixed at 15 %, 30 % and 60 % of the joint's largest torque in the campaign. Service: an `AxialTerm`.
+fixed at 15 %, 30 % and 60 % of the joint's largest torque in the campaign, the two-slope form also
+with its centre free per configuration (`axial.with_free_centres`). Service: an `AxialTerm`.
 
 Example: the two-slope form is the soft compliance below the knee and levels off above it.
 
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, quote
-from .axial import AxialEffect, torque_range
+from .axial import AxialEffect, torque_range, with_free_centres
 from .base import Param, read_location, read_values
 from .joint_spring import axial_compliance
 
@@ -93,8 +94,8 @@ class NonlinearStiffness(AxialEffect):
         for j in cls.joints:
             if not model.has(cls.name, j):
                 T = torque_range(ctx, j)
-                out.append([cls(j, "cubic")] + [cls(j, "two_slope", np.array([0.0, k * T]), fit_knee=False)
-                                                for k in (0.15, 0.3, 0.6)])
+                slopes = [cls(j, "two_slope", np.array([0.0, k * T]), fit_knee=False) for k in (0.15, 0.3, 0.6)]
+                out.append([cls(j, "cubic")] + slopes + with_free_centres(model, ctx, slopes))
         return out
 
     def size_text(self, estimate, std_error, model) -> str:
