@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from discovery.campaigns import campaign
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from stiffcomp_testlib import MODELS, ROOT
 
@@ -54,7 +54,7 @@ def test_no_external_load_no_deflection_whatever_the_preload(u):
     lim = model.robot.limits_deg
     q = lim[:, 0] + (np.array(u) + 1) / 2 * (lim[:, 1] - lim[:, 0])
     data = tcp_data(model.robot, q, np.zeros((3, 6)))
-    assert np.abs(model.context(data).static_torque).max() > 100      # the arm is preloaded
+    assume(np.abs(model.context(data).static_torque).max() > 100)     # the arm is preloaded (not near upright)
     np.testing.assert_array_equal(model.predict(data, linear=True), 0.0)
 
 
