@@ -8,7 +8,9 @@ of a link whose beam depends on q and of one whose beam does not, sensor misalig
 models run in alternating blocks of cycles in one process, so the machine's drift falls on all alike;
 the figure is the ratio of the medians of the per-block mean cycle times. "every effect, preloaded" is the
 every-effect model on the KR 125 with its masses (config/robots/kr125_masses.yaml): the static torque is
-formed at every kinematics and the axial effects act at the total torque.
+formed at every kinematics and the axial effects act at the total torque. "every effect, preload
+identified" is the every-effect model on the KR 125 without masses holding an identified static torque
+at joints 2 and 3 (the model's ``preload``; one static regressor pass more at each kinematics).
 
     .venv/bin/python benchmarks/bench_effects.py [--blocks 30] [--cycles 1000] [--json FILE]
 """
@@ -78,6 +80,11 @@ def main(argv: list[str] | None = None) -> dict:
     # each kinematics (the arm's weight, its balancer, the gravity section's payload)
     models["every effect, preloaded"] = StiffnessModel.from_dict(
         every.to_dict(), "every effect, preloaded", robot=load_robot(ROOT / "config" / "robots" / "kr125_masses.yaml"))
+    # the same on the KR 125 without masses, its static torque identified at joints 2 and 3 (`preload`)
+    identified = every.to_dict()
+    identified["preload"] = [{"joint": 2, "my2_kgm": -40.0, "m3_kg": 30.0}, {"joint": 3, "mx3_kgm": 12.0}]
+    models["every effect, preload identified"] = StiffnessModel.from_dict(
+        identified, "every effect, preload identified", robot=every.robot)
     runners = {k: Runner(m) for k, m in models.items()}
     for r in runners.values():
         r.run(200)                                            # warm up

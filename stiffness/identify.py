@@ -30,8 +30,9 @@ from .context import Context
 from .identifiability import IDENT_TOL, unidentifiable
 from .measurements import Dataset
 from .model import StiffnessModel
-from .preload import directions, fresh_start, held_preload
-from .preload import notes as preload_notes
+from .preload import directions, held_preload
+from .preload_fit import fresh_start
+from .preload_fit import notes as preload_notes
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale

@@ -26,15 +26,19 @@ the service from the robot and the ``gravity`` section's payload, recomputed whe
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
 from pydantic import Field
+from scipy.linalg import qr
 
 from .errors import quote
 from .robot import Robot
 from .yamlio import Strict
 
+PARTS = ("m", "mx", "my", "mz")          # pinocchio's dynamic parameters 0..3 of each link
+N_COLUMNS = 6 * len(PARTS)
 G_STANDARD = (0.0, 0.0, -9.81)   # m/s^2, base axes: a floor-mounted robot
 
 
@@ -153,18 +157,14 @@ class Statics:
         return out + self._identified(q_rad) if self.preloads else out
 
     def regressor_rows(self, q_rad: np.ndarray, joint: int) -> np.ndarray:
-        """(N, 24) row ``joint`` of the arm's static regressor (`stiffness.preload.static_regressor`) at
+        """(N, 24) row ``joint`` of the arm's static regressor (`static_regressor`) at
         each configuration of ``q_rad`` (N, 6)."""
-        from .preload import static_regressor
-
         q = np.atleast_2d(np.asarray(q_rad, dtype=float))
         return np.array([static_regressor(self.pm, self.pd, qk)[joint - 1] for qk in q])
 
     def _identified(self, q: np.ndarray) -> np.ndarray:
         out = np.zeros(6)
         if self.preloads:
-            from .preload import static_regressor
-
             Y = static_regressor(self.pm, self.pd, q)
             for j, cols, beta in self.preloads:
                 out[j - 1] += Y[j - 1, cols] @ beta
@@ -200,3 +200,36 @@ def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STA
         return None
     kg = payload.mass_kg if payload is not None else 0.0
     return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2, preloads)
+
+
+def static_regressor(pm, pd, q: np.ndarray) -> np.ndarray:
+    """(6, 24): the arm's static torque (signed like the external joint torque) per unit of each link's
+    m, m c_x, m c_y, m c_z, at configuration ``q`` (rad), for the gravity of ``pm``."""
+    import pinocchio as pin
+
+    zero = np.zeros(pm.nv)
+    Y = pin.computeJointTorqueRegressor(pm, pd, np.asarray(q, dtype=float), zero, zero)
+    return -Y.reshape(6, 6, 10)[:, :, :4].reshape(6, N_COLUMNS)
+
+
+def column_key(k: int) -> str:
+    link, part = divmod(k, len(PARTS))
+    return f"{PARTS[part]}{link + 1}_{'kg' if part == 0 else 'kgm'}"
+
+
+@lru_cache(maxsize=32)
+def _base_columns(robot_id: int, joint: int, pm) -> tuple[int, ...]:
+    rng = np.random.default_rng(0)
+    lo = np.asarray(pm.lowerPositionLimit)
+    hi = np.asarray(pm.upperPositionLimit)
+    pd = pm.createData()
+    Y = np.array([static_regressor(pm, pd, rng.uniform(lo, hi))[joint - 1] for _ in range(120)])
+    _, R, piv = qr(Y, pivoting=True, mode="economic")
+    d = np.abs(np.diag(R))
+    rank = int(np.sum(d > 1e-6))                 # Nm per kg or kg m: a vertical joint 1 sees none
+    return tuple(sorted(int(k) for k in piv[:rank]))
+
+
+def base_columns(robot, joint: int) -> tuple[int, ...]:
+    """The columns of the static regressor's row ``joint`` that the configurations tell apart."""
+    return _base_columns(id(robot.pin_model), joint, robot.pin_model)

@@ -20,7 +20,7 @@ import copy
 
 import numpy as np
 
-from .. import preload as _preload
+from .. import crossings
 from ..context import Context
 from .base import Effect
 from .realtime import AxialTerm
@@ -68,7 +68,7 @@ class AxialEffect(Effect):
         """tau_s (R,) at this joint: the model's, or the free centres the diagnosis found."""
         if self.free_centres is None:
             return ctx.static_torque[:, self.joint - 1]
-        return np.nan_to_num(self.free_centres, nan=_preload.FAR_NM)[ctx.config]
+        return np.nan_to_num(self.free_centres, nan=crossings.FAR_NM)[ctx.config]
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         tau_s = self.static_torque(ctx)
@@ -82,10 +82,10 @@ class AxialEffect(Effect):
             return ""
         found = np.where(self.centres_found, self.free_centres, np.nan)
         held = [f"{-v:+.0f} Nm in {lab}" for lab, v, ok in
-                zip(ctx.config_labels, _preload.centres(model, ctx, self.joint), self.centres_found) if ok]
-        return (f" at zero total torque: {_preload.crossing_text(ctx, self.joint, found)}. Its centre moves from "
+                zip(ctx.config_labels, crossings.centres(model, ctx, self.joint), self.centres_found) if ok]
+        return (f" at zero total torque: {crossings.crossing_text(ctx, self.joint, found)}. Its centre moves from "
                 "one configuration to the next, away from where the model's static torque puts it (external "
-                f"{_preload._and(held)}): the masses are wrong or missing. Add it with its preload identified "
+                f"{crossings.and_join(held)}): the masses are wrong or missing. Add it with its preload identified "
                 "(`stiffcomp model add MODEL EFFECT --joint J --preload identify`, docs/effects.md)")
 
     def realtime(self, robot) -> list[AxialTerm]:
@@ -96,7 +96,7 @@ class AxialEffect(Effect):
 
 def with_free_centres(model, ctx: Context, variants: list[AxialEffect]) -> list[AxialEffect]:
     """Copies of ``variants`` with their centre free per configuration, where the fitted ``model``'s residual
-    shows a step in at least two configurations away from where the model puts it (`preload.centre_search`);
+    shows a step in at least two configurations away from where the model puts it (`crossings.centre_search`);
     none when it does not."""
     key = ("fitted_residual", id(model))
     if key not in ctx.cache:
@@ -107,10 +107,11 @@ def with_free_centres(model, ctx: Context, variants: list[AxialEffect]) -> list[
     out = []
     for e in variants:
         theta = e.theta.copy()
-        centres, found = _preload.centre_search(ctx, resid, sigma, e.joint, lambda t: e.shape(t, theta))
+        centres, found = crossings.centre_search(ctx, resid, sigma, e.joint,
+                                                 lambda t, e=e, theta=theta: e.shape(t, theta))
         if found.sum() < 2:
             continue
-        held = _preload.centres(model, ctx, e.joint)
+        held = crossings.centres(model, ctx, e.joint)
         moved = np.abs(centres[found] - held[found])
         if not np.any(moved > 0.05 * torque_range(ctx, e.joint)):
             continue

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from discovery.campaigns import campaign
 from stiffcomp_testlib import MODELS, ROOT
 
+from discovery.campaigns import campaign
 from service.compensation import FastPredictor
-from stiffness.errors import ConfigError
-
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
+from stiffness.errors import ConfigError
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
 from stiffness.units import RAD_TO_DEG

@@ -156,3 +156,12 @@ def test_a_robot_extends_another_and_a_loop_or_a_missing_base_is_named(tmp_path)
     (tmp_path / "c.yaml").write_text("extends: nowhere.yaml\n")
     with pytest.raises(ConfigError, match=r"c.yaml: extends = 'nowhere.yaml': file .* not found"):
         Robot.from_yaml(tmp_path / "c.yaml")
+
+
+def test_the_preload_module_runs_its_example():
+    import doctest
+
+    import stiffness.preload
+
+    result = doctest.testmod(stiffness.preload)
+    assert result.attempted > 0 and result.failed == 0
