@@ -121,6 +121,13 @@ class Statics:
         self._weight = self.payload_kg * g
         self._pin = pin
         self.preloads = [(int(j), np.asarray(c, dtype=int), np.asarray(b, dtype=float)) for j, c, b in preloads]
+        # each preload as weights on pinocchio's 10 dynamic parameters per link: its torque is one row of
+        # the regressor times them (one regressor pass and one small product per call)
+        self._pre_rows = np.array([j - 1 for j, _, _ in self.preloads], dtype=int)
+        self._pre_w = np.zeros((len(self.preloads), 6 * 10))
+        for n, (_, cols, beta) in enumerate(self.preloads):
+            self._pre_w[n, _pin_index(cols)] = -beta          # minus: the arm's torque is -Y pi
+        self._zero_v = np.zeros(self.pm.nv)
         self._g = g.tolist()
         self._offset = pin.SE3.Identity()         # sensor -> centre of gravity (`carry`)
         self._frames = self.pm.frames
@@ -165,9 +172,9 @@ class Statics:
     def _identified(self, q: np.ndarray) -> np.ndarray:
         out = np.zeros(6)
         if self.preloads:
-            Y = static_regressor(self.pm, self.pd, q)
-            for j, cols, beta in self.preloads:
-                out[j - 1] += Y[j - 1, cols] @ beta
+            z = self._zero_v
+            Y = self._pin.computeJointTorqueRegressor(self.pm, self.pd, np.asarray(q, dtype=float), z, z)
+            out[self._pre_rows] = (Y[self._pre_rows] * self._pre_w).sum(1)     # one preload per joint
         return out
 
     def _parts(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -210,6 +217,12 @@ def static_regressor(pm, pd, q: np.ndarray) -> np.ndarray:
     zero = np.zeros(pm.nv)
     Y = pin.computeJointTorqueRegressor(pm, pd, np.asarray(q, dtype=float), zero, zero)
     return -Y.reshape(6, 6, 10)[:, :, :4].reshape(6, N_COLUMNS)
+
+
+def _pin_index(columns) -> np.ndarray:
+    """The index in pinocchio's (6 * 10) dynamic parameters of each `static_regressor` column."""
+    link, part = np.divmod(np.asarray(columns, dtype=int), len(PARTS))
+    return link * 10 + part
 
 
 def column_key(k: int) -> str:
