@@ -18,7 +18,8 @@ from stiffness.errors import ConfigError
 from stiffness.identify import fit
 from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
-from stiffness.statics import PayloadConfig, Statics
+from stiffness.preload import PreloadTerm
+from stiffness.statics import PayloadConfig, Statics, static_regressor
 from stiffness.units import RAD_TO_DEG
 
 ROBOTS = ROOT / "config" / "robots"
@@ -165,3 +166,23 @@ def test_the_preload_module_runs_its_example():
 
     result = doctest.testmod(stiffness.preload)
     assert result.attempted > 0 and result.failed == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6),
+       st.lists(st.floats(-50.0, 50.0), min_size=18, max_size=18))
+def test_an_identified_preload_adds_its_rows_of_the_static_regressor(q, values):
+    """tau_s,j(q) gains phi_j(q) beta (stiffness.preload): the service's fast form equals the definition,
+    at any configuration, for preloads at two joints, on a robot with masses and one without."""
+    for robot_file in (ROBOTS / "kr125.yaml", MASSES):
+        robot = model_on(robot_file).robot
+        terms = [PreloadTerm(robot, j) for j in (2, 3)]
+        preloads = [(t.joint, t.columns, np.array(values[: len(t.columns)])) for t in terms]
+        with_pre = Statics(robot, 12.0, (0.0, 0.0, 100.0), preloads=preloads)
+        without = Statics(robot, 12.0, (0.0, 0.0, 100.0))
+        Y = static_regressor(with_pre.pm, with_pre.pd, np.array(q))
+        expected = np.zeros(6)
+        for j, cols, beta in preloads:
+            expected[j - 1] += Y[j - 1, cols] @ beta
+        np.testing.assert_allclose(with_pre.total_at(np.array(q)) - without.total_at(np.array(q)), expected,
+                                   atol=1e-9 * (1 + np.abs(expected).max()))
