@@ -81,12 +81,16 @@ class AxialEffect(Effect):
         if self.free_centres is None:
             return ""
         found = np.where(self.centres_found, self.free_centres, np.nan)
-        held = [f"{-v:+.0f} Nm in {lab}" for lab, v, ok in
+        held = [(lab, -v) for lab, v, ok in
                 zip(ctx.config_labels, crossings.centres(model, ctx, self.joint), self.centres_found) if ok]
+        if all(abs(x) < 0.5 for _, x in held):
+            where = "away from zero external torque, where a model without static torque puts it"
+        else:
+            where = "away from where the model's static torque puts it (external " + crossings.and_join(
+                [f"{x:+.0f} Nm in {lab}" for lab, x in held]) + ")"
         return (f" at zero total torque: {crossings.crossing_text(ctx, self.joint, found)}. Its centre moves from "
-                "one configuration to the next, away from where the model's static torque puts it (external "
-                f"{crossings.and_join(held)}): the masses are wrong or missing. Add it with its preload identified "
-                "(`stiffcomp model add MODEL EFFECT --joint J --preload identify`, docs/effects.md)")
+                f"one configuration to the next, {where}: the masses are wrong or missing. Add it with its "
+                "preload identified (`stiffcomp model add MODEL EFFECT --joint J --preload identify`, docs/effects.md)")
 
     def realtime(self, robot) -> list[AxialTerm]:
         """f = `axial_twist`, the parameters frozen; the service evaluates f(tau_s + tau) - f(tau_s)."""
