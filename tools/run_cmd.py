@@ -3,9 +3,10 @@
 Validates the whole config before anything starts (a bad config exits with code 2), then runs
 until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly (the correction ramps to zero) with
 exit code 0. SIGHUP reloads the config file (`Service.on_hangup`, docs/service.md): the run file
-(`tools.run_file`) tells `stiffcomp reload` this process's pid and each reload's outcome. Between its waits the main thread watches the I/O process
-(`Service.watch_io`); exit code 1 when the service failed (the cycle died, or the I/O process died
-beyond faults.io_restarts), and --stats-json says why (``failure``, ``io_process``).
+(`tools.run_file`) tells `stiffcomp reload` this process's pid and each reload's outcome. Between its
+waits the main thread watches the I/O process (`Service.watch_io`); exit code 1 when the service failed
+(the cycle died, or the I/O process died beyond faults.io_restarts), and --stats-json says why
+(``failure``, ``io_process``).
 """
 
 from __future__ import annotations
