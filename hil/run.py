@@ -71,9 +71,7 @@ class PassResult:
 
 
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    return free_port(socket.SOCK_DGRAM)
 
 
 def write_service_config(scenario: Scenario, model_path: Path, folder: Path, group: str, can_port: int,

@@ -7,6 +7,7 @@ build their set-ups the same way.
 from __future__ import annotations
 
 import os
+import random
 import socket
 import subprocess
 import threading
@@ -33,10 +34,31 @@ TRUTH = ROOT / "examples" / "truth_reference.yaml"
 BEYOND_SPRINGS = [entry for cls in EFFECTS.values() for entry in cls.examples]
 
 
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    """A port nothing listens on now, for a server a test is about to start, taken below the kernel's
+    ephemeral range: a port the kernel hands out (bind to 0) is also what it gives the next client's
+    outgoing connection, which may take it before the server binds (seen as "Address already in use"
+    under load). ``kind``: socket.SOCK_STREAM (TCP) or socket.SOCK_DGRAM (UDP)."""
+    low = _ephemeral_low()
+    for _ in range(200):
+        port = random.randint(max(1024, low - 12000), low - 1)
+        with socket.socket(socket.AF_INET, kind) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    with socket.socket(socket.AF_INET, kind) as s:       # the range is crowded: let the kernel choose
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def _ephemeral_low() -> int:
+    """The first port of the kernel's ephemeral range (32768 where it cannot be read)."""
+    try:
+        return int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
 
 
 def wait_for_port(port: int, proc: subprocess.Popen | None = None, timeout_s: float = 40.0,

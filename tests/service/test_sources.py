@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hil.demo_log import write_log
-from hil.testing import write_config
+from hil.testing import free_port, write_config
 from hil.virtual_sensor import VirtualAtiSensor
 from plc_interface.contract import Command
 from service.ati import AtiProtocol
@@ -140,9 +140,7 @@ def test_can_source_between_processes_over_udp_multicast():
     pytest.importorskip("msgpack")
     # a group and port of its own (as hil/run.py does), so parallel runs never hear each other
     channel = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port(socket.SOCK_DGRAM)
     load = [250.0, -60.0, 410.0, 7.5, -3.0, 2.25]
     proc = subprocess.Popen([sys.executable, "-m", "hil.virtual_sensor", "--interface", "udp_multicast",
                              "--channel", channel, "--port", str(port), "--load", ",".join(map(str, load)), "--seconds", "20"],
