@@ -99,7 +99,6 @@ class FastPredictor:
         self.statics = model.statics()
         self.preloads = model.preloads()         # identified static torque (stiffness.preload), kept by carry
         self._q: np.ndarray | None = None        # the joints of the last kinematics (rad)
-        self._rest = np.zeros(6)
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
         self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term
         self.history = terms.history

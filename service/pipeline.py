@@ -116,11 +116,12 @@ class Compensator:
                     limits: LimitsConfig, tare: TareConfig, period_s: float, model: StiffnessModel,
                     faults: FaultMonitor) -> Compensator:
         """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare``."""
-        comp = cls(FastPredictor.from_config(model_section, model), SosLowPass.from_config(filter_section, period_s),
-                   SpikeRejector.from_config(filter_section.spike), GravityCompensator.from_config(gravity),
-                   CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N)
-        comp.payloads = PayloadSelector.from_config(gravity, comp.gravity, comp.predictor, faults)
-        return comp
+        predictor = FastPredictor.from_config(model_section, model)
+        compensator = GravityCompensator.from_config(gravity)
+        return cls(predictor, SosLowPass.from_config(filter_section, period_s),
+                   SpikeRejector.from_config(filter_section.spike), compensator,
+                   CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N,
+                   PayloadSelector.from_config(gravity, compensator, predictor, faults))
 
     def _tare(self, filtered: list[float]) -> None:
         """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
