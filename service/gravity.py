@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field, field_validator
 
-from stiffness.yamlio import Strict
+from stiffness.yamlio import Strict, items_by_key
 
 # the bodies the sensor carries (the robot's frames are `stiffness.robot.BODIES`)
 PAYLOAD_BODIES = ("sensor", "tool", "fixture", "workpiece")
@@ -80,7 +80,7 @@ class GravityConfig(Strict):
     fixture: BodyConfig = Field(default_factory=BodyConfig)
     workpiece: BodyConfig = Field(default_factory=BodyConfig)
     bias: list[float] = Field(default_factory=lambda: [0.0] * 6, min_length=6, max_length=6)
-    payloads: list[PayloadEntry] = Field(default_factory=list)
+    payloads: list[PayloadEntry] = Field(default_factory=list, json_schema_extra=items_by_key("index"))
     switch_ramp_s: float = Field(1.0, ge=0.0, le=60.0)
 
     @field_validator("payloads")
@@ -89,7 +89,7 @@ class GravityConfig(Strict):
         seen: dict[int, int] = {}
         for k, e in enumerate(entries):
             if e.index in seen:
-                raise ValueError(f"index {e.index} is used twice (payloads[{seen[e.index]}] and payloads[{k}]); "
+                raise ValueError(f"index {e.index} is used twice (entries {seen[e.index] + 1} and {k + 1} of the table); "
                                  "each set needs its own number")
             seen[e.index] = k
         return entries

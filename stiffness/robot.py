@@ -22,7 +22,7 @@ from pydantic import Field, field_validator
 
 from .errors import ConfigError, quote
 from .spatial import rot_x, rot_z, rpy_matrix, trans_x, trans_z, transform
-from .yamlio import Strict, deep_update, read_yaml, validate
+from .yamlio import Strict, deep_update, items_numbered, read_yaml, validate
 
 N_JOINTS = 6
 BODIES = ("A1", "A2", "A3", "A4", "A5", "A6", "TCP")
@@ -36,10 +36,10 @@ def _six(v: list[float]) -> list[float]:
 
 
 class DHConfig(Strict):
-    a_mm: list[float]
-    alpha_deg: list[float]
-    d_mm: list[float]
-    offset_deg: list[float] = Field(default_factory=lambda: [0.0] * N_JOINTS)
+    a_mm: list[float] = Field(json_schema_extra=items_numbered("joint"))
+    alpha_deg: list[float] = Field(json_schema_extra=items_numbered("joint"))
+    d_mm: list[float] = Field(json_schema_extra=items_numbered("joint"))
+    offset_deg: list[float] = Field(default_factory=lambda: [0.0] * N_JOINTS, json_schema_extra=items_numbered("joint"))
 
     _check = field_validator("a_mm", "alpha_deg", "d_mm", "offset_deg")(_six)
 
@@ -70,7 +70,8 @@ class BalancerConfig(Strict):
 
 class InertialConfig(Strict):
     links: list[LinkInertialConfig] | None = Field(
-        None, description="DH frames 1..6; required with dh, forbidden with urdf (the URDF has them)")
+        None, description="DH frames 1..6; required with dh, forbidden with urdf (the URDF has them)",
+        json_schema_extra=items_numbered("link"))
     balancer: BalancerConfig | None = None
 
     @field_validator("links")
@@ -88,7 +89,7 @@ class RobotConfig(Strict):
     name: str = "robot"
     dh: DHConfig | None = None
     urdf: UrdfConfig | None = None
-    joint_limits_deg: list[tuple[float, float]] | None = None
+    joint_limits_deg: list[tuple[float, float]] | None = Field(None, json_schema_extra=items_numbered("joint"))
     sensor: SensorConfig = Field(default_factory=SensorConfig)
     tcp: PoseConfig = Field(default_factory=lambda: PoseConfig(xyz_mm=[0.0, 0.0, 250.0]))
     inertial: InertialConfig | None = None

@@ -66,6 +66,7 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{where} = {quote(str(path))}: file not found")
+    check_masses(path)
     try:
         model = pin.buildModelFromUrdf(str(path))
     except (ValueError, RuntimeError) as e:
@@ -108,6 +109,40 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
         com = np.linalg.solve(X[j], np.append(inertia.lever, 1.0))[:3]   # joint j's frame -> DH frame j
         links.append({"mass_kg": float(inertia.mass), "com_mm": (com * M_TO_MM).tolist()})
     return table, limits, links
+
+
+def check_masses(path: Path) -> None:
+    """Refuse a link whose ``<inertial>`` has no valid ``<mass value="KG"/>`` (a finite number >= 0).
+
+    urdfdom drops such an inertial with a line on stderr only, so the link would become massless and
+    every static torque distal of it wrong (an effect at the total torque placed wrongly) with exit 0.
+    A link without ``<inertial>`` is massless on purpose and stays accepted. The file is read with the
+    standard library's XML parser first; pinocchio's parser names any other error afterwards."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as e:
+        raise ConfigError(f"{path}: not a readable URDF (XML): {e}") from e
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        where = f"{path}: link {quote(link.get('name'))}: its <inertial>"
+        mass = inertial.find("mass")
+        if mass is None:
+            raise ConfigError(f"{where} has no <mass> (write <mass value=\"KG\"/>, or remove the <inertial> "
+                              "of a massless link)")
+        value = mass.get("value")
+        if value is None:
+            raise ConfigError(f"{where} has <mass> without its value attribute (write <mass value=\"KG\"/>)")
+        try:
+            kg = float(value)
+        except ValueError:
+            kg = float("nan")
+        if not (np.isfinite(kg) and kg >= 0.0):
+            raise ConfigError(f"{where} has <mass value={quote(value)}>: the mass must be a finite number "
+                              ">= 0 (kg)")
 
 
 def urdf_text(robot) -> str:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import types
+import typing
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -58,26 +60,131 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     try:
         data = yaml.load(text, Loader=NoAliasLoader)
     except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}:{where} is not valid YAML: {getattr(e, 'problem', e)}") from e
+        raise ConfigError(f"{path}: {syntax_error(e, text)}") from e
     if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping at the top level, got {type(data).__name__}")
+        raise ConfigError(f"{path}: expected a mapping of keys at the top level, but {kind_of(data)}")
     return data
 
 
-def format_validation_error(source: str, err: ValidationError, prefix: str = "") -> str:
-    """One line per problem: ``source: key.path = value: reason``."""
+# Where PyYAML notices a mistake is often the line after the one written: a key without its colon is
+# noticed when the next line starts, an unclosed bracket or quote where the next key is. Its context
+# mark then points at the line the user wrote. A key without its colon before a key of the same mapping
+# reads as one plain scalar over both lines, and the next colon is "not allowed here": without a context
+# mark, the line above (a line with no colon, not a list item or a comment) is the one written.
+_CONTEXT_FIRST = ("while scanning a simple key", "while scanning a quoted scalar", "while parsing a flow")
+_NOT_ALLOWED = "mapping values are not allowed here"
+
+
+def syntax_error(e: yaml.YAMLError, text: str) -> str:
+    """``line N ('the line') is not valid YAML: problem``, at the line the user wrote (see above)."""
+    problem, context = getattr(e, "problem_mark", None), getattr(e, "context_mark", None)
+    what = getattr(e, "problem", None) or str(e)
+    if problem is None:
+        return f"is not valid YAML: {what}"
+    lines = text.splitlines()
+    line = problem.line
+    if context is not None and context.line < line and str(getattr(e, "context", "")).startswith(_CONTEXT_FIRST):
+        line = context.line
+        what += f" ({e.context} that starts here; noticed at line {problem.line + 1})"
+    elif what == _NOT_ALLOWED and context is None:
+        above = [k for k in range(min(line, len(lines))) if lines[k].strip() and not lines[k].lstrip().startswith("#")]
+        written = lines[above[-1]].strip() if above else ""
+        if written and ":" not in written and not written.startswith(("-", "[", "{")):
+            line = above[-1]
+            what = f"a key without its colon? ({what} at line {problem.line + 1})"
+    written = lines[line].split(" #")[0].strip() if line < len(lines) else ""      # without its comment
+    shown = f" ({quote(written)})" if written else ""
+    return f"line {line + 1}{shown} is not valid YAML: {what}"
+
+
+def kind_of(value: Any) -> str:
+    """What a YAML value is, in words (never a Python type name)."""
+    if value is None:
+        return "the file is empty (or holds only comments)"
+    if isinstance(value, list):
+        return f"it holds a list of {len(value)} entries"
+    return f"it holds a single value, {quote(value)}"
+
+
+def items_by_key(key: str) -> dict[str, Any]:
+    """For a list field's ``json_schema_extra``: error messages name its entries by that key's value,
+    ``payloads[index 3]`` (by number from 1, ``[entry 2]``, where an entry lacks it)."""
+    return {"items_key": key}
+
+
+def items_numbered(noun: str) -> dict[str, Any]:
+    """For a list field's ``json_schema_extra``: error messages name its entries by number from 1, with
+    ``noun``: ``links[link 2]`` (not pydantic's 0-based position)."""
+    return {"items_noun": noun}
+
+
+def format_validation_error(source: str, err: ValidationError, prefix: str = "",
+                            schema: type[BaseModel] | None = None, data: Any = None) -> str:
+    """One line per problem: ``source: key.path = value: reason``. With the ``schema`` and the ``data``
+    validated, a list's entries are named as the schema says (`items_by_key`, `items_numbered`), not by
+    0-based position;
+    a list or mapping value is described, never dumped."""
     lines = []
     for e in err.errors():
-        key = ".".join(str(p) for p in (prefix.split(".") if prefix else []) + list(e["loc"]))
+        key = _key_path(list(e["loc"]), schema, data)
+        key = f"{prefix}.{key}" if prefix and key else prefix or key
         if e["type"] == "extra_forbidden":
             lines.append(f"{source}: {key} is not a known key")
         elif e["type"] == "missing":
             lines.append(f"{source}: {key} is missing")
         else:
-            lines.append(f"{source}: {key} = {quote(e.get('input'))}: {e['msg']}")
+            value = e.get("input")
+            shown = (f" has {len(value)} entries" if isinstance(value, list) and any(
+                isinstance(v, (dict, list)) for v in value) else
+                f" (a mapping of {', '.join(map(str, value))})" if isinstance(value, dict) else f" = {quote(value)}")
+            lines.append(f"{source}: {key}{shown}: {e['msg'].removeprefix('Value error, ')}")
     return "\n".join(lines)
+
+
+def _key_path(loc: list, schema: type[BaseModel] | None, data: Any) -> str:
+    """The dotted key of a pydantic error location, a list's entries named as its schema says
+    (`items_by_key`, `items_numbered`); other positions stay as pydantic gives them."""
+    out, naming = "", {}
+    for part in loc:
+        if isinstance(part, int) and naming:
+            entry = _step(data, part)
+            key = naming.get("items_key")
+            if key is not None and isinstance(entry, dict) and key in entry:
+                out += f"[{key} {entry[key]}]"
+            else:
+                out += f"[{naming.get('items_noun', 'entry')} {part + 1}]"
+        else:
+            out += f".{part}" if out else str(part)
+        naming = {}
+        field = schema.model_fields.get(part) if isinstance(part, str) and schema is not None else None
+        if field is not None:
+            extra = field.json_schema_extra
+            naming = extra if isinstance(extra, dict) else {}
+            schema = _schema_in(field.annotation)
+        elif not isinstance(part, int):
+            schema = None
+        data = _step(data, part)
+    return out
+
+
+def _step(data: Any, part: Any) -> Any:
+    if isinstance(data, dict):
+        return data.get(part)
+    if isinstance(data, list) and isinstance(part, int) and part < len(data):
+        return data[part]
+    return None
+
+
+def _schema_in(annotation: Any) -> type[BaseModel] | None:
+    """The pydantic model inside a field's type (``list[X] | None`` -> X), or None."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType, list, tuple, typing.Annotated):
+        for arg in typing.get_args(annotation):
+            found = _schema_in(arg)
+            if found is not None:
+                return found
+    return None
 
 
 def validate(model: type[M], data: dict[str, Any], source: str, prefix: str = "") -> M:
@@ -85,7 +192,7 @@ def validate(model: type[M], data: dict[str, Any], source: str, prefix: str = ""
     try:
         return model.model_validate(data)
     except ValidationError as e:
-        raise ConfigError(format_validation_error(source, e, prefix)) from e
+        raise ConfigError(format_validation_error(source, e, prefix, model, data)) from e
 
 
 def deep_update(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:

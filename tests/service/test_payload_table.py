@@ -69,15 +69,18 @@ class Run:
 
 
 def test_duplicate_indices_and_bad_entries_are_refused_by_name(tmp_path):
-    with pytest.raises(ServiceConfigError, match=r"service\.yaml: gravity\.payloads = .*index 1 is used twice "
-                       r"\(payloads\[0\] and payloads\[1\]\)"):
+    # sets named by their index (issue 27), the table described, never dumped
+    with pytest.raises(ServiceConfigError, match=r"service\.yaml: gravity\.payloads has 2 entries: index 1 is used "
+                       r"twice \(entries 1 and 2 of the table\); each set needs its own number$"):
         cycle_for(tmp_path, [SPINDLE, {**GRIPPER, "index": 1}])
-    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\.0\.index = 0: .*greater than or equal to 1"):
+    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\[index 0\]\.index = 0: .*greater than or equal to 1"):
         cycle_for(tmp_path, [{**SPINDLE, "index": 0}])
-    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\.0\.mass_kg = -1\.0"):
-        cycle_for(tmp_path, [{**SPINDLE, "mass_kg": -1.0}])
-    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\.0\.name is missing"):
+    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\[index 7\]\.mass_kg = -1\.0"):
+        cycle_for(tmp_path, [GRIPPER, {**SPINDLE, "index": 7, "mass_kg": -1.0}])
+    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\[index 1\]\.name is missing"):
         cycle_for(tmp_path, [{k: v for k, v in SPINDLE.items() if k != "name"}])
+    with pytest.raises(ServiceConfigError, match=r"gravity\.payloads\[entry 2\]\.index is missing"):
+        cycle_for(tmp_path, [SPINDLE, {k: v for k, v in GRIPPER.items() if k != "index"}])
 
 
 def test_a_switch_under_load_blends_the_gravity_term_and_the_correction_never_steps(tmp_path, caplog):

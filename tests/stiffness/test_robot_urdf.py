@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import ROOT
+from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.errors import ConfigError
 from stiffness.robot import BODIES, Robot, read_extended
 from stiffness.statics import Statics
 from stiffness.urdf import urdf_text
-from stiffness.yamlio import dump_yaml
+from stiffness.yamlio import dump_yaml, read_yaml
+from tools.cli import main
 
 ROBOTS = ROOT / "config" / "robots"
 
@@ -156,13 +157,13 @@ def kr125_doc() -> dict:
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["inertial"]["links"][1].update(mass_kg=-5.0),
-     r"r.yaml: inertial.links.1.mass_kg = -5.0: Input should be greater than or equal to 0"),
+     r"r.yaml: inertial.links\[link 2\].mass_kg = -5.0: Input should be greater than or equal to 0"),
     (lambda d: d["inertial"]["links"][2].update(com_mm=[0.0, 2e4, 0.0]),
-     r"r.yaml: inertial.links.2.com_mm.1 = 20000.0: Input should be less than or equal to 10000"),
+     r"r.yaml: inertial.links\[link 3\].com_mm.1 = 20000.0: Input should be less than or equal to 10000"),
     (lambda d: d["inertial"]["links"][2].update(com_mm=[0.0, 0.0]),
-     r"r.yaml: inertial.links.2.com_mm = \[0.0, 0.0\]: .*at least 3 items"),
-    (lambda d: d["inertial"]["links"].pop(), r"r.yaml: inertial.links = .*needs 6 values"),
-    (lambda d: d["inertial"]["links"][0].update(masss_kg=1.0), r"inertial.links.0.masss_kg is not a known key"),
+     r"r.yaml: inertial.links\[link 3\].com_mm = \[0.0, 0.0\]: .*at least 3 items"),
+    (lambda d: d["inertial"]["links"].pop(), r"r.yaml: inertial.links has 5 entries: needs 6 values, one per joint \(got 5\)$"),
+    (lambda d: d["inertial"]["links"][0].update(masss_kg=1.0), r"inertial.links\[link 1\].masss_kg is not a known key"),
     (lambda d: d["inertial"].update(balancer={"joint": 7, "share": 0.5}),
      r"inertial.balancer.joint = 7: Input should be less than or equal to 6"),
     (lambda d: d["inertial"].update(balancer={"joint": 2, "share": 1.5}),
@@ -202,6 +203,42 @@ def test_masses_leave_the_kinematics_alone(dh_robot, tmp_path):
 
 
 def test_urdf_values_out_of_range_are_a_config_error(urdf_folder):
-    edit_urdf(urdf_folder, '<mass value="220.0"/>', '<mass value="-220.0"/>')
-    with pytest.raises(ConfigError, match=r"r.urdf \(read for .*u.yaml\): inertial.links.1.mass_kg = -220.0: .*greater than or equal to 0"):
+    edit_urdf(urdf_folder, '<origin xyz="0.49 0.0 0.0" rpy="0 0 0"/><mass', '<origin xyz="0.49 0.0 12.0" rpy="0 0 0"/><mass')
+    with pytest.raises(ConfigError, match=r"r.urdf \(read for .*u.yaml\): inertial.links\[link 2\].com_mm.2 = 12000.0: "
+                                          r".*less than or equal to 10000"):
         Robot.from_yaml(urdf_folder / "u.yaml")
+
+
+# -- issue 27, item 1: a link's <inertial> without a valid <mass> is refused, never made massless -------
+
+@pytest.mark.parametrize("mass, missing", [
+    ("", r"has no <mass> \(write <mass value=\"KG\"/>, or remove the <inertial> of a massless link\)"),
+    ('<mass value="heavy"/>', r"has <mass value='heavy'>: the mass must be a finite number >= 0 \(kg\)"),
+    ("<mass/>", r"has <mass> without its value attribute"),
+    ('<mass value="-220.0"/>', r"has <mass value='-220.0'>: the mass must be a finite number >= 0"),
+    ('<mass value="nan"/>', r"has <mass value='nan'>: the mass must be a finite number"),
+], ids=["no-mass", "not-a-number", "no-value", "negative", "nan"])
+def test_an_inertial_without_a_valid_mass_is_refused_naming_file_link_and_what_is_missing(urdf_folder, capsys,
+                                                                                           mass, missing):
+    """urdfdom drops such an inertial with one line on stderr: the 220 kg rocker would weigh nothing and joint
+    2's static torque would drop from 840 to 629 Nm with exit 0. Robot.from_yaml refuses it; so does every
+    command that loads the robot (exit 2, one line naming the file and the link)."""
+    edit_urdf(urdf_folder, '<mass value="220.0"/>', mass)
+    with pytest.raises(ConfigError, match=r"r.urdf: link 'link2': its <inertial> " + missing):
+        Robot.from_yaml(urdf_folder / "u.yaml")
+    model = read_yaml(MODELS / "kr125_6dof.yaml") | {"robot": str(urdf_folder / "u.yaml")}
+    (urdf_folder / "m.yaml").write_text(dump_yaml(model))
+    assert main(["torques", str(urdf_folder / "m.yaml"), "--q", "0", "-90", "90", "0", "90", "0"]) == 2
+    err = capsys.readouterr().err
+    assert f"{urdf_folder / 'r.urdf'}: link 'link2': its <inertial>" in err and "Traceback" not in err
+
+
+def test_a_link_without_inertial_stays_massless(urdf_folder, dh_robot):
+    """No <inertial> at all is a massless link on purpose (the URDF spec's way), not an error."""
+    text = (urdf_folder / "r.urdf").read_text()
+    start = text.index("<inertial>", text.index('<link name="link6">'))
+    end = text.index("</inertial>", start) + len("</inertial>")
+    (urdf_folder / "r.urdf").write_text(text[:start] + text[end:])
+    robot = Robot.from_yaml(urdf_folder / "u.yaml")
+    assert robot.link_mass[5] == 0.0
+    np.testing.assert_allclose(robot.link_mass[:5], dh_robot.link_mass[:5], rtol=0, atol=1e-9)
