@@ -192,6 +192,12 @@ _ZERO = np.zeros(6)
 _ZERO.flags.writeable = False
 
 
+def models_static_load(robot: Robot, preloads=()) -> bool:
+    """Whether a model on ``robot`` with the identified ``preloads`` has a static torque at all: a robot
+    without masses and without an identified preload models none, its payload's included (`statics_for`)."""
+    return bool(robot.has_masses or len(preloads))
+
+
 def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD,
                 preloads=()) -> Statics | None:
     """The `Statics` of ``robot`` carrying ``payload``, with the model's identified ``preloads``
@@ -203,7 +209,7 @@ def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STA
     always agree on tau_s. With an identified preload the payload counts (the identified part is the
     arm's, fitted with the campaign's payload known).
     """
-    if not robot.has_masses and not preloads:
+    if not models_static_load(robot, preloads):
         return None
     kg = payload.mass_kg if payload is not None else 0.0
     return Statics(robot, kg, payload.cog_mm if payload is not None else (0.0, 0.0, 0.0), g_mps2, preloads)

@@ -29,7 +29,7 @@ def run(args) -> int:
             out["model"] = {"q_deg": args.q, "K": tcp_stiffness(model, np.array(args.q))}
         except ValueError as e:
             raise ConfigError(f"--q: {e}") from e
-        torques = static_torques(model.robot, args.q)
+        torques = static_torques(model, args.q)
         out["model"]["static_torque_Nm"] = torque_dict(torques)
     if data is not None:
         out["identified"] = []
@@ -57,5 +57,5 @@ def run(args) -> int:
                     print(f"{where}: refused: {entry['error']}")
         if args.q is not None:
             print("static joint torques tau_s there (Nm, no payload; `stiffcomp torques` adds one):")
-            print(torque_table(model.robot, torques))
+            print(torque_table(model, torques))
     return 0

@@ -10,6 +10,7 @@ from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.model import StiffnessModel
 from stiffness.statics import Statics
+from tools.cli import main
 
 Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]
 
@@ -69,3 +70,43 @@ def test_bad_options_exit_2_naming_the_option(MODEL):
     r = stiffcomp("torques", MODEL, "--q", *Q, "--payload-kg", "-2")
     assert r.returncode == 2 and "payload mass = -2.0 kg must be a finite number >= 0" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+# -- issue 27, item 2: `torques` shows what fit and the service use ------------------------------------------
+
+UPRIGHT = [0.0, -90.0, 90.0, 0.0, 90.0, 0.0]
+PAYLOAD = ["--payload-kg", "12", "--payload-cog-mm", "0", "0", "110"]
+
+
+def service_tau_s(model_path, q_deg, kg: float, cog_mm) -> np.ndarray:
+    """tau_s as the service's predictor forms it with this payload carried (`FastPredictor.carry`)."""
+    from service.compensation import FastPredictor
+
+    fp = FastPredictor(StiffnessModel.from_yaml(model_path))
+    fp.carry(kg, np.asarray(cog_mm) / 1000.0, [0.0, 0.0, -9.81])
+    fp.kinematics(np.radians(q_deg))
+    return np.array(fp.tau_s)
+
+
+def test_a_robot_without_masses_says_the_payload_is_not_modelled_instead_of_a_torque(capsys):
+    """kr125_6dof's robot has no masses: fit and the service take tau_s = 0, the payload's included. The
+    table used to print 117.7 Nm of payload torque at joints 2 and 3 that nothing used."""
+    model = MODELS / "kr125_6dof.yaml"
+    assert main(["torques", str(model), "--q", *map(str, UPRIGHT), *PAYLOAD]) == 0
+    out = capsys.readouterr().out
+    assert "117.7" not in out and not any(line.startswith(("joint ", "A2")) for line in out.splitlines())
+    assert "no static load modelled" in out and "a payload (12 kg) is not modelled either" in out
+    assert main(["torques", str(model), "--q", *map(str, UPRIGHT), *PAYLOAD, "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["modelled"] is False and "no static load modelled" in got["note"]
+    np.testing.assert_array_equal(got["static_torque_Nm"]["total"], service_tau_s(model, UPRIGHT, 12.0, (0, 0, 110)))
+    assert not np.any(got["static_torque_Nm"]["payload"])
+
+
+def test_with_masses_the_total_is_what_the_service_forms(MODEL, capsys):
+    assert main(["torques", str(MODEL), "--q", *map(str, Q), *PAYLOAD, "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["modelled"] is True
+    np.testing.assert_allclose(got["static_torque_Nm"]["total"], service_tau_s(MODEL, Q, 12.0, (0, 0, 110)),
+                               rtol=1e-12, atol=1e-9)
+    assert abs(got["static_torque_Nm"]["payload"][1]) > 10
