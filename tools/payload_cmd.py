@@ -5,7 +5,9 @@ POSES.csv has one row per static pose, the robot at rest and nothing touching th
 The poses must turn the sensor so that gravity points along three independent directions in its
 frame. Prints the result as a ``gravity`` section for config/default.yaml (or JSON), or, with
 ``--write-entry N --name TEXT``, writes it as set N of the ``--config`` file's payload table
-(``gravity.payloads``, `tools.payload_entry`), which the PLC then selects with ``payload_index`` = N.
+(``gravity.payloads``, `tools.payload_entry`, comments and number formats kept), which the PLC then
+selects with ``payload_index`` = N. Without ``--config`` nothing is written: the shipped config is never
+the site's file.
 
 The sensor's orientation comes from the config's model as the service takes it: with a sensor
 misalignment in the model, the sensor's real axes (`service.fast_effects.input_rotation`), so the
@@ -30,7 +32,9 @@ from .payload_entry import write_entry
 def register(sub) -> None:
     p = sub.add_parser("payload", help="identify payload mass, centre of gravity and sensor bias")
     p.add_argument("poses", help="CSV with q1_deg..q6_deg and fx_N..mz_Nm, one static pose per row")
-    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (robot and gravity vector)")
+    p.add_argument("--config", default=None,
+                   help="service config (robot and gravity vector; default: the shipped config/default.yaml, "
+                        "which --write-entry never writes: it needs --config naming the site's file)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a YAML snippet")
     p.add_argument("--write-entry", type=int, metavar="N", default=None,
                    help="write the result as set N (1..65535) of --config's gravity.payloads")
@@ -42,7 +46,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    cfg = load_config(args.config)
+    if args.write_entry is not None:
+        refused = _refuse_write(args)
+        if refused:
+            print(f"stiffcomp payload: {refused}", file=sys.stderr)
+            return 2
+    cfg = load_config(args.config or DEFAULT_CONFIG)
     model = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file))
     robot = model.robot
     data = read_poses(args.poses)
@@ -67,12 +76,19 @@ def run(args) -> int:
     return 0 if fit.ok else 1
 
 
+def _refuse_write(args) -> str | None:
+    """Why ``--write-entry`` cannot write (before any work), or None. The shipped (installed) config is
+    never written unless ``--config`` names it: a copy under version control is the site's file."""
+    if args.config is None:
+        return (f"--write-entry needs --config FILE, the site config to write the set into; the shipped "
+                f"{DEFAULT_CONFIG} is not written (copy it first: docs/commissioning.md, step 0)")
+    if not args.name:
+        return "--write-entry needs --name (the set's name the logs and the status show)"
+    return None
+
+
 def _write(args, fit, poses: int) -> int:
     """``--write-entry``: the fit as a set of the config's table (refused when the fit is not ok)."""
-    if not args.name:
-        print("stiffcomp payload: --write-entry needs --name (the set's name the logs and the status show)",
-              file=sys.stderr)
-        return 2
     if not fit.ok:
         print(f"stiffcomp payload: {fit.message}; nothing written to {args.config}", file=sys.stderr)
         return 1

@@ -5,9 +5,11 @@ needs --replace, and the written set loads and, selected by the PLC's index, rem
 from __future__ import annotations
 
 import csv
+import difflib
 from types import SimpleNamespace
 
 import numpy as np
+from stiffcomp_testlib import ROOT
 
 from hil.payload import TruePayload
 from hil.testing import write_config
@@ -18,7 +20,11 @@ from service.gravity import GravityConfig
 from service.pipeline import Cycle
 from stiffness.model import StiffnessModel
 from stiffness.yamlio import read_yaml
+from tools import payload_cmd
 from tools.cli import main
+
+SHIPPED = ROOT / "config" / "default.yaml"
+EXAMPLE = ROOT / "examples" / "payload_poses.csv"       # the guide's example: a 14.2 kg spindle
 
 TRUTH = GravityConfig(tool={"mass_kg": 9.5, "cog_mm": [12.0, -4.0, 95.0]}, bias=[1.5, -2.5, 3.0, 0.2, -0.1, 0.05])
 POSES = [[0, -90, 90, a4, a5, a6] for a4 in (-60, 0, 70) for a5 in (-50, 30, 80) for a6 in (0, 120)]
@@ -53,7 +59,7 @@ def test_write_entry_round_trips_into_a_set_the_plc_selects(tmp_path, capsys):
 
     r = stiffcomp(capsys, "payload", poses, "--config", config, "--write-entry", 3, "--name", "gripper B", "--tcp-mm", 0, 0, 180)
     assert r.returncode == 0, r.stderr
-    assert "added gravity.payloads set 3 'gripper B'" in r.stdout and "comments are gone" in r.stdout
+    assert "added gravity.payloads set 3 'gripper B'" in r.stdout and "comments included, is as it was" in r.stdout
     after = read_yaml(config)
     assert {k: v for k, v in after.items() if k != "gravity"} == {k: v for k, v in before.items() if k != "gravity"}
     assert {k: v for k, v in after["gravity"].items() if k != "payloads"} == \
@@ -84,3 +90,49 @@ def test_write_entry_round_trips_into_a_set_the_plc_selects(tmp_path, capsys):
         cyc.step(k * 1e-3, reading, [], 1, k, q, False, 3)
     assert cyc.signals().payload_active == 3 and cyc.faults.word == 0
     assert np.abs(cyc.wrench_sensor[:3]).max() < 0.05 and np.abs(cyc.wrench_sensor[3:]).max() < 0.005
+
+
+# -- issue 27, item 3: never into the shipped tree without --config; comments and number formats kept --------
+
+def test_write_entry_without_config_is_refused_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    """The default --config is the shipped config/default.yaml (a tracked file). Here it is a copy, so the
+    old behaviour (rewriting it) shows as a changed file instead of damaging the checkout."""
+    stand_in = write_config(tmp_path, {}, name="default.yaml")
+    text = stand_in.read_text()
+    monkeypatch.setattr(payload_cmd, "DEFAULT_CONFIG", stand_in)
+    r = stiffcomp(capsys, "payload", EXAMPLE, "--write-entry", 4, "--name", "T")
+    assert r.returncode == 2 and stand_in.read_text() == text
+    assert f"--write-entry needs --config FILE, the site config to write the set into; the shipped {stand_in} " \
+           "is not written" in r.stderr
+    # without --write-entry the shipped config is only read, as before
+    r = stiffcomp(capsys, "payload", EXAMPLE)
+    assert r.returncode == 0 and "mass_kg: 14.19" in r.stdout and stand_in.read_text() == text
+
+
+def test_write_entry_keeps_every_comment_and_number_format_of_the_file(tmp_path, capsys):
+    """A copy of the shipped config, as the commissioning guide makes it: after two sets are written, the
+    file is the old one with the new sets' lines inserted into the table and nothing else changed (the
+    flow ``payloads: []`` opens into a block), ``base_id: 0x020`` stays hex, and it loads with both sets."""
+    site = tmp_path / "site"
+    site.mkdir()
+    config = site / "service.yaml"
+    config.write_text(SHIPPED.read_text())
+    before = config.read_text().splitlines()
+    for index, name in ((3, "spindle + D20 mill"), (5, "probe")):
+        r = stiffcomp(capsys, "payload", EXAMPLE, "--config", config, "--write-entry", index, "--name", name)
+        assert r.returncode == 0, r.stderr
+    after = config.read_text().splitlines()
+    ops = [op for op in difflib.SequenceMatcher(a=before, b=after, autojunk=False).get_opcodes() if op[0] != "equal"]
+    changed = [(before[i1:i2], after[j1:j2]) for tag, i1, i2, j1, j2 in ops if tag != "insert"]
+    comment = "# numbered sets the PLC selects by payload_index; 0 is the bodies above"
+    assert changed == [([f"  payloads: []                 {comment}"], [f"  payloads:                    {comment}"])]
+    inserted = [line for tag, i1, i2, j1, j2 in ops if tag == "insert" for line in after[j1:j2]]
+    assert sum(line.startswith("  - index: ") for line in inserted) == 2 and "#" not in "".join(inserted)
+    assert "    base_id: 0x020             # base CAN id [0, 0x7F0]; answers on base+5 and base+6" in after
+    comments = [line[line.index("#"):] for line in before if "#" in line]
+    assert comments == [line[line.index("#"):] for line in after if "#" in line]
+    cfg = load_config(config)
+    assert cfg.source.ati.base_id == 0x20
+    sets = cfg.gravity.payload_sets()
+    assert sets[3].name == "spindle + D20 mill" and sets[5].name == "probe" and abs(sets[3].mass_kg - 14.2) < 0.05
+    assert after[after.index("  - index: 5") + 5:after.index("  - index: 5") + 7] == ["", "limits:"]
