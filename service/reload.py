@@ -8,9 +8,11 @@ The main thread does all the work, the cycle only swaps (guideline 14: the cycle
    nothing; the log line is the validation's own message (file, key, value, range).
 2. It compares old and new by dotted key (`diff`), the model file's contents included
    (``model.file:robot.*``, ``model.file:effects``, ``model.file:<effect>.<parameter>``) and the
-   register map's (``plc.register_map:registers``). A key that only a restart applies (`RESTART`: the
+   register map's (``plc.register_map:registers``); a list of mappings by entry, a payload set by its
+   ``index`` (``gravity.payloads[index 3].mass_kg``). A key that only a restart applies (`RESTART`: the
    cycle, the source, the PLC, ADS and monitoring settings, the model's structure, the register map)
-   refuses the whole reload by name. ``gravity`` goes through `_apply_gravity`.
+   refuses the whole reload by name. ``gravity`` goes through `_apply_gravity`; a new table without the
+   set the PLC's ``payload_index`` selects is refused, naming the set (`_payload_kept`).
 3. It builds the new stages (filter, predictor) and the new parameters, and returns one function that
    puts them in place. `Service.work` takes it between two cycles (from a list it pops; one truth test
    per cycle while there is none); it
@@ -19,7 +21,7 @@ The main thread does all the work, the cycle only swaps (guideline 14: the cycle
    (``reload_count`` in the contract).
 
 Every reload writes exactly one log line that says ``reload``: accepted, with each changed key as
-``old → new``, or refused, with why.
+``old → new``, or refused, with why, in one wording: ``reload of FILE refused, nothing changed: WHY``.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from .filters import SosLowPass, SpikeRejector
 from .gravity import GravityConfig
 from .limits import CorrectionLimiter
 from .model_ramp import PredictorRamp
+from .payloads import describe as describe_set
 from .supervision import Supervisor
 
 log = logging.getLogger("stiffcomp.service")
@@ -71,20 +74,38 @@ class Prepared(NamedTuple):
     swap: Swap
 
 
-def flatten(data: Any, prefix: str = "") -> dict[str, Any]:
-    """A nested mapping as {dotted key: value}; lists stay whole values."""
-    if not isinstance(data, dict):
-        return {prefix: data}
-    out: dict[str, Any] = {}
-    for k, v in data.items():
-        out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-    return out
+def diff(old: Any, new: Any, prefix: str = "") -> dict[str, tuple[Any, Any]]:
+    """{dotted key: (old, new)} for each value that differs (None where absent). Mappings are compared key
+    by key; a list of mappings (a table) entry by entry, each named by its ``index`` if it has one
+    (``gravity.payloads[index 3].mass_kg``), else by its number (``[entry 2]``), so an added or removed
+    entry is one key; any other list is one value."""
+    if isinstance(old, dict) or isinstance(new, dict):
+        a, b = (x if isinstance(x, dict) else {} for x in (old, new))
+        out: dict[str, tuple[Any, Any]] = {}
+        for k in dict.fromkeys([*a, *b]):
+            out.update(diff(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else str(k)))
+        return out
+    if _table(old) or _table(new):
+        a, b = _entries(old), _entries(new)
+        out = {}
+        for k in dict.fromkeys([*a, *b]):
+            if k in a and k in b:
+                out.update(diff(a[k], b[k], f"{prefix}[{k}]"))
+            else:
+                out[f"{prefix}[{k}]"] = (a.get(k), b.get(k))
+        return out
+    return {prefix: (old, new)} if old != new else {}
 
 
-def diff(old: dict, new: dict, prefix: str = "") -> dict[str, tuple[Any, Any]]:
-    """{dotted key: (old, new)} for each key whose value differs (None where a key is absent)."""
-    a, b = flatten(old, prefix), flatten(new, prefix)
-    return {k: (a.get(k), b.get(k)) for k in dict.fromkeys([*a, *b]) if a.get(k) != b.get(k)}
+def _table(value: Any) -> bool:
+    return isinstance(value, list) and any(isinstance(v, dict) for v in value)
+
+
+def _entries(value: Any) -> dict[str, Any]:
+    """A table's entries by name: ``index N`` where an entry has an index, else ``entry N`` (from 1)."""
+    rows = value if isinstance(value, list) else []
+    return {(f"index {v['index']}" if isinstance(v, dict) and "index" in v else f"entry {k + 1}"): v
+            for k, v in enumerate(rows)}
 
 
 def model_diff(old: StiffnessModel, new: StiffnessModel) -> dict[str, tuple[Any, Any]]:
@@ -114,8 +135,10 @@ def _map_rows(rmap) -> tuple:
 
 
 def describe(changes: dict[str, tuple[Any, Any]]) -> str:
-    """``key old → new`` for each change (the first `SHOWN`, then how many more)."""
-    items = [f"{k} {quote(a)} → {quote(b)}" for k, (a, b) in changes.items()]
+    """``key old → new`` for each change (the first `SHOWN`, then how many more); a table's entry that
+    came or went as ``key added`` or ``key removed``, never as a dump of its values."""
+    items = [f"{k} added" if a is None and isinstance(b, dict) else f"{k} removed" if b is None and isinstance(a, dict)
+             else f"{k} {quote(a)} → {quote(b)}" for k, (a, b) in changes.items()]
     more = len(items) - SHOWN
     return ", ".join(items[:SHOWN]) + (f" and {more} more" if more > 0 else "")
 
@@ -130,6 +153,25 @@ def _apply_gravity(old: GravityConfig, new: GravityConfig) -> Swap | None:
     return lambda cycle, source: cycle.compensator.payloads.reload(new)
 
 
+def _payload_kept(cycle, new: GravityConfig) -> str | None:
+    """Why a new ``gravity`` section cannot be taken: its table has no set for the index the PLC selects,
+    which the current table has (the reload would latch ``payload_invalid`` and ramp the correction to
+    zero). None when it can (the PLC has moved to a set that stays, or selects none the table had)."""
+    selector = cycle.compensator.payloads
+    index = selector.requested
+    if index in new.payload_sets() or index not in selector.sets:
+        return None
+    return (f"gravity.payloads[index {index}] removed, but the PLC's payload_index = {index} selects it (set "
+            f"{describe_set(selector.sets[index])}): switch the PLC to a set that stays, then reload")
+
+
+def refused(path, why: str) -> Outcome:
+    """The one wording of a refusal: ``reload of FILE refused, nothing changed: WHY`` (a WHY that names
+    FILE first, as a validation error does, loses that repetition)."""
+    why = why.removeprefix(f"{path}: ")
+    return Outcome(False, f"reload of {path} refused, nothing changed: {why}")
+
+
 def prepare(old: ServiceConfig, old_model: StiffnessModel, old_rmap, cycle) -> Prepared | Outcome:
     """Reread ``old.path`` and validate it completely; a `Prepared` reload, or the refusal (`Outcome`).
 
@@ -141,20 +183,23 @@ def prepare(old: ServiceConfig, old_model: StiffnessModel, old_rmap, cycle) -> P
         model = load_model(new)
         rmap = new.register_map()
     except ServiceError as e:
-        return Outcome(False, f"reload refused, nothing changed: {e}")
+        return refused(path, str(e))
     changes = diff(old.model_dump(), new.model_dump())
     changes.update(model_diff(old_model, model))
     if _map_rows(old_rmap) != _map_rows(rmap):
         changes["plc.register_map:registers"] = (old_rmap.source, rmap.source)
     restart = [k for k in changes if k.split(".")[0] in RESTART or k.startswith(STRUCTURE) or k in RESTART_KEYS]
     if restart:
-        return Outcome(False, f"reload of {path} refused, nothing changed: {describe({k: changes[k] for k in restart})}"
-                       f": {'this needs' if len(restart) == 1 else 'these need'} a restart of the service")
+        return refused(path, f"{describe({k: changes[k] for k in restart})}: "
+                             f"{'this needs' if len(restart) == 1 else 'these need'} a restart of the service")
+    gone = _payload_kept(cycle, new.gravity)
+    if gone:
+        return refused(path, gone)
     gravity_swap = _apply_gravity(old.gravity, new.gravity)
     try:
         swap = _stages(new, model, changes, cycle, gravity_swap)
     except ServiceError as e:
-        return Outcome(False, f"reload of {path} refused, nothing changed: {e}")
+        return refused(path, str(e))
     return Prepared(new, model, changes, swap)
 
 
@@ -218,8 +263,7 @@ def _hand_over(service, prepared: Prepared) -> Outcome:
         time.sleep(0.001)
     try:
         service.pending.pop()
-        return Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: the cycle did not take it "
-                       f"within {HANDOVER_S:g} s (is it running?)")
+        return refused(service.cfg.path, f"the cycle did not take it within {HANDOVER_S:g} s (is it running?)")
     except IndexError:
         pass                            # taken: the swap counts the reload as its last step
     while cycle.reloads == before and time.monotonic() < deadline + HANDOVER_S:
@@ -240,7 +284,7 @@ def reload(service) -> Outcome:
     try:
         got = prepare(service.cfg, service.model, service.rmap, service.cycle)
     except Exception as e:  # noqa: BLE001 - a reload must never take the running service down
-        got = Outcome(False, f"reload of {service.cfg.path} refused, nothing changed: {e!r}")
+        got = refused(service.cfg.path, f"an unexpected {type(e).__name__}: {e}")
     if isinstance(got, Prepared):
         got = _hand_over(service, got)
     (log.info if got.accepted else log.warning)("%s", got.message)       # refused: the service runs on

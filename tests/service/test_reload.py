@@ -52,13 +52,14 @@ class Rig:
         self.cycle = Cycle.from_config(self.cfg, self.model)
         self.source = make_source(self.cfg)
         self.k = 0
+        self.payload_index = 0          # what the PLC writes to payload_index
 
     def run(self, n: int) -> dict[str, np.ndarray]:
         rows = {"wrench": [], "deflection": [], "dq": [], "correction": []}
         for _ in range(n):
             t = self.k * DT
             reading, errors = self.source.poll(t)
-            self.cycle.step(t, reading, errors, int(Command.ENABLE), self.k & 0xFFFF, Q)
+            self.cycle.step(t, reading, errors, int(Command.ENABLE), self.k & 0xFFFF, Q, False, self.payload_index)
             c = self.cycle
             for key, v in (("wrench", c.wrench_base), ("deflection", c.deflection), ("dq", c.dq_deg),
                            ("correction", c.correction)):
@@ -127,8 +128,8 @@ def test_an_invalid_file_changes_nothing_and_names_file_key_and_range(rig):
     filt, limiter = r.cycle.compensator.filter, r.cycle.compensator.limiter.rate
     got = r.reload({"filter": {"cutoff_hz": 900.0}, "limits": {"max_rate_deg_s": 1.0}})
     assert isinstance(got, Outcome) and not got.accepted
-    assert f"{r.path}: filter.cutoff_hz = 900" in got.message and "500" in got.message
-    assert "reload" in got.message and "nothing changed" in got.message
+    assert got.message.startswith(f"reload of {r.path} refused, nothing changed: filter.cutoff_hz = 900")
+    assert "500" in got.message
     assert r.cycle.compensator.filter is filt and r.cycle.compensator.limiter.rate == limiter
     assert r.cycle.reloads == 0
 
@@ -156,7 +157,8 @@ def test_a_reloaded_payload_table_ramps_the_set_in_use_and_a_new_set_becomes_sel
     got = r.reload({"gravity": {"tool": {"mass_kg": 5.0},
                                 "payloads": [{"index": 2, "name": "probe", "mass_kg": 1.0,
                                               "cog_mm": [0.0, 0.0, 100.0], "bias": [0.0] * 6}]}})
-    assert isinstance(got, Prepared) and "gravity.tool.mass_kg" in got.changes and "gravity.payloads" in got.changes
+    assert isinstance(got, Prepared) and "gravity.tool.mass_kg" in got.changes
+    assert got.changes["gravity.payloads[index 2]"][0] is None          # the set by its index, as one key
     after = r.run(200)["wrench"]
     w = np.vstack([before[-50:], after])
     steps = np.abs(np.diff(w[:, :3], axis=0)).max(0)
@@ -227,3 +229,47 @@ def test_a_model_with_another_structure_is_refused_by_name(rig, tmp_path):
     got = r.reload({"model": {"file": scaled_model(r, tmp_path, 1.0, extra)}})
     assert isinstance(got, Outcome) and not got.accepted, got
     assert "model.file:effects" in got.message and "restart" in got.message
+
+
+PROBE = {"index": 3, "name": "probe", "mass_kg": 1.0, "cog_mm": [0.0, 0.0, 100.0], "bias": [0.0] * 6}
+GRIPPER = {"index": 4, "name": "gripper", "mass_kg": 2.0, "cog_mm": [0.0, 0.0, 80.0], "bias": [0.0] * 6}
+
+
+def test_a_table_without_the_set_the_plc_selects_is_refused_naming_it_until_the_plc_moves(rig):
+    """Issue 27, item 4: the reload used to be accepted and latch payload_invalid, ramping the correction to
+    zero, with "accepted" in its own line. Now it is refused like any invalid reload (`stiffcomp reload`
+    exits 1 on it), nothing changed, the set named; after the PLC moves to a set that stays, it is taken."""
+    r = rig(overrides={"gravity": {"switch_ramp_s": 0.01, "payloads": [PROBE, GRIPPER]}})
+    r.payload_index = 3
+    r.run(100)
+    payloads = r.cycle.compensator.payloads
+    assert payloads.active.index == 3 and r.cycle.faults.word == 0
+    got = r.reload({"gravity": {"payloads": [GRIPPER]}})
+    assert isinstance(got, Outcome) and not got.accepted
+    assert got.message == (f"reload of {r.path} refused, nothing changed: gravity.payloads[index 3] removed, but the "
+                           "PLC's payload_index = 3 selects it (set 3 'probe' (1 kg)): switch the PLC to a set that "
+                           "stays, then reload")
+    r.run(50)
+    assert sorted(payloads.sets) == [0, 3, 4] and payloads.active.index == 3
+    assert r.cycle.faults.word == 0 and r.cycle.reloads == 0 and any(r.cycle.correction)
+    # the PLC moves to set 4, which the file keeps: the same file is taken, and set 3 is gone
+    r.payload_index = 4
+    r.run(50)
+    got = r.reload({})
+    assert isinstance(got, Prepared), got
+    (key, (old, new)), = got.changes.items()
+    assert key == "gravity.payloads[index 3]" and old["name"] == "probe" and new is None
+    r.run(20)
+    assert sorted(payloads.sets) == [0, 4] and payloads.active.index == 4 and r.cycle.faults.word == 0
+
+
+def test_a_reload_line_names_the_changed_keys_of_a_table_never_a_dump(rig):
+    """Smaller item: the line used to show `gravity.payloads [] → [{'bias': [...], …`."""
+    from service.reload import describe
+
+    r = rig(overrides={"gravity": {"payloads": [PROBE]}})
+    got = r.reload({"gravity": {"payloads": [{**PROBE, "mass_kg": 1.5}, GRIPPER]}})
+    assert isinstance(got, Prepared)
+    line = describe(got.changes)
+    assert line == "gravity.payloads[index 3].mass_kg 1.0 → 1.5, gravity.payloads[index 4] added"
+    assert "{" not in line and "'bias'" not in line
