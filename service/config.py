@@ -10,7 +10,10 @@ that involve more than one section. Errors name the file, the key, the value and
 
     config/default.yaml: filter.cutoff_hz = 900 must be below half the cycle rate (500 Hz)
 
-Paths in the file (model, replay log, register map, DBC) are relative to the config file.
+Paths in the file (model, replay log, register map, DBC) are relative to the config file; a relative
+path with nothing there names the shipped config/ folder's file (`SHIPPED`), so a copy of
+config/default.yaml in a site folder still finds the shipped model, register map, DBC and replay, and a
+file put beside the copy takes precedence (docs/config.md, "Paths").
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from .supervision import FaultsConfig
 from .task import CycleConfig
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.yaml"
+SHIPPED = DEFAULT_CONFIG.parent         # the shipped config/ folder: where a relative path not beside the file goes
 
 
 class ServiceConfig(Strict):
@@ -57,7 +61,8 @@ class ServiceConfig(Strict):
     path: Path = Field(default=Path("<config>"), exclude=True)
 
     def resolve(self, relative: str) -> Path:
-        """A path written in the config, relative to the config file's folder."""
+        """A path written in the config: relative to the config file's folder, else to the shipped
+        config/ folder where only that has the file (module docstring)."""
         return _resolve(self.path, relative)
 
     def files(self) -> dict[str, str]:
@@ -76,7 +81,13 @@ class ServiceConfig(Strict):
 
 def _resolve(config_path: Path, relative: str) -> Path:
     p = Path(relative)
-    return p if p.is_absolute() else config_path.parent / p
+    if p.is_absolute():
+        return p
+    beside = config_path.parent / p
+    if beside.exists() or ".." in p.parts:
+        return beside
+    shipped = SHIPPED / p
+    return shipped if shipped.exists() else beside
 
 
 def _register_map(config_path: Path, relative: str) -> RegisterMap:
@@ -121,7 +132,7 @@ def read_sections(path: str | Path, *names: str) -> ConfigSections:
         try:
             setattr(out, name, section.model_validate(data.get(name) or {}))
         except ValidationError as e:
-            raise ServiceConfigError(format_validation_error(str(path), e, prefix=name)) from e
+            raise ServiceConfigError(format_validation_error(str(path), e, name, section, data.get(name))) from e
     return out
 
 
@@ -134,7 +145,7 @@ def load_config(path: str | Path | None = None) -> ServiceConfig:
     try:
         cfg = ServiceConfig.model_validate(data)
     except ValidationError as e:
-        raise ServiceConfigError(format_validation_error(str(path), e)) from e
+        raise ServiceConfigError(format_validation_error(str(path), e, schema=ServiceConfig, data=data)) from e
     cfg.path = path
     check_consistency(cfg)
     return cfg
@@ -162,6 +173,9 @@ def check_consistency(cfg: ServiceConfig) -> None:
     if 0 < hb <= cfg.cycle.period_ms:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer "
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
-    for key, rel in cfg.files().items():
-        if not cfg.resolve(rel).exists():
-            raise ServiceConfigError(f"{src}: {key} = {quote(rel)}: file {cfg.resolve(rel)} not found")
+    missing = [f"{key} = {quote(rel)}" for key, rel in cfg.files().items() if not cfg.resolve(rel).exists()]
+    if missing:
+        raise ServiceConfigError(
+            f"{src}: {len(missing)} file(s) it names not found (a relative path is looked up beside it, in "
+            f"{cfg.path.parent}/, then in the shipped {SHIPPED}/; an absolute path as written):\n  "
+            + "\n  ".join(missing))

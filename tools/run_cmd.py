@@ -1,7 +1,8 @@
 """`stiffcomp run`: the cyclic compensation service (docs/service.md).
 
 Validates the whole config before anything starts (a bad config exits with code 2), then runs
-until --duration elapses, Ctrl-C or SIGTERM; both stop it cleanly (the correction ramps to zero) with
+until --duration elapses, Ctrl-C or SIGTERM (``--check`` stops after the validation: nothing started,
+no port opened, so it also checks an edited file beside a running service); both stop it cleanly (the correction ramps to zero) with
 exit code 0. SIGHUP reloads the config file (`Service.on_hangup`, docs/service.md): the run file
 (`tools.run_file`) tells `stiffcomp reload` this process's pid and each reload's outcome. Between its
 waits the main thread watches the I/O process (`Service.watch_io`); exit code 1 when the service failed
@@ -26,6 +27,9 @@ def register(sub) -> None:
     p = sub.add_parser("run", help="run the cyclic compensation service")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (default: config/default.yaml)")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument("--check", action="store_true",
+                   help="validate the config and everything it names as a start does (model, register map, "
+                        "source), then exit 0 without starting anything or opening a port")
     p.add_argument("--stats-json", default=None, metavar="FILE", help="write the task statistics on exit")
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     p.add_argument("--log-format", default="text", choices=sorted(FORMATTERS),
@@ -37,11 +41,16 @@ WATCH_S = 0.1          # the main thread's longest wait: the I/O process is chec
 
 
 def run(args) -> int:
-    configure_logging(args.log_level, args.log_format)
+    configure_logging("WARNING" if args.check else args.log_level, args.log_format)
     from service.app import Service
 
     cfg = load_config(args.config)
     service = Service(cfg)              # everything validated and opened, nothing started yet
+    if args.check:
+        service.stop()                  # closes what the constructor opened; nothing ran
+        print(f"{args.config}: ok, the service would start: model {cfg.resolve(cfg.model.file)}, register map "
+              f"{cfg.resolve(cfg.plc.register_map)}, source {cfg.source.type} (nothing started)")
+        return 0
     stop = threading.Event()
     hangup = threading.Event()
     run_file = RunFile(args.config)
