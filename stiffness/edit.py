@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .effects import EFFECTS
+from .effects.axial import AxialEffect
 from .errors import ConfigError, quote
 from .model import StiffnessModel
 
@@ -13,7 +14,9 @@ def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
 
     ``joint`` is the joint (1..6) or, for link_bending, the link; global effects take none.
     ``preload``: the model's ``preload`` entry for that joint (`stiffness.preload`; ``{"joint": J}``
-    starts at the robot's masses, a diagnosis gives the start it found), replacing any there.
+    starts at the robot's masses, a diagnosis gives the start it found), replacing any there. Only an
+    effect that sits at zero total torque (`AxialEffect`: backlash, the soft zone) can use one: a preload
+    for any other is refused, as it would be identified from nothing.
     """
     if effect not in EFFECTS:
         raise ConfigError(f"effect {quote(effect)} is not in the library (one of {', '.join(sorted(EFFECTS))})")
@@ -25,6 +28,10 @@ def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
         entry[cls.location_key] = joint
     elif joint is not None:
         raise ConfigError(f"effect {effect} is global: it takes no --joint")
+    if preload is not None and not issubclass(cls, AxialEffect):
+        usable = ", ".join(n for n, c in EFFECTS.items() if issubclass(c, AxialEffect))
+        raise ConfigError(f"--preload: effect {effect} cannot use a preload (only an effect at the joint's total "
+                          f"torque can: {usable}); {effect} does not move with the static torque")
     data = model.to_dict()
     data["name"] = f"{model.name}+{effect}" + (f"@{joint}" if joint is not None else "")
     data["effects"] = data["effects"] + [entry]

@@ -20,6 +20,7 @@ gross errors (`robust`) get weight zero in the next round and are reported by li
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,7 +32,7 @@ from .identifiability import IDENT_TOL, unidentifiable
 from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import directions, held_preload
-from .preload_fit import fresh_start
+from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
 from .residuals import repeat_groups
 from .robot import BODIES
@@ -62,6 +63,7 @@ class FitResult:
     outlier: np.ndarray | None = None      # (N,) bool: rows judged gross errors, weight zero
     lines: np.ndarray | None = None        # (N,) the file line of each row
     preload: list[str] = field(default_factory=list)   # per identified static torque: what the data determine
+    preload_evidence: list = field(default_factory=list)   # per identified static torque: `preload_fit.Evidence`
 
     def __post_init__(self) -> None:
         if self.outlier is None:
@@ -198,7 +200,8 @@ def _param(model, k):
 
 
 def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 100,
-        sigma: np.ndarray | None = None, robust: bool = True, nonnegative: bool = False) -> FitResult:
+        sigma: np.ndarray | None = None, robust: bool = True, nonnegative: bool = False,
+        progress: Callable[[str], None] | None = None) -> FitResult:
     """Identify every parameter of ``model`` from ``data``; returns a fitted copy in the result.
 
     Parameters
@@ -218,10 +221,14 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         Bound every compliance (`Param.compliance`) at >= 0: bounded linear least squares
         (scipy.optimize.lsq_linear). The result's warnings name the compliances held at the bound.
         Unbounded (default), a negative compliance is kept and named in a warning.
+    progress : callable, optional
+        Called with a few words at each stage and at each evaluation of the nonlinear solver (a fit with
+        an identified preload takes minutes); `tools.common.Progress` shows them.
     """
+    say = progress or (lambda stage: None)
     model = model.copy()
     ctx = data if isinstance(data, Context) else model.context(data)
-    fresh_start(model, ctx, fit)           # an identified preload still at its prior: start where the data step
+    fresh_start(model, ctx, fit, say)      # an identified preload still at its prior: start where the data step
     measured = ctx.data.measured
     y = np.where(measured, ctx.data.deflection, 0.0)
     stated = np.array([model.noise["position_mm"]] * 3 + [model.noise["rotation_deg"]] * 3)
@@ -238,9 +245,13 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     n_rounds, k = max(1, rounds), 0
     while k < n_rounds:
         w = weights(measured, inlier, sigma)
+        stage = f"round {k + 1} of {n_rounds}"
+        say(stage)
         if len(nl):
+            def counted(n: int, stage: str = stage) -> None:
+                say(f"{stage}: {n} evaluations of the {len(nl)} nonlinear parameters")
             theta, converged, message = _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev,
-                                                         lower)
+                                                         lower, counted)
         else:
             theta = _solve_linear(model, ctx, y, w, theta, lin, lower)
         theta = _exact_step(model, ctx, y, w, scale, theta, lower)
@@ -275,8 +286,10 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     units = noise_warning(model, ctx, np.where(measured, ctx.data.deflection, np.nan))
     if units:
         warnings.append(units)
+    say("checking each identified preload against the noise")
+    found = evidence(model, ctx, y, w, resid, lambda m, th: _solve_linear(m, ctx, y, w, th, linear_index(m)))
     result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
-                       ~inlier, ctx.data.line, preload_notes(model, ctx))
+                       ~inlier, ctx.data.line, preload_notes(model, ctx, found), found)
     if result.outlier.any():
         warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
                         + ", ".join(map(str, result.outlier_lines[:20]))
@@ -332,8 +345,9 @@ def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegat
             "an effect; `--nonnegative` bounds them at 0. The service refuses a model holding one")]
 
 
-def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None):
-    """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation."""
+def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None, counted=None):
+    """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation (each
+    counted with ``counted(n)``)."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
     x0 = np.clip(theta[nl] / scale[nl], lo, hi)
@@ -341,6 +355,9 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=No
     cache = {}
 
     def inner(z):
+        cache["n"] = cache.get("n", 0) + 1
+        if counted is not None:
+            counted(cache["n"])
         th = theta.copy()
         th[nl] = (z if T is None else x0 + T @ z) * scale[nl]
         th = _solve_linear(model, ctx, y, w, th, lin, lower)

@@ -65,6 +65,7 @@ def summary(result: FitResult) -> dict:
         "converged": result.converged,
         "warnings": result.warnings,
         "preload": result.preload,
+        "preload_evidence": [e.to_dict() for e in result.preload_evidence],
     }
 
 
@@ -76,7 +77,7 @@ def run(args) -> int:
     model, data = load(args.model, args.data, args.keep_duplicates)
     progress = Progress("fit")
     progress(f"fitting {len(model.theta)} parameters to {len(data)} rows")
-    result = fit(model, data, robust=args.robust, nonnegative=args.nonnegative)
+    result = fit(model, data, robust=args.robust, nonnegative=args.nonnegative, progress=progress)
     progress.done()
     if args.output:
         header = (f"# Fitted by `stiffcomp fit` to {args.data} ({len(data)} rows): residual RMS "

@@ -27,7 +27,7 @@ def register(sub) -> None:
 
 def run_add(args) -> int:
     model = StiffnessModel.from_yaml(args.model)
-    preload = {"joint": args.joint} if args.preload == "identify" and args.joint is not None else None
+    preload = {"joint": args.joint} if args.preload == "identify" else None
     new = add_effect(model, args.effect, args.joint, preload=preload)
     header = (f"# {args.model} with {args.effect} added" + (f" at {args.joint}" if args.joint else "")
               + "; fit it with `stiffcomp fit`")
