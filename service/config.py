@@ -32,12 +32,11 @@ from .errors import ServiceConfigError
 from .filters import FilterConfig
 from .gravity import GravityConfig
 from .limits import LimitsConfig
+from .paths import DEFAULT_CONFIG
 from .pipeline import TareConfig
 from .sources import SourceConfig
 from .supervision import FaultsConfig
 from .task import CycleConfig
-
-DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.yaml"
 
 
 class ServiceConfig(Strict):
