@@ -11,7 +11,7 @@ drift falls on all alike; each is reported as the median wall time with its mini
 as a ratio to the bare interpreter's median of the same run.
 
     python benchmarks/bench_probe.py [--runs 5] [--warmup 1] [--cmd [LABEL=]COMMAND ...]
-                                     [--probe-args "--live"] [--json FILE]
+                                     [--probe-args=--live] [--json FILE]
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cmd", action="append", default=None, metavar="[LABEL=]COMMAND",
                     help="how to start stiffcomp (default: stiffcomp on PATH); repeat it to measure several "
                     "trees side by side, e.g. --cmd before='env PYTHONPATH=/tmp/old python -m tools.cli'")
-    ap.add_argument("--probe-args", default="", help="extra arguments of the probe, e.g. --live")
+    ap.add_argument("--probe-args", default="", help="extra arguments of the probe, e.g. --probe-args=--live")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures to this file")
     args = ap.parse_args(argv)
 
