@@ -1,7 +1,7 @@
 # stiffcomp: the compensation service and the model tools in one image (docs/deploy.md).
 #
 #   make image                                # docker build --network=host -t stiffcomp .
-#   docker run -d --name stiffcomp --network host -v "$PWD/site:/etc/stiffcomp:ro" stiffcomp
+#   docker run -d --name stiffcomp --restart on-failure:5 --network host -v "$PWD/site:/etc/stiffcomp:ro" stiffcomp
 #
 # The service reads /etc/stiffcomp/service.yaml: mount your site's folder there. The image carries a
 # starting config at that path (config/default.yaml, paths absolute, servers on all interfaces):
@@ -46,6 +46,9 @@ COPY examples ./examples
 # system-wide pip installs). Installed editable so that config/ stays beside the code: the package
 # finds config/default.yaml, the models and the register map where the source tree has them.
 # Then everything only the build needs goes: pip, setuptools, wheel, the egg-info, the packages' tests.
+# Last, the bytecode of the whole venv and the project: the service runs as a user who cannot write it
+# (and with PYTHONDONTWRITEBYTECODE), so whatever is not compiled here is compiled again at every start
+# of every command, the HEALTHCHECK's probe included (docs/deploy.md has the figures).
 RUN python3 -m venv "$VIRTUAL_ENV" \
  && export PIP_CERT=/etc/ssl/certs/ca-certificates.crt PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
            PIP_INDEX_URL="${PIP_INDEX_URL:-https://pypi.org/simple}" PIP_EXTRA_INDEX_URL PIP_TRUSTED_HOST \
@@ -53,9 +56,8 @@ RUN python3 -m venv "$VIRTUAL_ENV" \
  && pip install -e ".${EXTRAS:+[$EXTRAS]}" \
  && pip uninstall -y -q pip setuptools wheel \
  && rm -rf ./*.egg-info \
- && find "$VIRTUAL_ENV" -depth -type d \( -name tests -o -name __pycache__ \) -path "*/site-packages/*" \
-         -exec rm -rf {} + \
- && python3 -m compileall -q stiffness service plc_interface tools hil
+ && find "$VIRTUAL_ENV" -depth -type d -name tests -path "*/site-packages/*" -exec rm -rf {} + \
+ && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil
 
 # -- runtime ----------------------------------------------------------------------------------------
 FROM ${BASE}
@@ -73,18 +75,23 @@ RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
 COPY --from=build /opt/venv /opt/venv
 COPY --from=build /opt/stiffcomp /opt/stiffcomp
 
+# The starting config: servers on all interfaces, and the Prometheus endpoint on (docs/deploy.md#metrics:
+# it is served by the I/O process, never by the cycle, on the HTTP port the health probes open anyway)
 RUN mkdir -p /etc/stiffcomp \
  && python3 -c "from pathlib import Path; from hil.testing import write_config; \
 write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, \
-  'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020}})" \
+  'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020, 'metrics': True}})" \
  && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
 USER stiffcomp
 
 # Modbus TCP, ADS (AMS/TCP), HTTP health + metrics
 EXPOSE 5020 48898 9020
 VOLUME ["/etc/stiffcomp"]
+# Liveness: the cycle count rises and the I/O process answers (/health/live). Not /health, whose exceed
+# bound a busy host can cross for a while: a restart would lose the tare, the hysteresis state and the
+# PLC session for nothing. The probe costs tens of milliseconds (docs/deploy.md#health).
 HEALTHCHECK --interval=5s --timeout=3s --start-period=30s --retries=3 \
-    CMD ["stiffcomp", "health", "--config", "/etc/stiffcomp/service.yaml"]
+    CMD ["stiffcomp", "health", "--live", "--config", "/etc/stiffcomp/service.yaml"]
 # `docker stop` sends SIGTERM: the service ramps the correction to zero and exits with code 0
 STOPSIGNAL SIGTERM
 ENTRYPOINT ["stiffcomp"]

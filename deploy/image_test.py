@@ -1,12 +1,14 @@
 """`make image-test`: start the built image and check it from the host as a plant would use it.
 
 Checks, one line each: the container starts with a site config from a mounted volume; Docker reports
-it healthy (its HEALTHCHECK runs `stiffcomp health`); the cycle counter rises when read over Modbus
-and over ADS (pyads, Beckhoff's AdsLib); the metrics endpoint answers text that prometheus-client's
-parser reads; `docker stop` (SIGTERM) ends it with exit code 0; the image carries none of the build's
-CA certificates, no pip, setuptools, test tools or egg-info, and its size is printed with the largest
-packages. Every check runs even when an earlier one failed, so one run shows everything that is
-missing. Exit code 0 only if all pass.
+it healthy (its HEALTHCHECK runs `stiffcomp health --live`); the probe, run inside the container
+(3 runs), answers within `PROBE_MAX_S`; ``/health/live`` answers live; ``/health/ready`` answers its
+checks consistently and its PLC check turns true once a PLC's heartbeat arrives over Modbus; the cycle
+counter rises when read over Modbus and over ADS (pyads, Beckhoff's AdsLib); the metrics endpoint
+answers text that prometheus-client's parser reads; `docker stop` (SIGTERM) ends it with exit code
+0; the image carries none of the build's CA certificates, no pip, setuptools, test tools or
+egg-info, and its size is printed with the largest packages. Every check runs even when an earlier
+one failed, so one run shows everything that is missing. Exit code 0 only if all pass.
 
 The container runs with ``--network host`` (an engine started with ``--bridge=none`` offers nothing
 else), so the test picks free ports for Modbus, ADS and HTTP.
@@ -17,21 +19,27 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 import subprocess
 import sys
 import tempfile
 import time
+import urllib.error
 import urllib.request
+from datetime import datetime
 from pathlib import Path
 
 import yaml
 
 from hil.testing import ROOT, free_port
+from plc_interface.endpoints import PROBES
+from plc_interface.health import READY_CHECKS
 from plc_interface.register_map import RegisterMap
 from tools.ads_probe import ADS_TCP_PORT, CYCLE_SYMBOL, open_ads, read_cycle_count
-from tools.status_cmd import BlockReader
+from tools.block_reader import BlockReader
 
 SITE = "/etc/stiffcomp"
+PROBE_MAX_S = 1.0          # the probe's wall time in the container, median of 3 (the HEALTHCHECK allows 3 s)
 
 
 class Checks:
@@ -70,20 +78,117 @@ def site_config(image: str, folder: Path) -> dict:
 
 
 def wait_healthy(name: str, timeout_s: float) -> tuple[bool, str]:
-    deadline = time.monotonic() + timeout_s
+    t0 = time.monotonic()
+    deadline = t0 + timeout_s
     while True:
         state = json.loads(docker("inspect", "--format", "{{json .State}}", name))
         health = state.get("Health") or {}
         status = health.get("Status", "no healthcheck")
         if not state.get("Running"):
             return False, f"the container stopped (exit code {state.get('ExitCode')})"
+        last = (health.get("Log") or [{}])[-1]
         if status == "healthy":
-            return True, "Docker reports healthy (stiffcomp health exit 0)"
+            return True, (f"Docker reports healthy after {time.monotonic() - t0:.0f} s (stiffcomp health --live "
+                          f"exit 0; that check took {_took(last):.2f} s with docker's exec)")
         if status == "unhealthy" or time.monotonic() > deadline:
-            last = (health.get("Log") or [{}])[-1]
             out = (last.get("Output") or "no health check ran").strip().splitlines()
             return False, f"Docker reports {status} after {timeout_s:g} s at most: {out[-1] if out else ''}"
-        time.sleep(1.0)
+        time.sleep(0.5)
+
+
+def _took(entry: dict) -> float:
+    """Seconds between a health log entry's Start and End (RFC 3339 with nanoseconds)."""
+    def parse(stamp: str) -> datetime:          # Python reads at most microseconds
+        return datetime.fromisoformat(re.sub(r"(\.\d{6})\d*", r"\1", stamp))
+
+    try:
+        return (parse(entry["End"]) - parse(entry["Start"])).total_seconds()
+    except (KeyError, ValueError):
+        return float("nan")
+
+
+# run inside the container: the probe's wall time, 3 runs
+_PROBE = r"""
+import json, subprocess, sys, time
+walls, runs = [], []
+for _ in range(3):
+    t = time.perf_counter()
+    r = subprocess.run(sys.argv[1:], capture_output=True, text=True)
+    walls.append(time.perf_counter() - t)
+    runs.append((r.returncode, (r.stdout + r.stderr).strip()))
+print(json.dumps({"walls": sorted(walls), "runs": runs}))
+"""
+
+
+def check_probe(name: str) -> tuple[bool, str]:
+    """`stiffcomp health --live` as the HEALTHCHECK runs it, timed inside the container."""
+    got = json.loads(docker("exec", name, "python3", "-c", _PROBE, "stiffcomp", "health", "--live",
+                            "--config", f"{SITE}/service.yaml", timeout=60))
+    walls, codes = got["walls"], [c for c, _ in got["runs"]]
+    median = walls[1]
+    ok = median < PROBE_MAX_S and codes == [0, 0, 0]
+    return ok, (f"stiffcomp health --live in the container: median {median:.3f} s of 3 (max {walls[-1]:.3f} s, "
+                f"bound {PROBE_MAX_S:g} s), exit codes {codes}: {got['runs'][-1][1]}")
+
+
+def get_json(port: int, path: str) -> tuple[int, dict | None]:
+    """(HTTP status, JSON body or None) of ``GET http://127.0.0.1:port/path``."""
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=2.0) as r:
+            code, body = r.status, r.read()
+    except urllib.error.HTTPError as e:
+        code, body = e.code, e.read()
+    except OSError:
+        return 0, None
+    try:
+        return code, json.loads(body)
+    except ValueError:
+        return code, None
+
+
+def check_live(cfg: dict) -> tuple[bool, str]:
+    path = PROBES["live"][0]
+    code, body = get_json(cfg["monitoring"]["port"], path)
+    ok = code == 200 and body is not None and body.get("live") is True
+    return ok, f"{path}: HTTP {code}, {json.dumps(body)}"
+
+
+def check_ready(cfg: dict) -> tuple[bool, str]:
+    """/health/ready names every check and agrees with itself; its PLC check is false until a PLC's
+    heartbeat arrives (none has yet), then true once this test writes one over Modbus as a PLC does.
+    The deadlines check follows the host's load, so its value is reported, not required."""
+    from pymodbus.client import ModbusTcpClient
+
+    path, port = PROBES["ready"][0], cfg["monitoring"]["port"]
+
+    def consistent(code: int, body: dict | None) -> str:
+        if body is None or set(body.get("checks", {})) != set(READY_CHECKS):
+            return f"HTTP {code} without the checks {', '.join(READY_CHECKS)}: {body}"
+        if body["ready"] is not all(body["checks"].values()) or (code == 200) is not body["ready"]:
+            return f"HTTP {code} disagrees with its own checks: {body}"
+        return ""
+
+    code, before = get_json(port, path)
+    if consistent(code, before):
+        return False, f"{path}: {consistent(code, before)}"
+    if before["checks"]["plc"]:
+        return False, f"{path}: the PLC check passed before any PLC wrote a heartbeat: {before}"
+    reg = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml").by_name["plc_heartbeat"]
+    client = ModbusTcpClient("127.0.0.1", port=cfg["plc"]["port"], timeout=1.0, retries=0)
+    deadline, beat, after = time.monotonic() + 10.0, 0, before
+    try:
+        while not after["checks"]["plc"] and time.monotonic() < deadline:
+            beat = (beat + 1) % 65536
+            client.write_register(reg.address, beat)
+            time.sleep(0.1)
+            code, after = get_json(port, path)
+            if consistent(code, after):
+                return False, f"{path}: {consistent(code, after)}"
+    finally:
+        client.close()
+    ok = after["checks"]["plc"] is True
+    return ok, (f"{path}: plc {before['checks']['plc']} -> {after['checks']['plc']} after {beat} heartbeat "
+                f"writes; HTTP {code}, ready {after['ready']}: {after['reason']}")
 
 
 def rises(read, what: str) -> tuple[bool, str]:
@@ -205,6 +310,9 @@ def main(argv: list[str] | None = None) -> int:
             checks.report("start", True, f"container {cid[:12]} from {args.image}, config {SITE}/service.yaml "
                           f"(Modbus {cfg['plc']['port']}, HTTP {cfg['monitoring']['port']})")
             checks.report("healthy", *wait_healthy(name, args.healthy_timeout))
+            checks.report("probe", *check_probe(name))
+            checks.report("live", *check_live(cfg))
+            checks.report("ready", *check_ready(cfg))
             checks.report("modbus", *check_modbus(cfg))
             checks.report("ads", *check_ads(cfg))
             checks.report("metrics", *check_metrics(cfg))

@@ -30,7 +30,7 @@ from pymodbus.client import ModbusTcpClient
 from hil.testing import free_port, write_config
 from hil.virtual_plc import PlcFaults
 from plc_interface.contract import TaskState
-from plc_interface.monitoring import read_health
+from plc_interface.endpoints import read_probe
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from stiffness.model import StiffnessModel
@@ -107,7 +107,7 @@ class ServiceProcess:
             if self.proc.poll() is not None:
                 raise HilError(f"the service exited with {self.proc.returncode}:\n{self.log_path.read_text()}")
             try:
-                if read_health(*self.health_at, timeout_s=1.0).get("task_state") == TaskState.RUN:
+                if read_probe(*self.health_at, timeout_s=1.0).get("task_state") == TaskState.RUN:
                     return
             except (OSError, http.client.HTTPException, ValueError):
                 pass                                    # not serving yet

@@ -13,7 +13,7 @@ from hil_lib import EXAMPLES, scenario
 from hil.run import HilError, ServiceProcess, write_service_config
 from hil.testing import CONFIG, free_port, write_config
 from plc_interface.contract import TaskState
-from plc_interface.monitoring import read_health
+from plc_interface.endpoints import read_probe
 from service.config import load_config
 
 
@@ -51,7 +51,7 @@ def test_ready_when_health_says_the_task_runs_whatever_the_log_says(tmp_path):
     service = ServiceProcess(cfg, tmp_path, log_level="WARNING")
     try:
         service.wait_running()
-        assert read_health(*service.health_at)["task_state"] == TaskState.RUN
+        assert read_probe(*service.health_at)["task_state"] == TaskState.RUN
         assert "service running" not in service.log_path.read_text()
     finally:
         service.stop()

@@ -4,10 +4,13 @@
 word, the sensor's sample count and age, and every cycle's exec time and jitter (the image's timing
 ring, so the histograms miss no cycle). From that it answers
 
-* ``GET /health``: `plc_interface.health.HealthMonitor`'s verdict as JSON ``{"healthy", "reason",
-  ...}`` (200 healthy, 503 not): the task runs (its cycle count rose within the last second, state
-  RUN), no fault is latched, and the share of exceeded deadlines over the last 10 s is below
-  ``health_max_exceed_rate``. `read_health` asks it: `stiffcomp health` and the HIL (for readiness).
+* ``GET /health``, ``/health/live``, ``/health/ready`` (`plc_interface.endpoints.PROBES`):
+  `plc_interface.health.HealthMonitor`'s verdicts as JSON (200 when it passes, 503 when not).
+  ``/health``: the task runs (its cycle count rose within the last second, state RUN), no fault is
+  latched, and the share of exceeded deadlines over the last 10 s is below ``health_max_exceed_rate``.
+  ``/health/live``: the cycle count rises. ``/health/ready``: healthy, the sensor fresh and the PLC's
+  heartbeat seen. A verdict older than ``STALE_S`` (the I/O loop has stopped sampling) fails all three.
+  `plc_interface.endpoints.read_probe` asks them: `stiffcomp health` and the HIL (for readiness).
 * ``GET /metrics``: the Prometheus text exposition, when ``monitoring.metrics`` is on.
 
 HTTP is served by the standard library's WSGI server in a thread of the I/O process (the cycle's
@@ -17,7 +20,6 @@ process is untouched); the sampler runs on the loop, the handler reads what it l
 from __future__ import annotations
 
 import asyncio
-import http.client
 import json
 import logging
 import threading
@@ -26,6 +28,7 @@ from typing import Any
 from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 from .deadlines import cancel
+from .endpoints import PROBES
 from .health import HealthMonitor
 from .image import ProcessImage
 from .settings import MonitoringSettings
@@ -33,33 +36,8 @@ from .settings import MonitoringSettings
 log = logging.getLogger("stiffcomp.monitoring")
 
 SAMPLE_S = 0.1
-
-
-def read_health(host: str, port: int, timeout_s: float = 1.0) -> dict:
-    """The ``GET /health`` JSON of the service's I/O process at ``host:port``, within ``timeout_s`` in total.
-
-    Raises OSError (or http.client.HTTPException) when nothing answers in time, ValueError naming the
-    address and the HTTP status when the answer is not the health JSON (a dict with ``healthy``).
-    """
-    deadline = time.monotonic() + timeout_s
-    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
-    try:
-        conn.connect()
-        conn.sock.settimeout(max(deadline - time.monotonic(), 0.01))
-        conn.request("GET", "/health", headers={"Accept": "application/json"})
-        resp = conn.getresponse()
-        body = resp.read(64 * 1024)
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"{host}:{port}/health took longer than {timeout_s:g} s")
-    finally:
-        conn.close()
-    try:
-        answer = json.loads(body)
-    except ValueError:
-        answer = None
-    if not isinstance(answer, dict) or "healthy" not in answer:
-        raise ValueError(f"{host}:{port}/health answered HTTP {resp.status} without the health JSON")
-    return answer
+STALE_S = 2.0      # s; verdicts older than this mean the I/O loop no longer samples: not even live
+_ROUTES = {path: (probe, key) for probe, (path, key) in PROBES.items()}
 
 
 class _Quiet(WSGIRequestHandler):
@@ -84,7 +62,11 @@ class Monitor:
         self.metrics = metrics
         self.parts = parts or (list)
         self.monitor = HealthMonitor(settings.health_max_exceed_rate)
-        self.health: dict = {"healthy": False, "reason": "the service has not published a cycle yet"}
+        # (monotonic time of the sample, the verdicts by probe): one reference, swapped whole, so the
+        # HTTP thread never sees half an update
+        self.verdicts: tuple[float | None, dict[str, dict]] = (None, {
+            probe: {key: False, "reason": "the service has not published a cycle yet"}
+            for probe, (_, key) in PROBES.items()})
         self._n_timing = 0
         self._samples_prev: tuple[float, float] | None = None
         self._task: asyncio.Task | None = None
@@ -104,7 +86,8 @@ class Monitor:
         self._thread.start()
         self._n_timing = self.image.timings_since(0)[0]
         self._task = asyncio.get_running_loop().create_task(self._run())
-        log.info("monitoring on http://%s:%d (/health%s)", s.host, s.port, ", /metrics" if self.metrics else "")
+        log.info("monitoring on http://%s:%d (%s%s)", s.host, s.port, ", ".join(_ROUTES),
+                 ", /metrics" if self.metrics else "")
 
     async def stop(self) -> None:
         await cancel(self._task)
@@ -126,7 +109,7 @@ class Monitor:
         """Read the image once; update the health verdict and the metrics."""
         values = self.image.outputs()
         self.monitor.update(now, values)
-        self.health = self.monitor.verdict(now)
+        self.verdicts = (now, self.monitor.verdicts(now))
         m = self.metrics
         if m is None:
             return
@@ -144,11 +127,22 @@ class Monitor:
                 m.set_clients(part.protocol, clients)
 
     # -- HTTP ------------------------------------------------------------------------------------
+    def answer(self, probe: str, now: float) -> dict:
+        """The verdict of ``probe`` (a key of `PROBES`) as served at monotonic time ``now``."""
+        sampled_at, verdicts = self.verdicts
+        if sampled_at is not None and now - sampled_at > STALE_S:
+            key = PROBES[probe][1]
+            return {key: False, "reason": f"the I/O process has not sampled the process image for "
+                                          f"{now - sampled_at:.1f} s (its loop is stuck)"}
+        return verdicts[probe]
+
     def _app(self, environ, start_response):
         path = environ.get("PATH_INFO", "")
-        if path == "/health":
-            body = json.dumps(self.health).encode()
-            start_response("200 OK" if self.health["healthy"] else "503 Service Unavailable",
+        if path in _ROUTES:
+            probe, key = _ROUTES[path]
+            verdict = self.answer(probe, time.monotonic())
+            body = json.dumps(verdict).encode()
+            start_response("200 OK" if verdict[key] else "503 Service Unavailable",
                            [("Content-Type", "application/json"), ("Content-Length", str(len(body)))])
             return [body]
         if path == "/metrics" and self.metrics is not None:
@@ -156,6 +150,7 @@ class Monitor:
             start_response("200 OK", [("Content-Type", "text/plain; version=0.0.4; charset=utf-8"),
                                       ("Content-Length", str(len(body)))])
             return [body]
-        body = b"not found: /health" + (b", /metrics" if self.metrics is not None else b"") + b"\n"
+        body = ("not found: " + ", ".join(_ROUTES) + (", /metrics" if self.metrics is not None else "")
+                + "\n").encode()
         start_response("404 Not Found", [("Content-Type", "text/plain"), ("Content-Length", str(len(body)))])
         return [body]

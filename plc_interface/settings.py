@@ -12,6 +12,8 @@ from pydantic import Field
 
 from stiffness.yamlio import Strict
 
+from .endpoints import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
+
 
 class PlcClientSettings(Strict):
     period_ms: float = Field(10.0, ge=1.0, le=1000.0)
@@ -37,13 +39,14 @@ class ClientLimits(Strict):
 
 
 class PlcSettings(ClientLimits):
-    """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``)."""
+    """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``). The
+    defaults a probe reads are `PlcEndpoint`'s."""
 
-    role: Literal["server", "client", "none"] = "server"
-    host: str = "127.0.0.1"
-    port: int = Field(5020, ge=1, le=65535)
+    role: Literal[PLC_ROLES] = PlcEndpoint.role
+    host: str = PlcEndpoint.host
+    port: int = Field(PlcEndpoint.port, ge=PORT_MIN, le=PORT_MAX)
     device_id: int = Field(1, ge=0, le=247)
-    register_map: str = "registers.yaml"
+    register_map: str = PlcEndpoint.register_map
     initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
                                        min_length=6, max_length=6)
     enable_on_start: bool = False
@@ -51,10 +54,11 @@ class PlcSettings(ClientLimits):
 
 
 class MonitoringSettings(Strict):
-    """The I/O process's HTTP endpoint: /health always, /metrics (Prometheus) when ``metrics``."""
+    """The I/O process's HTTP endpoint: /health, /health/live and /health/ready always, /metrics
+    (Prometheus) when ``metrics``. The defaults a probe reads are `MonitoringEndpoint`'s."""
 
-    enabled: bool = True
-    host: str = "127.0.0.1"
-    port: int = Field(9020, ge=1, le=65535)
+    enabled: bool = MonitoringEndpoint.enabled
+    host: str = MonitoringEndpoint.host
+    port: int = Field(MonitoringEndpoint.port, ge=PORT_MIN, le=PORT_MAX)
     metrics: bool = False
-    health_max_exceed_rate: float = Field(0.05, ge=0.0, le=1.0)
+    health_max_exceed_rate: float = Field(MonitoringEndpoint.health_max_exceed_rate, ge=0.0, le=1.0)

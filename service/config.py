@@ -35,13 +35,13 @@ from .errors import ServiceConfigError
 from .filters import FilterConfig
 from .gravity import GravityConfig
 from .limits import LimitsConfig
+from .paths import CONFIG_DIR, DEFAULT_CONFIG
 from .pipeline import TareConfig
 from .sources import SourceConfig
 from .supervision import FaultsConfig
 from .task import CycleConfig
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.yaml"
-SHIPPED = DEFAULT_CONFIG.parent         # the shipped config/ folder: where a relative path not beside the file goes
+SHIPPED = CONFIG_DIR                    # the shipped config/ folder: where a relative path not beside the file goes
 
 
 class ServiceConfig(Strict):

@@ -1,52 +1,122 @@
-"""`stiffcomp health`: ask the running service whether it is healthy (Docker HEALTHCHECK, systemd, k8s).
+"""`stiffcomp health [--live | --ready]`: ask the running service (Docker HEALTHCHECK, systemd, k8s).
 
-Asks the service's I/O process over HTTP (``GET /health`` at ``monitoring.host:monitoring.port``),
-not the PLC registers, and gives up after 1 s in total. The endpoint answers JSON::
+Three questions, one verdict each (`plc_interface.health` defines them; ready implies healthy
+implies live):
 
-    {"healthy": true, "reason": "running, no fault, 0.2 % of cycles exceeded over 10 s", ...}
+* ``--live``: is the task alive (the cycle count rises, the I/O process answers)? The image's
+  HEALTHCHECK asks this: only a dead or stuck task is worth a restart.
+* no option: ``/health`` as it always was: running, no fault, deadlines within the bound.
+* ``--ready``: healthy, and the sensor fresh and the PLC's heartbeat seen: rely on the correction.
 
-Exit code 0 when healthy, 1 otherwise (also when nothing answers); the reason is printed in one line.
+It asks the service's I/O process over HTTP (``GET /health``, ``/health/live`` or ``/health/ready`` at
+``monitoring.host:monitoring.port``), and gives up after 1 s in total. Where the config switches HTTP
+off (``monitoring.enabled: false``) and the service is a Modbus server, it reads the to_plc block
+twice over Modbus instead and judges it as the I/O process would. Exit code 0 when the verdict
+passes, 1 when not (also when nothing answers), 2 when the config is bad or offers neither way; the
+reason is printed in one line.
 
-From the config it reads only the sections it needs (`service.config.read_sections`): a site config
-copied out of the container names a model and a replay inside the image, which this command never
-opens, so it works from the host as docs/deploy.md shows it.
+A probe runs every few seconds, so this command stays light: it imports the standard library and
+pyyaml, reads only the keys it needs (`plc_interface.endpoints.read_endpoints`), and never the
+service's schemas, NumPy, scipy or the model (tests/tools/test_health_probe.py holds its import set).
+A site config copied out of the container names a model and a replay inside the image, which this
+command never opens, so it works from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
 
 import http.client
+import sys
+import time
 
-from plc_interface.monitoring import read_health
-from service.config import DEFAULT_CONFIG, read_sections
+from plc_interface.endpoints import PROBES, Endpoints, read_endpoints, read_probe
+from service.paths import DEFAULT_CONFIG, SHIPPED_REGISTER_MAP
+from stiffness.errors import ConfigError
 
 TIMEOUT_S = 1.0
+MODBUS_GAP_S = 0.2          # between the two readings of the Modbus block: the count must rise in it
 ANY_ADDRESS = {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}
+WORDS = {"health": ("healthy", "unhealthy"), "live": ("live", "not live"), "ready": ("ready", "not ready")}
 
 
 def register(sub) -> None:
-    p = sub.add_parser("health", help="exit 0 if the running service is healthy, 1 (with the reason) if not")
-    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (its monitoring section)")
-    p.add_argument("--host", default=None, help="override monitoring.host")
-    p.add_argument("--port", type=int, default=None, help="override monitoring.port")
-    p.set_defaults(func=run)
+    p = sub.add_parser("health", help="exit 0 if the running service is healthy (--live: alive, --ready: "
+                       "ready), 1 with the reason if not")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (its monitoring and plc keys)")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--live", dest="probe", action="store_const", const="live",
+                       help="liveness: the cycle count rises (what a restart could fix)")
+    which.add_argument("--ready", dest="probe", action="store_const", const="ready",
+                       help="readiness: healthy, the sensor fresh and the PLC's heartbeat seen")
+    p.add_argument("--host", default=None, help="override monitoring.host (plc.host without HTTP)")
+    p.add_argument("--port", type=int, default=None, help="override monitoring.port (plc.port without HTTP)")
+    p.set_defaults(func=run, probe="health")
 
 
 def run(args) -> int:
-    mon = read_sections(args.config, "monitoring").monitoring
-    host = args.host or ANY_ADDRESS.get(mon.host, mon.host)   # a service bound to all interfaces
-    port = args.port or mon.port
-    healthy, reason = check(host, port)
-    print(f"{'healthy' if healthy else 'unhealthy'}: {reason}")
-    return 0 if healthy else 1
-
-
-def check(host: str, port: int, timeout_s: float = TIMEOUT_S) -> tuple[bool, str]:
-    """(healthy, reason) from ``GET http://host:port/health``, within ``timeout_s`` in total."""
     try:
-        answer = read_health(host, port, timeout_s)
+        ep = read_endpoints(args.config)
+    except ConfigError as e:
+        print(f"stiffcomp health: error: {e}", file=sys.stderr)
+        return 2
+    if ep.monitoring.enabled:
+        passed, reason = check(*address(ep.monitoring, args), probe=args.probe)
+    elif ep.plc.role == "server":
+        passed, reason = check_modbus(ep, *address(ep.plc, args), probe=args.probe)
+    else:
+        print(f"stiffcomp health: error: {ep.path}: monitoring.enabled is false and plc.role is {ep.plc.role}: "
+              "the service answers no probe (switch monitoring on)", file=sys.stderr)
+        return 2
+    print(f"{WORDS[args.probe][0 if passed else 1]}: {reason}")
+    return 0 if passed else 1
+
+
+def address(section, args) -> tuple[str, int]:
+    """(host, port) to ask: the overrides, else the section's, a bind to all interfaces meaning here."""
+    return args.host or ANY_ADDRESS.get(section.host, section.host), args.port or section.port
+
+
+def check(host: str, port: int, timeout_s: float = TIMEOUT_S, probe: str = "health") -> tuple[bool, str]:
+    """(passed, reason) of ``probe`` (a key of `PROBES`) over HTTP, within ``timeout_s`` in total."""
+    try:
+        answer = read_probe(host, port, probe, timeout_s)
     except (OSError, http.client.HTTPException):
         return False, f"no answer from the service's I/O process at {host}:{port}"
     except ValueError as e:
         return False, str(e)
-    reason = " ".join(str(answer.get("reason") or "no reason given").split())   # one line, always
-    return answer["healthy"] is True, reason
+    return answer[PROBES[probe][1]] is True, one_line(answer.get("reason"))
+
+
+def check_modbus(ep: Endpoints, host: str, port: int, probe: str = "health",
+                 gap_s: float = MODBUS_GAP_S) -> tuple[bool, str]:
+    """(passed, reason) of ``probe`` from two readings of the to_plc block ``gap_s`` apart, judged by
+    the I/O process's own `HealthMonitor` (imported here: pymodbus and the register map cost more than
+    the HTTP path, which most configs use)."""
+    import logging
+
+    from plc_interface.health import HealthMonitor
+    from plc_interface.register_map import RegisterMap
+
+    from .block_reader import BlockReader
+
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the reason says it in one line
+    path = ep.register_map()
+    if not path.exists():           # a path inside the image, asked from the host: the shipped map
+        path = SHIPPED_REGISTER_MAP
+    reader = BlockReader(RegisterMap.from_yaml(path), host, port, timeout_s=TIMEOUT_S / 2)
+    # a count that rose between the two readings is live; one that did not has stalled for gap_s
+    monitor = HealthMonitor(ep.monitoring.health_max_exceed_rate, stall_s=gap_s / 2)
+    try:
+        monitor.update(time.monotonic(), reader.read())
+        time.sleep(gap_s)
+        t = time.monotonic()
+        monitor.update(t, reader.read())
+    except ConnectionError as e:
+        return False, str(e)
+    finally:
+        reader.close()
+    verdict = monitor.verdicts(t)[probe]
+    return verdict[PROBES[probe][1]] is True, one_line(verdict["reason"]) + f" (Modbus {host}:{port})"
+
+
+def one_line(reason) -> str:
+    return " ".join(str(reason or "no reason given").split())

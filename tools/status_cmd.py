@@ -27,8 +27,6 @@ import sys
 import time
 from pathlib import Path
 
-from pymodbus.client import ModbusTcpClient
-from pymodbus.exceptions import ModbusException
 from rich.console import Console
 from rich.live import Live
 
@@ -37,6 +35,7 @@ from plc_interface.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, read_sections
 
 from .ads_probe import open_ads
+from .block_reader import BlockReader
 from .status_view import StatusView
 
 POLL_S = 0.05          # readings for the exec-time samples and the rates
@@ -55,34 +54,6 @@ def register(sub) -> None:
                    help="the register map (default: the config's plc.register_map, else the shipped one)")
     p.add_argument("--watch", action="store_true", help="redraw a few times a second until Ctrl-C")
     p.set_defaults(func=run)
-
-
-class BlockReader:
-    """The to_plc block over Modbus, decoded into values by register name."""
-
-    def __init__(self, rmap: RegisterMap, host: str, port: int, timeout_s: float = 0.5):
-        block = rmap.blocks["to_plc"]
-        self.codec = rmap.codecs["to_plc"]
-        self.client = ModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
-        self._read = (self.client.read_input_registers if block.table == "input_registers"
-                      else self.client.read_holding_registers)
-        self.where = f"{host}:{port}"
-
-    def read(self) -> dict[str, float]:
-        """Values by name; ConnectionError naming the address when the service does not answer."""
-        if not self.client.connected and not self.client.connect():
-            raise ConnectionError(f"no answer from the service at {self.where}")
-        try:
-            r = self._read(self.codec.start, count=self.codec.words)
-        except ModbusException as e:
-            self.client.close()
-            raise ConnectionError(f"{self.where}: {e}") from e
-        if r.isError():
-            raise ConnectionError(f"{self.where} refused the read: {r}")
-        return dict(zip(self.codec.names, self.codec.decode(r.registers)))
-
-    def close(self) -> None:
-        self.client.close()
 
 
 class AdsReader:

@@ -17,9 +17,9 @@ from service.config import load_config
 from tools.ads_probe import open_ads, read_cycle_count
 
 
-def health(port: int) -> tuple[int, dict]:
+def health(port: int, path: str = "/health") -> tuple[int, dict]:
     try:
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=1.0) as r:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=1.0) as r:
             return r.status, json.loads(r.read())
     except urllib.error.HTTPError as e:
         return e.code, json.loads(e.read())
@@ -48,10 +48,16 @@ def test_health_follows_the_task_and_its_faults(tmp_path):
     try:
         ok = wait_for_status(port, 200)
         assert ok is not None and ok["healthy"] is True and ok["faults"] == []
+        code, ready = health(port, "/health/ready")             # healthy, but no PLC has shown up
+        assert code == 503 and ready["ready"] is False and ready["checks"]["plc"] is False
         # the replay ends after 3 s: the sensor falls silent, sensor_timeout latches, health says so
         bad = wait_for_status(port, 503)
         assert bad is not None and bad["healthy"] is False
         assert "sensor_timeout" in bad["reason"] and "sensor_timeout" in bad["faults"]
+        code, ready = health(port, "/health/ready")
+        assert code == 503 and ready["checks"]["sensor"] is False and ready["checks"]["no_fault"] is False
+        code, live = health(port, "/health/live")                # the task still cycles: no restart
+        assert code == 200 and live["live"] is True
     finally:
         s.stop()
 
@@ -109,3 +115,21 @@ def test_metrics_parse_and_their_counters_rise(tmp_path):
     assert second[("stiffcomp_requests_total", (("function", "Read"), ("protocol", "ads")))] >= 5
     assert second[("stiffcomp_requests_total", (("function", "ReadWrite"), ("protocol", "ads")))] >= 6
     assert second[("stiffcomp_requests_refused_total", (("protocol", "ads"), ("reason", "ads_error_0x710")))] >= 1
+
+
+def test_a_verdict_the_io_loop_stopped_refreshing_fails_every_probe():
+    """The HTTP thread answers even when the I/O loop hangs: it must not serve the last good verdict."""
+    from plc_interface.endpoints import PROBES
+    from plc_interface.health import HealthMonitor
+    from plc_interface.monitoring import STALE_S, Monitor
+    from plc_interface.settings import MonitoringSettings
+
+    mon = Monitor(None, MonitoringSettings())
+    health = HealthMonitor(1.0)
+    for k in range(11):
+        health.update(10.0 + 0.1 * k, {"task_state": 1, "cycle_count": 100 * k, "status_word": 0x30})
+    mon.verdicts = (11.0, health.verdicts(11.0))
+    for probe, (_, key) in PROBES.items():
+        assert mon.answer(probe, 11.0 + STALE_S / 2)[key] is True
+        stale = mon.answer(probe, 11.0 + STALE_S + 0.5)
+        assert stale[key] is False and "has not sampled the process image for 2.5 s" in stale["reason"]

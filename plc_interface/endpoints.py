@@ -1,0 +1,161 @@
+"""Where the running service answers and how to ask it, for the light commands (the health probe).
+
+A probe that an orchestrator runs every few seconds must cost milliseconds, so this module imports
+the standard library, pyyaml (through `stiffness.yamlread`) and nothing else: no pydantic, no NumPy,
+no model code. It owns
+
+* the defaults of the keys a probe reads, `MonitoringEndpoint` and `PlcEndpoint` (the schemas in
+  `plc_interface.settings` take their defaults from these classes, so each default is written once);
+* the probes of the I/O process's HTTP endpoint, `PROBES` (served by `plc_interface.monitoring`);
+* `read_endpoints`, the light reader of those keys, and `read_probe`, the HTTP client.
+
+`read_endpoints` reads only ``monitoring.enabled``, ``.host``, ``.port``, ``.health_max_exceed_rate``
+and ``plc.role``, ``.host``, ``.port``, ``.register_map``. A plain value (an integer port in range, a
+boolean, a string) is taken as it is; any other value is handed to the service's own schema, so the
+probe accepts exactly what the service accepts, with the same message naming the file, the key and
+the value. Every other key is left to the service, which refuses the whole file at its start when
+anything in it is wrong.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import math
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from stiffness.errors import ConfigError, quote
+from stiffness.yamlread import read_yaml
+
+PORT_MIN, PORT_MAX = 1, 65535
+PLC_ROLES = ("server", "client", "none")
+
+# probe -> (HTTP path, the verdict's key in its JSON); `plc_interface.health` explains each verdict
+PROBES: dict[str, tuple[str, str]] = {
+    "health": ("/health", "healthy"),
+    "live": ("/health/live", "live"),
+    "ready": ("/health/ready", "ready"),
+}
+
+
+@dataclass(frozen=True)
+class MonitoringEndpoint:
+    """The ``monitoring`` keys a probe reads, with their defaults (the schema: `MonitoringSettings`)."""
+
+    enabled: bool = True
+    host: str = "127.0.0.1"
+    port: int = 9020
+    health_max_exceed_rate: float = 0.05
+
+
+@dataclass(frozen=True)
+class PlcEndpoint:
+    """The ``plc`` keys a probe reads, with their defaults (the schema: `PlcSettings`)."""
+
+    role: str = "server"
+    host: str = "127.0.0.1"
+    port: int = 5020
+    register_map: str = "registers.yaml"
+
+
+
+def _number(v: Any) -> bool:
+    return type(v) in (int, float) and math.isfinite(v)
+
+
+# key -> the values the schema takes exactly as they are: the fast path; any other value is decided by
+# the schema itself (pydantic, imported only then), so the probe accepts what the service accepts
+_PLAIN = {
+    "enabled": lambda v: type(v) is bool,
+    "host": lambda v: type(v) is str,
+    "port": lambda v: type(v) is int and PORT_MIN <= v <= PORT_MAX,
+    "health_max_exceed_rate": lambda v: _number(v) and 0.0 <= v <= 1.0,
+    "role": lambda v: v in PLC_ROLES and type(v) is str,
+    "register_map": lambda v: type(v) is str,
+}
+
+
+@dataclass(frozen=True)
+class Endpoints:
+    """What `read_endpoints` found: the config file, and its ``monitoring`` and ``plc`` keys."""
+
+    path: Path
+    monitoring: MonitoringEndpoint
+    plc: PlcEndpoint
+
+    def register_map(self) -> Path:
+        """``plc.register_map``, relative to the config file's folder."""
+        p = Path(self.plc.register_map)
+        return p if p.is_absolute() else self.path.parent / p
+
+
+def read_endpoints(path: str | Path) -> Endpoints:
+    """The probe's keys of the service config at ``path``; ConfigError names the file, key and value."""
+    return endpoints_from(read_yaml(path), Path(path))
+
+
+def endpoints_from(data: dict, path: Path) -> Endpoints:
+    """The probe's keys of a config's mapping ``data``, read from ``path`` (for the messages)."""
+    return Endpoints(path, _section(path, data, "monitoring", MonitoringEndpoint),
+                     _section(path, data, "plc", PlcEndpoint))
+
+
+def _section(path: Path, data: dict, name: str, cls):
+    section = data.get(name)
+    if section is None:
+        section = {}
+    if not isinstance(section, dict):
+        raise ConfigError(f"{path}: {name} = {quote(section)}: expected a mapping")
+    values = {k: section[k] for k in (f.name for f in fields(cls)) if k in section}
+    odd = {k: v for k, v in values.items() if not _PLAIN[k](v)}
+    if odd:
+        values.update(_validated(path, name, odd))
+    return cls(**{k: float(v) if k == "health_max_exceed_rate" else v for k, v in values.items()})
+
+
+def _validated(path: Path, name: str, values: dict) -> dict:
+    """``values`` as the service's schema reads them; ConfigError with the schema's message if it refuses."""
+    from pydantic import ValidationError
+
+    from stiffness.yamlio import format_validation_error
+
+    from .settings import MonitoringSettings, PlcSettings
+
+    schema = {"monitoring": MonitoringSettings, "plc": PlcSettings}[name]
+    try:
+        parsed = schema.model_validate(values)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(str(path), e, prefix=name)) from e
+    return {k: getattr(parsed, k) for k in values}
+
+
+def read_probe(host: str, port: int, probe: str = "health", timeout_s: float = 1.0) -> dict:
+    """The JSON of ``probe`` (a key of `PROBES`) from the service's I/O process at ``host:port``, within
+    ``timeout_s`` in total.
+
+    Raises OSError (or http.client.HTTPException) when nothing answers in time, ValueError naming the
+    address and the HTTP status when the answer is not the probe's JSON (a dict with its verdict key).
+    """
+    path, key = PROBES[probe]
+    deadline = time.monotonic() + timeout_s
+    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
+    try:
+        conn.connect()
+        conn.sock.settimeout(max(deadline - time.monotonic(), 0.01))
+        conn.request("GET", path, headers={"Accept": "application/json"})
+        resp = conn.getresponse()
+        body = resp.read(64 * 1024)
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{host}:{port}{path} took longer than {timeout_s:g} s")
+    finally:
+        conn.close()
+    try:
+        answer = json.loads(body)
+    except ValueError:
+        answer = None
+    if not isinstance(answer, dict) or key not in answer:
+        raise ValueError(f"{host}:{port}{path} answered HTTP {resp.status} without the {probe} JSON")
+    return answer
