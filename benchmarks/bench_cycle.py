@@ -77,13 +77,19 @@ def modbus_poller(port: int, seconds: float, rate_hz: float, count: int) -> None
     """One PLC-like poller on absolute deadlines (reads ``count`` to_plc registers)."""
     from pymodbus.client import ModbusTcpClient
 
+    c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
+    c.connect()
+    poll(c, seconds, rate_hz, count)
+
+
+def poll(c, seconds: float, rate_hz: float, count: int) -> None:
+    """Read ``count`` to_plc registers with the connected client ``c`` at ``rate_hz`` on absolute
+    deadlines for ``seconds``; print the requests and errors as JSON."""
     from hil.testing import CONFIG
     from plc_interface.deadlines import Deadlines
     from plc_interface.register_map import RegisterMap
 
     start = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"].start
-    c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
-    c.connect()
     d = Deadlines(1.0 / rate_hz)
     t_end, n, errors = time.monotonic() + seconds, 0, 0
     while time.monotonic() < t_end:
