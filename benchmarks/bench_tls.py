@@ -22,7 +22,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -45,10 +44,7 @@ def poller(port: int, seconds: float, cert_dir: str | None) -> None:
         c = ModbusTlsClient("127.0.0.1", port=port, sslctx=ctx, timeout=1.0, retries=0)
     else:
         c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
-    t_give_up = time.monotonic() + 60.0
-    while not c.connect() and time.monotonic() < t_give_up:      # started beside the service: wait for it
-        time.sleep(0.05)
-    poll(c, seconds, RATE_HZ, WORDS)
+    poll(c, seconds, RATE_HZ, WORDS, wait_s=60.0)        # started beside the service: wait for it
 
 
 def run(folder: Path, seconds: float, tls: bool) -> dict:

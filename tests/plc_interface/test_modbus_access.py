@@ -280,3 +280,16 @@ def test_garbage_on_the_tls_port_closes_that_connection_only(cs, caplog):
         plc.close()
         served.close()
     assert [r for r in caplog.records if r.levelno >= logging.ERROR or r.exc_info] == []
+
+
+def test_status_reads_over_ads_when_modbus_is_tls_alone(cs, tmp_path, capsys):
+    from service.config import read_sections
+    from tools.status_cmd import reader_for
+
+    alone = read_sections(write_config(tmp_path, {"plc": {"tls": tls_settings(cs, 802, plain=False)}}), "plc", "ads")
+    assert reader_for(alone, "auto", None, None)[1] == "ads"
+    beside = read_sections(write_config(tmp_path, {"plc": {"tls": tls_settings(cs, 802)}}), "plc", "ads")
+    assert reader_for(beside, "auto", None, None)[1] == "modbus"
+    neither = write_config(tmp_path, {"plc": {"tls": tls_settings(cs, 802, plain=False)}, "ads": {"enabled": False}})
+    assert main(["status", "--config", str(neither)]) == 2
+    assert "plc.role is server with TLS alone and ads.enabled is false" in capsys.readouterr().err
