@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: install test node-deps run walk bench bench-service lint clean demo image image-test
+.PHONY: install test node-deps mbpoll run walk bench bench-service lint clean demo image image-test
 
 install: $(STAMP)
 
@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
 
-test: $(STAMP) node-deps
+test: $(STAMP) node-deps mbpoll
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q
 
@@ -24,6 +24,13 @@ NODE_CHECK := tests/plc_interface/node
 node-deps: $(NODE_CHECK)/node_modules/.package-lock.json
 $(NODE_CHECK)/node_modules/.package-lock.json: $(NODE_CHECK)/package-lock.json
 	@if command -v npm >/dev/null 2>&1; then npm ci --prefix $(NODE_CHECK) --no-audit --no-fund --loglevel=error; fi
+
+# mbpoll (libmodbus) for tests/plc_interface/test_modbus_security.py, the Debian package, when this runs as root
+# with apt-get. Otherwise nothing is installed and that test is skipped (one line in pytest's summary).
+mbpoll:
+	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+		{ DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll >/dev/null 2>&1 || \
+		  { apt-get update -qq >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll >/dev/null 2>&1; }; }; } || true
 
 run: $(STAMP)
 	$(VENV)/bin/stiffcomp run

@@ -77,13 +77,21 @@ def modbus_poller(port: int, seconds: float, rate_hz: float, count: int) -> None
     """One PLC-like poller on absolute deadlines (reads ``count`` to_plc registers)."""
     from pymodbus.client import ModbusTcpClient
 
+    poll(ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0), seconds, rate_hz, count)
+
+
+def poll(c, seconds: float, rate_hz: float, count: int, wait_s: float = 0.0) -> None:
+    """Connect the client ``c`` (trying again for up to ``wait_s``), then read ``count`` to_plc registers
+    at ``rate_hz`` on absolute deadlines for ``seconds``; print the requests and errors as JSON. The
+    imports come first: a client that connects, then imports for seconds, is closed as silent."""
     from hil.testing import CONFIG
     from plc_interface.deadlines import Deadlines
     from plc_interface.register_map import RegisterMap
 
     start = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"].start
-    c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
-    c.connect()
+    t_give_up = time.monotonic() + wait_s
+    while not c.connect() and time.monotonic() < t_give_up:
+        time.sleep(0.05)
     d = Deadlines(1.0 / rate_hz)
     t_end, n, errors = time.monotonic() + seconds, 0, 0
     while time.monotonic() < t_end:

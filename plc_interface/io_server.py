@@ -56,9 +56,7 @@ class IoServer:
         s = self.settings
         try:
             if s.plc.role == "server":
-                from .modbus_server import ModbusServer
-
-                await self._add(ModbusServer(self.image, s.plc.host, s.plc.port, self._count_modbus, limits=s.plc))
+                await self._modbus_servers(s.plc)
             elif s.plc.role == "client":
                 from .modbus_client import ModbusClient
 
@@ -76,9 +74,36 @@ class IoServer:
             await self.stop()
             raise
 
+    async def _modbus_servers(self, plc: PlcSettings) -> None:
+        """Plain Modbus TCP on ``plc.port`` (unless TLS alone) and Modbus/TCP Security on ``plc.tls.port``."""
+        from .modbus_server import ModbusServer
+
+        if not plc.tls.enabled or plc.tls.plain:
+            warning = plc.exposure_warning()
+            if warning:
+                log.warning(warning)
+            await self._add(ModbusServer(self.image, plc.host, plc.port, self._count_modbus, limits=plc,
+                                         on_connection_refused=self._count_connection("modbus")))
+        if plc.tls.enabled:
+            from .tls import ServerTls
+
+            await self._add(ModbusServer(self.image, plc.host, plc.tls.port, self._count_modbus_tls, limits=plc,
+                                         tls=ServerTls(plc.tls), on_connection_refused=self._count_connection("modbus_tls")))
+
     def _count_modbus(self, function_code: int, refused: str | None) -> None:
         """Every Modbus request, for the metrics: by function, and refused ones by reason."""
         self._count("modbus", f"FC{function_code}", refused)
+
+    def _count_modbus_tls(self, function_code: int, refused: str | None) -> None:
+        """Every Modbus/TCP Security request, as `_count_modbus`."""
+        self._count("modbus_tls", f"FC{function_code}", refused)
+
+    def _count_connection(self, protocol: str):
+        """The counter of connections of ``protocol`` refused before their first request, by reason."""
+        def count(reason: str) -> None:
+            if self.metrics is not None:
+                self.metrics.count_connection_refused(protocol, reason)
+        return count
 
     def _count_ads(self, command: str, refused: str | None) -> None:
         """Every ADS request, for the metrics: by command, and refused ones by reason."""

@@ -8,7 +8,9 @@ two tests never share counters) and turns what the I/O process sees into metrics
 - faults: trips by kind (counter) and the current fault word (gauge);
 - the sensor: sample rate and age of the newest sample;
 - the PLC side: Modbus and ADS clients connected, requests by Modbus function (FC4 ...) and ADS
-  command (Read, ReadWrite ...), refused requests by reason (Modbus exception, ADS error code);
+  command (Read, ReadWrite ...), refused requests by reason (Modbus exception, ADS error code, a write
+  from a client that may not write), connections refused before their first request (a failed TLS
+  handshake);
 - the six joint corrections and the wrench (gauges).
 
 Pure: no sockets, no threads, no clock. The I/O process feeds it and serves `render()`.
@@ -28,7 +30,7 @@ EXEC_BUCKETS_US = (25, 50, 75, 100, 150, 200, 300, 400, 500, 600, 700, 800, 900,
 JITTER_BUCKETS_US = (5, 10, 25, 50, 100, 200, 300, 500, 750, 1000, 2000, 5000, 10000)
 JOINTS = tuple(f"q{i}" for i in range(1, 7))
 WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
-PROTOCOLS = ("modbus", "ads")
+PROTOCOLS = ("modbus", "ads")     # modbus_tls (Modbus/TCP Security) shows once it serves
 CONTENT_TYPE = "text/plain; version=0.0.4; charset=utf-8"
 
 
@@ -75,6 +77,9 @@ class ServiceMetrics:
                                 ["protocol", "function"], registry=r)
         self.refused = Counter(p + "requests_refused", "PLC requests refused, by protocol and reason",
                                ["protocol", "reason"], registry=r)
+        self.connections_refused = Counter(p + "connections_refused", "PLC connections closed before their "
+                                           "first request, by protocol and reason (TLS handshake refused)",
+                                           ["protocol", "reason"], registry=r)
         self.correction = Gauge(p + "correction_degrees", "joint correction sent to the PLC, deg", ["joint"],
                                 registry=r)
         self.force = Gauge(p + "wrench_force_newtons", "filtered, gravity-compensated force, N, base axes",
@@ -141,6 +146,10 @@ class ServiceMetrics:
     def count_refused(self, protocol: str, reason: str, n: int = 1) -> None:
         """``n`` requests refused for ``reason`` (e.g. "illegal_address", "unknown_route")."""
         self.refused.labels(protocol, reason).inc(n)
+
+    def count_connection_refused(self, protocol: str, reason: str) -> None:
+        """One connection refused before its first request (e.g. "no client certificate")."""
+        self.connections_refused.labels(protocol, reason).inc()
 
     def set_sensor(self, rate_hz: float, age_s: float) -> None:
         """The F/T sample rate (Hz) and the age of the newest sample (s)."""

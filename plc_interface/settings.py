@@ -6,13 +6,17 @@ Each section is a strict pydantic model (unknown keys, inf and NaN refused); the
 
 from __future__ import annotations
 
+import ipaddress
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator, model_validator
 
 from stiffness.yamlio import Strict
 
 from .endpoints import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
+
+IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
+Access = Literal["none", "read", "write"]
 
 
 class PlcClientSettings(Strict):
@@ -38,9 +42,63 @@ class ClientLimits(Strict):
     idle_timeout_s: float = Field(300.0, ge=0, le=86_400)
 
 
+def peer_address(peer_ip: str) -> IpAddress:
+    """A peer's address as allow-lists name it (an IPv4-mapped IPv6 address as IPv4, no zone)."""
+    ip = ipaddress.ip_address(peer_ip.split("%")[0])
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
+        return ip.ipv4_mapped
+    return ip
+
+
+class TlsSettings(Strict):
+    """``plc.tls``: Modbus/TCP Security, Modbus TCP in TLS with client certificates (docs/security.md).
+
+    Attributes
+    ----------
+    enabled : serve Modbus/TCP Security on ``port``
+    port : 802, the protocol's registered port
+    cert, key : the server's certificate (PEM, with its chain) and its unencrypted private key
+    ca : the CA certificate(s) (PEM) that sign the client certificates; a client without a certificate
+        from one of them is refused at the handshake
+    plain : also serve plain Modbus TCP on ``plc.port`` (false: TLS alone)
+    roles : access of each role a client certificate names (Modbus role extension,
+        OID 1.3.6.1.4.1.50316.802.1): ``read``, ``write`` or ``none`` (closed after the handshake)
+    default_access : access of a certificate without the role extension, or with a role not in ``roles``
+    """
+
+    enabled: bool = False
+    port: int = Field(802, ge=1, le=65535)
+    cert: str | None = None
+    key: str | None = None
+    ca: str | None = None
+    plain: bool = True
+    roles: dict[str, Access] = Field(default_factory=lambda: {"operator": "write", "viewer": "read"})
+    default_access: Access = "read"
+
+    @model_validator(mode="after")
+    def _files_when_enabled(self) -> TlsSettings:
+        missing = [k for k in ("cert", "key", "ca") if getattr(self, k) is None]
+        if self.enabled and missing:
+            raise ValueError(f"enabled needs {', '.join(missing)} (stiffcomp certs makes a set, docs/security.md)")
+        return self
+
+    def files(self) -> dict[str, str]:
+        """The files it names, by key (``cert``, ``key``, ``ca``), when enabled."""
+        return {k: getattr(self, k) for k in ("cert", "key", "ca")} if self.enabled else {}
+
+    def access(self, role: str | None) -> Access:
+        """What a client whose certificate names ``role`` (None: no role) may do."""
+        return self.roles.get(role, self.default_access) if role is not None else self.default_access
+
+
 class PlcSettings(ClientLimits):
     """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``). The
-    defaults a probe reads are `PlcEndpoint`'s."""
+    defaults a probe reads are `PlcEndpoint`'s.
+
+    ``writers``: the addresses or networks (CIDR) whose plain Modbus TCP clients may write; every other
+    client may read, and its writes are answered with exception 01. None (the default): any client may
+    write. Over TLS the client certificate's role decides (``tls``).
+    """
 
     role: Literal[PLC_ROLES] = PlcEndpoint.role
     host: str = PlcEndpoint.host
@@ -50,7 +108,35 @@ class PlcSettings(ClientLimits):
     initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
                                        min_length=6, max_length=6)
     enable_on_start: bool = False
+    writers: list[str] | None = None
+    tls: TlsSettings = Field(default_factory=TlsSettings)
     client: PlcClientSettings = Field(default_factory=PlcClientSettings)
+
+    @field_validator("writers")
+    @classmethod
+    def _networks(cls, v: list[str] | None) -> list[str] | None:
+        return None if v is None else [str(ipaddress.ip_network(n, strict=False)) for n in v]
+
+    def may_write(self, peer_ip: str) -> bool:
+        """Whether a plain Modbus TCP client at ``peer_ip`` may write (``writers``)."""
+        if self.writers is None:
+            return True
+        ip = peer_address(peer_ip)
+        return any(ip in ipaddress.ip_network(n) for n in self.writers)
+
+    def exposure_warning(self) -> str | None:
+        """The warning for plain Modbus TCP served beyond this machine with no ``writers``, or None."""
+        if self.role != "server" or self.writers is not None or (self.tls.enabled and not self.tls.plain):
+            return None
+        try:
+            if peer_address(self.host).is_loopback:
+                return None
+        except ValueError:
+            if self.host == "localhost":
+                return None
+        return (f"plain Modbus TCP listens on {self.host}:{self.port} and plc.writers is not set: every host "
+                "that reaches this port can write the command word (enable, tare, reset faults), the joint "
+                "positions and the payload index; set plc.writers to the PLC's address (docs/security.md)")
 
 
 class MonitoringSettings(Strict):

@@ -151,7 +151,9 @@ class Service:
         cfg = self.cfg
         if cfg.plc.role == "none" and not cfg.ads.enabled and not cfg.monitoring.enabled:
             return None
-        return IoSettings(plc=cfg.plc, ads=cfg.ads, monitoring=cfg.monitoring, avoid_cpu=cfg.cycle.cpu)
+        tls = cfg.plc.tls.model_copy(update={k: str(cfg.resolve(v)) for k, v in cfg.plc.tls.files().items()})
+        return IoSettings(plc=cfg.plc.model_copy(update={"tls": tls}), ads=cfg.ads, monitoring=cfg.monitoring,
+                          avoid_cpu=cfg.cycle.cpu)
 
     def start(self) -> None:
         self.image.publish(self.record, time.time_ns())

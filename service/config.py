@@ -71,6 +71,7 @@ class ServiceConfig(Strict):
                  "source.ati.dbc": self.source.ati.dbc}
         if self.source.type == "replay" and self.source.replay is not None:
             files["source.replay.file"] = self.source.replay.file
+        files |= {f"plc.tls.{k}": v for k, v in self.plc.tls.files().items()}
         return files
 
     def register_map(self) -> RegisterMap:

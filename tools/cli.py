@@ -25,6 +25,7 @@ COMMANDS = {
     "status": "tools.status_cmd",
     "registers": "tools.registers_cmd",
     "symbols": "tools.symbols_cmd",
+    "certs": "tools.certs_cmd",
     "record": "tools.record_cmd",
     "payload": "tools.payload_cmd",
     "simulate": "tools.simulate_cmd",

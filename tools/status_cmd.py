@@ -118,11 +118,12 @@ def reader_for(cfg, via: str, host: str | None, port: int | None, register_map: 
     """The reader ``--via`` asks for, and its protocol's name; ValueError naming the keys when the config
     serves neither protocol, or when pyads, which ADS needs, is missing."""
     if via == "auto":
-        via = "modbus" if cfg.plc.role == "server" else "ads" if cfg.ads.enabled else ""
+        plain = cfg.plc.role == "server" and (not cfg.plc.tls.enabled or cfg.plc.tls.plain)
+        via = "modbus" if plain else "ads" if cfg.ads.enabled else ""
         if not via:
-            raise ValueError(f"plc.role is {cfg.plc.role} and ads.enabled is false: the service serves "
-                             "neither Modbus nor ADS to read its status from (--via modbus --host H --port P "
-                             "reads another one)")
+            raise ValueError(f"plc.role is {cfg.plc.role}{' with TLS alone' if cfg.plc.role == 'server' else ''} "
+                             "and ads.enabled is false: the service serves neither plain Modbus nor ADS to read "
+                             "its status from (--via modbus --host H --port P reads another one)")
     rmap = register_map_for(cfg, register_map)
     local = {"0.0.0.0": "127.0.0.1"}
     if via == "modbus":

@@ -8,7 +8,7 @@ from pydantic import Field, field_validator
 
 from stiffness.yamlio import Strict
 
-from ..settings import ClientLimits
+from ..settings import ClientLimits, peer_address
 from .ams import SYSTEM_SERVICE_PORT, net_id_bytes
 
 
@@ -82,7 +82,7 @@ class AdsSettings(ClientLimits):
 
     def allows(self, peer_ip: str, net_id: str | None = None) -> bool:
         """Whether ``peer_ip`` (and, once known, the source ``net_id`` it sends) is a known route."""
-        ip = _ip(peer_ip)
+        ip = peer_address(peer_ip)
         if self.allow_loopback and ip.is_loopback:
             return True
         return any(str(ip) == r.address and (net_id is None or net_id == r.net_id) for r in self.routes)
@@ -91,13 +91,6 @@ class AdsSettings(ClientLimits):
         """The AMS Net ID a client at ``peer_ip`` is given when it asks the router for an address (port
         connect): its route's, or, on this machine without one, the server's own, as TwinCAT's router
         gives its local clients."""
-        ip = str(_ip(peer_ip))
+        ip = str(peer_address(peer_ip))
         return next((r.net_id for r in self.routes if r.address == ip), self.net_id)
 
-
-def _ip(peer_ip: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
-    """A peer's address as the routes name it (an IPv4-mapped IPv6 address as IPv4, no zone)."""
-    ip = ipaddress.ip_address(peer_ip.split("%")[0])
-    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
-        return ip.ipv4_mapped
-    return ip
