@@ -30,6 +30,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import bench_diagnose
 import bench_effects
 import bench_model
+import bench_trace
 
 from hil.testing import free_port, wait_for_port, write_config
 from plc_interface.register_map import RegisterMap
@@ -109,11 +110,15 @@ def model_rows() -> list[tuple[str, str, str]]:
     m = bench_model.main()
     d = bench_diagnose.main()
     e = bench_effects.main(["--blocks", "10"])
+    tr = bench_trace.main(["--blocks", "20"])
     verdict = d["result"]
     return [
         ("cycle work, every library effect  [issue 11]", f"ratio {e['every effect']['ratio']:.2f} to springs only",
          (f"{e['every effect']['median_us']:.0f} µs against {e['springs only']['median_us']:.0f} µs; a sample and "
           "new joints every cycle")),
+        ("cycle work with the trace on  [issue 29]", f"ratio {tr['ratio']:.3f} to off",
+         (f"p50 {tr['p50_us_on']:.1f} against {tr['p50_us_off']:.1f} µs, {tr['blocks']} alternating blocks; "
+          f"{tr['written']} of {tr['traced']} cycles written")),
         ("model batch speed", f"{m['body_predictions_per_s']:,.0f} predictions/s",
          f"{m['batch_prediction_rows']:,} rows, one core, kinematics precomputed"),
         ("  … including kinematics", f"{m['body_predictions_per_s_including_kinematics']:,.0f} predictions/s",

@@ -11,9 +11,11 @@ import numpy as np
 
 from stiffness.model import StiffnessModel
 
+from .cmm import CmmResult, measure
+from .lockstep import run_lockstep
 from .report import errors, evaluate, plot
 from .robot_stub import RobotStub
-from .run import Faults, PassResult, run_pass
+from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
 from .world import World
 
@@ -26,6 +28,7 @@ class CircleResult:
     passes: dict[str, PassResult]
     evaluations: dict[str, dict]
     world: World
+    cmm: dict[str, CmmResult]
 
 
 # the share of deadlines exceeded per cycle run (task exceed_count / cycles) that makes a pass's figures doubtful
@@ -60,35 +63,82 @@ def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult)
 
 def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,
                compensation: bool = True, report: Path | None = None, workdir: Path | None = None,
-               faults: Faults | None = None, service_overrides: dict | None = None) -> CircleResult:
+               faults: Faults | None = None, service_overrides: dict | None = None,
+               trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
-    ``faults`` are injected in the compensated pass only.
+    ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
+    one) writes the service's ``trace`` (`stiffcomp run --trace`) and the virtual CMM's points of the part
+    it cut to ``cmm`` (`hil.cmm`); the summary's ``part_error_mm`` is that part's mean error. ``lockstep``:
+    each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
     StiffnessModel.from_yaml(model_path)               # a bad model fails here, before any process starts
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
-        passes = {"uncompensated": run_pass(scenario, truth, model_path, False, base / "uncompensated",
-                                            service_overrides=service_overrides)}
-        if compensation:
-            passes["compensated"] = run_pass(scenario, truth, model_path, True, base / "compensated", faults,
-                                             service_overrides)
-    evals = {}
+        if lockstep:
+            if faults is not None:
+                raise HilError("faults are injected in real time only: run without --lockstep")
+            passes = {"uncompensated": run_lockstep(scenario, truth, model_path, False, base / "uncompensated",
+                                                    service_overrides, None if compensation else trace)}
+            if compensation:
+                passes["compensated"] = run_lockstep(scenario, truth, model_path, True, base / "compensated",
+                                                     service_overrides, trace)
+        else:
+            passes = {"uncompensated": run_pass(scenario, truth, model_path, False, base / "uncompensated",
+                                                service_overrides=service_overrides,
+                                                trace=None if compensation else trace)}
+            if compensation:
+                passes["compensated"] = run_pass(scenario, truth, model_path, True, base / "compensated", faults,
+                                                 service_overrides, trace)
+    evals, parts = {}, {}
     world = None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
+        parts[name] = measure(scenario, world, evals[name])
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals["compensated"]) if compensation else (mean_u, max_u)
     last = passes["compensated" if compensation else "uncompensated"].stats[-1]
     summary = {"mean_error_mm": round(mean_c, 4), "max_error_mm": round(max_c, 4),
                "mean_error_mm_uncompensated": round(mean_u, 4), "max_error_mm_uncompensated": round(max_u, 4),
                "cycles": int(last.get("cycles", 0)), "exceed_count": int(last.get("exceed_count", 0))}
-    summary["timing"] = timing_verdict(summary["cycles"], summary["exceed_count"])
+    last = "compensated" if compensation else "uncompensated"
+    summary["part_error_mm"] = round(parts[last].part_error_mm, 4)
+    summary["part_error_mm_uncompensated"] = round(parts["uncompensated"].part_error_mm, 4)
+    summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
+                         {"exceeded_share": 0.0, "trustworthy": True,
+                          "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
+    if cmm is not None:
+        parts[last].write(cmm)
     if report is not None:
         write_report(Path(report), world, evals, passes, summary)
-    return CircleResult(summary, passes, evals, world)
+    return CircleResult(summary, passes, evals, world, parts)
+
+
+@dataclass
+class Cut:
+    """One compensated cut: its path error (mm), the part the virtual CMM measured, the pass itself."""
+
+    mean_error_mm: float
+    max_error_mm: float
+    part: CmmResult
+    result: PassResult
+
+
+def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, trace: Path | None = None,
+        cmm: Path | None = None, lockstep: bool = True) -> Cut:
+    """Cut the circle once with compensation (the learning loop: cut, measure, learn, cut again); writes
+    the service's ``trace`` and the virtual CMM's ``cmm`` when given."""
+    truth = StiffnessModel.from_yaml(truth_path)
+    run = run_lockstep if lockstep else run_pass
+    result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
+    world, ev = evaluate_pass(scenario, truth, result)
+    part = measure(scenario, world, ev)
+    if cmm is not None:
+        part.write(cmm)
+    mean, worst = errors(ev)
+    return Cut(mean, worst, part, result)
 
 
 def write_report(folder: Path, world: World, evals: dict, passes: dict, summary: dict) -> None:

@@ -86,13 +86,14 @@ class ServiceProcess:
     """`stiffcomp run` as a child process; its log goes to a file (a pipe could fill and block it)."""
 
     def __init__(self, config: Path, folder: Path, index: int = 0, log_level: str = "INFO",
-                 new_session: bool = False):
+                 new_session: bool = False, trace: Path | None = None):
         self.config = config
         self.stats = folder / f"service_stats_{index}.json"
         self.log_path = folder / f"service_{index}.log"
         self._log = self.log_path.open("w")
+        extra = [] if trace is None else ["--trace", str(Path(trace).resolve())]
         self.proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--config", str(config),
-                                      "--stats-json", str(self.stats), "--log-level", log_level], cwd=ROOT,
+                                      "--stats-json", str(self.stats), "--log-level", log_level, *extra], cwd=ROOT,
                                      stdout=subprocess.DEVNULL, stderr=self._log, start_new_session=new_session)
 
     def wait_running(self, timeout: float = START_TIMEOUT_S) -> None:
@@ -140,8 +141,10 @@ def _wait(event, proc, what: str, timeout: float = START_TIMEOUT_S) -> None:
 
 
 def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
-             faults: Faults | None = None, service_overrides: dict | None = None) -> PassResult:
-    """Run the closed loop once in real time; returns the PLC's log and the service's stats."""
+             faults: Faults | None = None, service_overrides: dict | None = None,
+             trace: Path | None = None) -> PassResult:
+    """Run the closed loop once in real time; returns the PLC's log and the service's stats. ``trace``: the
+    service records every cycle there (`stiffcomp run --trace`)."""
     faults = faults or Faults()
     folder.mkdir(parents=True, exist_ok=True)
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
@@ -153,7 +156,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     go = ctx.Value("d", 0.0)
     sensor_ready, plc_ready, stop = ctx.Event(), ctx.Event(), ctx.Event()
     out_file = folder / f"plc_{'comp' if compensate else 'uncomp'}.npz"
-    services = [ServiceProcess(cfg_path, folder, 0)]
+    services = [ServiceProcess(cfg_path, folder, 0, trace=trace)]
     ati = {"base_id": cfg.source.ati.base_id, "counts_per_force": cfg.source.ati.counts_per_force,
            "counts_per_torque": cfg.source.ati.counts_per_torque}
     bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}

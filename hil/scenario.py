@@ -8,6 +8,7 @@ from typing import Literal
 from pydantic import Field
 
 from service.gravity import GravityConfig
+from stiffness.robot import PoseConfig
 from stiffness.yamlio import Strict, read_yaml, validate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -58,6 +59,17 @@ class PlcConfig(Strict):
     max_rate_deg_s: float = Field(2.0, gt=0.0, le=100.0)
 
 
+class CmmConfig(Strict):
+    """The virtual CMM that measures the machined contour (`hil.cmm`)."""
+
+    points: int = Field(360, ge=12, le=100_000)
+    noise_um: float = Field(2.0, ge=0.0, le=1000.0)
+    seed: int = 13
+    entry_exit_mask_deg: float = Field(10.0, ge=0.0, le=180.0)
+    depth_mm: float = Field(2.0, ge=0.0, le=100.0)
+    part_frame: PoseConfig | None = None
+
+
 class Scenario(Strict):
     truth: str
     model: str
@@ -68,6 +80,7 @@ class Scenario(Strict):
     robot: RobotStubConfig = Field(default_factory=RobotStubConfig)
     plc: PlcConfig = Field(default_factory=PlcConfig)
     payload: GravityConfig = Field(default_factory=GravityConfig)     # the truth: what the sensor carries
+    cmm: CmmConfig = Field(default_factory=CmmConfig)
 
     path: Path = Field(default=Path("<scenario>"), exclude=True)
 

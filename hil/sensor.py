@@ -35,6 +35,18 @@ def serve_until(sensor: VirtualAtiSensor, ready, stop) -> None:
         sensor.stop()
 
 
+def gauge_samples(world: World, rate_hz: float, lowpass_hz: float) -> tuple[float, np.ndarray]:
+    """What the sensor's gauges read on its own clock, through its own low-pass: (the time of the first
+    sample, s since the cut started; the samples (N, 6)), for the whole pass and 5 s beyond."""
+    t0 = world.t_start - 0.5
+    grid = t0 + np.arange(int((world.t_end + 5.0 - t0) * rate_hz)) / rate_hz
+    w = world.sensor_wrench(grid)
+    if lowpass_hz > 0:
+        sos = signal.butter(2, lowpass_hz, fs=rate_hz, output="sos")
+        w = signal.sosfilt(sos, w, axis=0, zi=signal.sosfilt_zi(sos)[:, :, None] * w[0])[0]
+    return t0, w
+
+
 class HilSensor(VirtualAtiSensor):
     """The virtual ATI sensor, answering with the world's wrench.
 
@@ -54,13 +66,7 @@ class HilSensor(VirtualAtiSensor):
         super().__init__(bus, protocol, load=lambda t: np.zeros(6))
         self.world = world
         self.rate = float(rate_hz)
-        self.grid_t0 = world.t_start - 0.5
-        grid = self.grid_t0 + np.arange(int((world.t_end + 5.0 - self.grid_t0) * rate_hz)) / rate_hz
-        w = world.sensor_wrench(grid)
-        if lowpass_hz > 0:
-            sos = signal.butter(2, lowpass_hz, fs=rate_hz, output="sos")
-            w = signal.sosfilt(sos, w, axis=0, zi=signal.sosfilt_zi(sos)[:, :, None] * w[0])[0]
-        self.samples = w
+        self.grid_t0, self.samples = gauge_samples(world, rate_hz, lowpass_hz)
         self.go = go
         self.noise = np.asarray(noise, dtype=float)
         self.rng = np.random.default_rng(seed)
@@ -73,7 +79,10 @@ class HilSensor(VirtualAtiSensor):
         return self.world.t_start if t0 is None else t + self._t0 - t0
 
     def answer(self, t: float) -> list[tuple[int, bytes]]:
-        ts = self.scenario_time(t)
+        return self.answer_at(self.scenario_time(t))
+
+    def answer_at(self, ts: float) -> list[tuple[int, bytes]]:
+        """The frames answering a request at scenario time ``ts`` (the lock-step HIL asks so, `hil.lockstep`)."""
         if self.fault is not None and self.go() is not None and ts >= self.fault[1]:
             if self.fault[0] == "stop":
                 return []

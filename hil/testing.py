@@ -32,6 +32,7 @@ TRUTH = ROOT / "examples" / "truth_reference.yaml"
 # One entry of every library effect beyond the springs, at sizes a KR 125 shows (each effect's own
 # `examples`): the service's every-effect start-up test, the HIL circle of the CLI test and the benchmark.
 BEYOND_SPRINGS = [entry for cls in EFFECTS.values() for entry in cls.examples]
+ROTATIONAL = ("rx_rad_per_Nm", "ry_rad_per_Nm", "rz_rad_per_Nm")      # a joint spring's rotational compliances
 
 
 def free_port(kind: int = socket.SOCK_STREAM) -> int:
@@ -160,16 +161,18 @@ def leaked_threads(before: set[threading.Thread], wait_s: float = 3.0) -> list[s
         time.sleep(0.02)
 
 
-def scaled_model_file(source: Path, factor: float, dest: Path, extra: list | None = None) -> Path:
-    """A copy of the model file ``source`` at ``dest`` with every compliance (``*_per_N``, ``*_per_Nm``)
-    times ``factor`` and the ``extra`` effect entries appended (a same-structure reload, or another
-    structure); its robot path is made absolute so the copy can live anywhere."""
+def scaled_model_file(source: Path, factor: float, dest: Path, extra: list | None = None,
+                      keys: tuple[str, ...] = ("_per_N", "_per_Nm")) -> Path:
+    """A copy of the model file ``source`` at ``dest`` with every compliance whose key ends with one of ``keys``
+    (by default all: ``*_per_N``, ``*_per_Nm``) times ``factor`` and the ``extra`` effect entries appended (a
+    same-structure reload, another structure, or with `ROTATIONAL` a catalogue model that is too stiff about
+    its axes); its robot path is made absolute so the copy can live anywhere."""
     data = read_yaml(source)
     data["robot"] = str((Path(source).parent / data["robot"]).resolve())
     for e in data["effects"]:
         for k, v in e.items():
-            if k.endswith(("_per_N", "_per_Nm")):
-                e[k] = v * factor
+            if k.endswith(keys):
+                e[k] = float(v) * factor          # YAML 1.1 reads 4e-07 (no point) as a string
     data["effects"] += extra or []
     Path(dest).write_text(dump_yaml(data, sort_keys=False))
     return Path(dest)

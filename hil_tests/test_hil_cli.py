@@ -1,6 +1,6 @@
-"""`stiffcomp hil circle` end to end: the JSON summary with exactly its six keys, the Fig. 8 plot, a
-truth and a model holding every library effect; a bad input file is a user error (exit 2, one line,
-no traceback)."""
+"""`stiffcomp hil circle` end to end: the JSON summary with exactly its keys, the Fig. 8 plot, a truth and a
+model holding every library effect, the trace of the cut and the virtual CMM's part (issue 29); a bad input
+file is a user error (exit 2, one line, no traceback)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,20 @@ import json
 import subprocess
 import sys
 
+import numpy as np
+import pytest
 from hil_lib import ROOT
 
+from hil.scenario import load_scenario
 from hil.testing import BEYOND_SPRINGS, truth_with
+from stiffness.model import StiffnessModel
+from stiffness.part import read_part
+from stiffness.part_rows import read_against
+from stiffness.trace import read_trace
+from tools.cli import main
 
 KEYS = {"mean_error_mm", "max_error_mm", "mean_error_mm_uncompensated", "max_error_mm_uncompensated", "cycles",
-        "exceed_count", "timing"}
+        "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated"}
 
 
 def stiffcomp(*args: str) -> subprocess.CompletedProcess:
@@ -28,9 +36,12 @@ def test_circle_prints_both_errors_and_writes_the_plot(tmp_path):
     every = tmp_path / "models" / "every_effect.yaml"
     every.parent.mkdir()
     truth_with(BEYOND_SPRINGS).to_yaml(every)
-    p = stiffcomp("--truth", str(every), "--model", str(every), "--json", "--report", str(tmp_path))
+    trace, part = tmp_path / "cut.parquet", tmp_path / "part.csv"
+    p = stiffcomp("--truth", str(every), "--model", str(every), "--json", "--report", str(tmp_path),
+                  "--trace", str(trace), "--cmm", str(part))
     assert p.returncode == 0, p.stderr
     s = json.loads(p.stdout)
+    _the_trace_and_the_part_belong_together(s, tmp_path, trace, part, every)
     assert set(s) == KEYS
     assert set(s["timing"]) == {"exceeded_share", "trustworthy", "verdict"}
     assert s["mean_error_mm"] <= 0.10 * s["mean_error_mm_uncompensated"], s
@@ -44,3 +55,23 @@ def test_a_missing_truth_is_a_user_error(tmp_path):
     p = stiffcomp("--truth", str(tmp_path / "missing.yaml"))
     assert p.returncode == 2
     assert "missing.yaml" in p.stderr and "Traceback" not in p.stderr
+
+
+def _the_trace_and_the_part_belong_together(s: dict, folder, trace, part, model) -> None:
+    """The compensated pass's service traced every cycle it ran; the virtual CMM's part reads against that
+    trace (the entry and exit overlap masked: every point it wrote); part_error_mm is the mean |deviation|
+    of its points from the nominal contour; `stiffcomp part compare` reads both."""
+    stats = json.loads((folder / "summary.json").read_text())["service_stats"]["compensated"][-1]
+    t = read_trace(trace)
+    assert stats["trace"]["lost"] == 0 and len(t) == stats["trace"]["written"] == stats["cycles"]
+    model = StiffnessModel.from_yaml(model)
+    rows = read_against(read_part(part), t, model.robot)
+    assert rows.used.all() and len(rows.used) >= 300
+    # the nominal contour from the trace (the joints less the correction, which reached the joints a PLC cycle
+    # or two later) is good to about 0.01 mm in real time (docs/part.md)
+    assert np.mean(np.abs(rows.nominal_mm)) == pytest.approx(s["part_error_mm"], abs=0.015)
+    sc = load_scenario()
+    measured = read_part(part)
+    r = np.hypot(*measured.points_mm[:, :2].T) - (sc.circle.radius_mm + sc.milling.tool_diameter_mm / 2)
+    assert np.mean(np.abs(r)) == pytest.approx(s["part_error_mm"], abs=1e-3)       # the frame is the circle's centre
+    assert main(["part", "compare", str(model.source), str(trace), str(part), "--json"]) == 0

@@ -242,12 +242,18 @@ class ProcessImage:
         """Detach; the creating process also frees the memory."""
         self._h = self._n_timing = self._timing = None
         self._buf = {}
-        if self._owner:         # first: a view still alive (BufferError below) must not keep the name
-            try:
-                self.shm.unlink()
-            except FileNotFoundError:
-                pass
+        release(self.shm, self._owner)
+
+
+def release(shm: SharedMemory, owner: bool) -> None:
+    """Detach from a shared memory block; its creator (``owner``) also frees the name. The process image and
+    the trace ring (`service.trace`) let theirs go so."""
+    if owner:               # first: a view still alive (BufferError below) must not keep the name
         try:
-            self.shm.close()
-        except BufferError:
-            pass  # a view is still alive somewhere; the mapping goes when it does
+            shm.unlink()
+        except FileNotFoundError:
+            pass
+    try:
+        shm.close()
+    except BufferError:
+        pass  # a view is still alive somewhere; the mapping goes when it does

@@ -35,10 +35,32 @@ log = logging.getLogger("stiffcomp.io")
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)      # the cycle process's to handle
 
 
-def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format: str, stop, ready) -> None:
+def ignore_cycle_signals() -> None:
+    """A child's first instruction: SIGINT, SIGTERM and SIGHUP are the cycle process's to handle."""
     for s in SIGNALS:
         signal.signal(s, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
+
+
+def spawn_child(proc: multiprocessing.Process) -> None:
+    """Start a child of the cycle process with SIGINT, SIGTERM and SIGHUP ignored (blocked meanwhile in
+    this thread, so one that arrives now is delivered to this process's own handler afterwards, not lost).
+    The child calls `ignore_cycle_signals` first; the I/O process and the trace writer start so."""
+    if threading.current_thread() is not threading.main_thread():
+        proc.start()          # only the main thread may change handlers; the child ignores them itself
+        return
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    handlers = {s: signal.signal(s, signal.SIG_IGN) for s in SIGNALS}
+    try:
+        proc.start()
+    finally:
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format: str, stop, ready) -> None:
+    ignore_cycle_signals()
     configure_logging(log_level, log_format)
     if settings.avoid_cpu is not None:
         try:
@@ -99,23 +121,8 @@ class IoProcess:
                                                      current_format(), self._stop, self._child_end),
                                  name="stiffcomp-io", daemon=True)
 
-    def _spawn(self) -> None:
-        """Start the child with SIGINT, SIGTERM and SIGHUP ignored (blocked meanwhile in this thread, so
-        one that arrives now is delivered to this process's own handler afterwards, not lost)."""
-        if threading.current_thread() is not threading.main_thread():
-            self._proc.start()          # only the main thread may change handlers; the child ignores them itself
-            return
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
-        handlers = {s: signal.signal(s, signal.SIG_IGN) for s in SIGNALS}
-        try:
-            self._proc.start()
-        finally:
-            for s, h in handlers.items():
-                signal.signal(s, h)
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-
     def start(self, timeout: float = 60.0) -> None:
-        self._spawn()
+        spawn_child(self._proc)
         # the child holds its own copy now; closing ours lets a child that dies end the wait at once (EOF)
         self._child_end.close()
         if not self._ready.poll(timeout):

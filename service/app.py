@@ -42,6 +42,7 @@ from .config import ServiceConfig
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
+from .trace import TraceOptions, TraceRing, TraceWriter
 
 log = logging.getLogger("stiffcomp.service")
 
@@ -53,10 +54,21 @@ class Service:
     ----------
     cfg : ServiceConfig
         A validated config (`service.config.load_config`).
+    trace : TraceOptions, optional
+        Record every cycle to a file, written by a process of its own (`service.trace`); off by default.
+    source : FtSource, optional
+        The F/T source to read instead of the config's ``source`` (the lock-step HIL hands its virtual
+        sensor's frames so, `hil.lockstep`).
     """
 
-    def __init__(self, cfg: ServiceConfig):
+    def __init__(self, cfg: ServiceConfig, trace: TraceOptions | None = None, source=None):
+        if trace is not None:
+            trace.check()
         self.cfg = cfg
+        self.trace_options = trace
+        self.trace: TraceRing | None = None
+        self.trace_writer: TraceWriter | None = None
+        self.trace_counts: dict[str, int] | None = None
         self.model = load_model(cfg)
         self.cycle = Cycle.from_config(cfg, self.model)
         self.rmap = cfg.register_map()
@@ -79,10 +91,12 @@ class Service:
         self.image = ProcessImage(self.rmap)
         try:
             self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
-            self.source = make_source(cfg)
+            self.source = make_source(cfg) if source is None else source
         except BaseException:
             self.image.close()
             raise
+        if trace is not None:
+            self.trace = TraceRing()
         self.record: ToPlc = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
 
     def _task_values(self, state: TaskState) -> TaskValues:
@@ -108,15 +122,19 @@ class Service:
         cyc = self.cycle
         if self.task is not None and self.task.stop_requested and not cyc.stopping:
             self._begin_stop(t)
-        cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat),
-                 [inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6], exceeded, int(inp.payload_index))
-        self.record = record = self.produce(self._task_values(TaskState.RUN), cyc.signals())
-        if cyc.stopping and self._stop_done(t):
+        q = (inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6)
+        cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat), list(q), exceeded,
+                 int(inp.payload_index))
+        sig = cyc.signals()
+        self.record = record = self.produce(self._task_values(TaskState.RUN), sig)
+        go_on = not (cyc.stopping and self._stop_done(t))
+        if not go_on:
             self.record = record = stopped(record)
-            self.image.publish(record, time.time_ns())
-            return False
-        self.image.publish(record, time.time_ns())
-        return True
+        stamp = time.time_ns()
+        self.image.publish(record, stamp)
+        if self.trace is not None:
+            self.trace.put_cycle(t, stamp * 1e-9, record.cycle_count, q, sig, record.task_state)
+        return go_on
 
     def _begin_stop(self, t: float) -> None:
         """Ramp to zero (it never jumps, even on stop), bounded in cycles and loosely in time: the ramp ends
@@ -157,6 +175,14 @@ class Service:
 
     def start(self) -> None:
         self.image.publish(self.record, time.time_ns())
+        if self.trace is not None:
+            self.trace_writer = TraceWriter(self.trace, self.trace_options)
+            try:
+                self.trace_writer.start()
+            except BaseException:
+                self.trace_writer = None
+                self.stop()
+                raise
         settings = self.io_settings()
         if settings is not None:
             try:
@@ -190,6 +216,10 @@ class Service:
             self.image.publish(self.record, time.time_ns())
         if self.io is not None:
             self.io.stop()
+        if self.trace_writer is not None:
+            self.trace_counts = self.trace_writer.stop()
+        if self.trace is not None:
+            self.trace.close()
         self.image.close()
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
@@ -279,5 +309,7 @@ class Service:
         stats["status"] = "stopped" if self.task_state == TaskState.STOP else "running"
         stats["failure"] = self.failure
         stats["io_process"] = {"deaths": self.io_deaths, "restarts": self.io_restarts}
+        if self.trace_counts is not None:
+            stats["trace"] = {"file": str(self.trace_options.path), **self.trace_counts}
         Path(path).write_text(json.dumps(stats, indent=2) + "\n")
         return stats

@@ -4,6 +4,7 @@ ServiceError                      base of every error the cyclic service raises 
 ├── ServiceConfigError            default.yaml (or a file it names) is invalid: names file, key, value, range
 ├── ModelUnsupportedError         the stiffness model holds an effect the real-time predictor cannot evaluate
 ├── SourceError                   the F/T source cannot be opened (file missing, CAN interface unavailable)
+├── TraceError                    the trace file (--trace) cannot be written: its folder, suffix, pyarrow
 └── SensorError                   a reading from the F/T sensor is unusable (raised per reading; its
     │                             ``fault`` names the fault bit `service.faults.FaultMonitor` sets)
     ├── SensorTimeout             no sample for longer than ``faults.sensor_timeout_ms``
@@ -34,6 +35,10 @@ class ModelUnsupportedError(ServiceError):
 
 class SourceError(ServiceError):
     """Raised when the F/T source cannot be opened or read (missing file, unknown CAN interface)."""
+
+
+class TraceError(ServiceError):
+    """Raised at start-up when the trace file (``stiffcomp run --trace``) cannot be written."""
 
 
 class SensorError(ServiceError):

@@ -117,7 +117,25 @@ class Context:
             g[:, :3, 3:] = -skew(P_body - ps) @ Rs * M_TO_MM
             g[:, 3:, 3:] = Rs * RAD_TO_DEG
             G[:, s] = g * mask[:, None, None]
+        if self.axes is not None:      # the components are G's axis 2
+            G = np.swapaxes(self.in_row_axes(np.swapaxes(G, 1, 2)), 1, 2)
         return G
+
+    @property
+    def axes(self) -> np.ndarray | None:
+        """(N, 3, 3) each row's measurement axes (`Dataset.axes`), or None for base axes."""
+        return self.data.axes
+
+    def in_row_axes(self, x: np.ndarray) -> np.ndarray:
+        """Deflections in base axes, (N, 6, ...) with the components on axis 1, in each row's own axes
+        (`Dataset.axes`): position and rotation each turned by the row's axes; unchanged without axes."""
+        A = self.axes
+        if A is None:
+            return x
+        out = np.empty_like(x)
+        out[:, :3] = np.einsum("nij,nj...->ni...", A, x[:, :3])
+        out[:, 3:] = np.einsum("nij,nj...->ni...", A, x[:, 3:])
+        return out
 
     def rows(self, per_reading: np.ndarray) -> np.ndarray:
         """Gather a per-reading array to rows."""

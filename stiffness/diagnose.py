@@ -40,6 +40,7 @@ from .identify import FitResult, design, fit, jacobian, rms
 from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import PreloadTerm, held_preload, start_from_centres
+from .prior import Prior
 from .residuals import pure_error, worst
 
 CV_MIN = 0.005
@@ -87,6 +88,11 @@ class Candidate:
     def entry(self) -> dict:
         """The YAML entry that adds this effect with its estimated parameters."""
         return _with_theta(self.effect, self.estimate).to_config()
+
+    def add_options(self) -> dict[str, str]:
+        """The options of `stiffcomp model add` the diagnosis advises for this effect (its text says them too):
+        ``{"preload": "identify"}`` for an effect found off the model's static torque."""
+        return {"preload": "identify"} if self.preload is not None else {}
 
     preload: dict | None = None      # for an effect found off the model's static torque: the model's preload entry
 
@@ -151,12 +157,20 @@ def preload_entry(model: StiffnessModel, ctx: Context, effect: Effect) -> dict |
 
 # -- scoring ------------------------------------------------------------------------------------
 class _Gram:
-    """Per-fold Gram blocks of the base Jacobian and the residual, for fast nested least squares."""
+    """Per-fold Gram blocks of the base Jacobian and the residual, for fast nested least squares.
 
-    def __init__(self, A0: np.ndarray, r: np.ndarray, fold: np.ndarray):
+    ``prior``: rows (A_p, r_p) over the base parameters that join every training set and are never held
+    out (a prior's, `stiffness.prior`)."""
+
+    def __init__(self, A0: np.ndarray, r: np.ndarray, fold: np.ndarray,
+                 prior: tuple[np.ndarray, np.ndarray] | None = None):
         self.folds = np.unique(fold)
-        self.norm0 = _norms(A0)
+        p0 = A0.shape[1]
+        Ap, rp = prior if prior is not None else (np.zeros((0, p0)), np.zeros(0))
+        self.norm0 = _norms(np.vstack([A0, Ap]))        # the data's and the prior's together: one scale
         self.A0 = A0 / self.norm0
+        Ap = Ap / self.norm0
+        self.Gp, self.bp, self.rrp = Ap.T @ Ap, Ap.T @ rp, float(rp @ rp)
         self.r = r
         # each fold's rows, and its slices of the base Jacobian and residual, cut once for all candidates
         self.rows = [np.nonzero(fold == k)[0] for k in self.folds]
@@ -179,9 +193,12 @@ class _Gram:
     def rss_and_cv(self, M: np.ndarray, v: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
         """Full-data RSS, held-out SSE summed over folds, the solution and its (unscaled) covariance."""
         Mt, vt = M.sum(0), v.sum(0)
+        p0 = len(self.bp)
+        Mt[:p0, :p0] += self.Gp
+        vt[:p0] += self.bp
         cov = np.linalg.pinv(Mt)
         x = cov @ vt
-        rss = float(self.rr.sum() - vt @ x)
+        rss = float(self.rr.sum() + self.rrp - vt @ x)
         sse = 0.0
         for k in range(len(self.folds)):
             xk = np.linalg.lstsq(Mt - M[k], vt - v[k], rcond=1e-12)[0]
@@ -206,12 +223,15 @@ def folds_by_configuration(ctx: Context) -> np.ndarray:
     return np.repeat(fold_of_reading[ctx.row_reading], 6)
 
 
-def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool = True) -> Diagnosis:
+def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool = True,
+             prior: Prior | None = None) -> Diagnosis:
     """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks.
 
     Only the measured components count. With ``robust`` (the default) the rows the fit judges gross
     errors (`robust`) are left out of the fit and of every candidate's evidence; a missing effect
-    repeats in every reading of a load state and is not mistaken for them.
+    repeats in every reading of a load state and is not mistaken for them. With ``prior`` (what the model
+    knew before these data, `stiffness.prior`: a machined part sees few combinations of the parameters,
+    `stiffness.part_diagnose`) the fit and every candidate's nested fit hold the base parameters to it.
     """
     say = progress or (lambda msg: None)
     need = 2 * (len(model.theta) + 6)          # the model and the largest candidate, twice over
@@ -221,7 +241,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
                         f"a model of {len(model.theta)} parameters and its candidates need at least {need}")
     say("fitting the model")
     ctx = model.context(data)
-    result = fit(model, ctx, robust=robust)
+    result = fit(model, ctx, robust=robust, prior=prior)
     fitted = result.model
     resid = result.residual
     # unmeasured entries and gross errors weigh nothing: they drop out of every Gram block
@@ -230,9 +250,14 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     J0 = jacobian(fitted, ctx)
     # an identified preload is held at its fit: its columns are local to each configuration, so a
     # held-out configuration cannot predict them and they would only blur the cross-validation
-    J0 = J0[:, :, ~held_preload(fitted)]
+    held = held_preload(fitted)
+    J0 = J0[:, :, ~held]
     A0 = (J0 * wt[:, :, None]).reshape(len(y_w), -1)
-    gram = _Gram(A0, y_w, folds_by_configuration(ctx))
+    rows = None
+    if prior is not None:             # the prior's rows, linearised at the fit: R step = -(R theta - c)
+        R, c = prior.rows(fitted.param_labels())
+        rows = (R[:, ~held], -(R @ fitted.theta - c))
+    gram = _Gram(A0, y_w, folds_by_configuration(ctx), rows)
     M0, v0 = gram.G00, gram.b0
     rss0, sse0, _, _ = gram.rss_and_cv(M0, v0)
     n, p0 = int(np.count_nonzero(wt)), A0.shape[1]
@@ -323,8 +348,9 @@ def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple
         left = best.rms_position_mm_after * ref
         left_rot = best.rms_rotation_deg_after * lof["rotation"] / max(result.rms_rotation_deg, 1e-300)
         if _nanmax(left, left_rot) > lof["threshold"]:
-            return "missing_effect", (best.explanation + f" Structure remains after it ({left:.2f}x / "
-                                      f"{left_rot:.2f}x the noise): add it, fit, and diagnose again.")
+            left_text = " / ".join(f"{x:.2f}x" for x in (left, left_rot) if not np.isnan(x))
+            return "missing_effect", (best.explanation + f" Structure remains after it ({left_text} the noise): "
+                                      "add it, fit, and diagnose again.")
         return "missing_effect", best.explanation
     if structure_left:
         nibblers = [c for c in candidates if c.significant]

@@ -40,7 +40,7 @@ def to_dict(d: Diagnosis, top: int | None = None) -> dict[str, Any]:
             "passes_tests": c.significant,
             "excess_explained": c.excess_explained,
             "explanation": c.explanation,
-            "entry": c.entry(),
+            "entry": {**c.entry(), **c.add_options()},     # every option its text advises, for a script
         } for c in cands],
     }
 

@@ -12,6 +12,12 @@ evaluation (variable projection).
 The noise of each kind is re-estimated from the residuals between rounds, so position and rotation
 count by what the data show.
 
+A prior (`stiffness.prior.Prior`: what a campaign already told of the parameters) adds rows that hold
+the parameters near it, whitened like the data's; every step below solves the data's rows and the
+prior's together, so new data (a machined part's points, `stiffness.part_learn`) move only what they
+determine better than the prior did. The fit's own covariance is stored in the fitted model (the
+YAML's ``covariance``), the prior of the next fit.
+
 Only the measured components count (a laser tracker gives the TCP position alone): an unmeasured
 entry has weight zero, and the parameters the measured components cannot determine at all are named
 (`identifiability`) and kept at their starting values. By default the fit is robust: rows judged
@@ -28,12 +34,13 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares, lsq_linear
 
 from .context import Context
-from .identifiability import IDENT_TOL, unidentifiable
+from .identifiability import IDENT_TOL, unidentifiable_information
 from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import directions, held_preload
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
+from .prior import Prior, covariance_entry
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale
@@ -64,6 +71,7 @@ class FitResult:
     lines: np.ndarray | None = None        # (N,) the file line of each row
     preload: list[str] = field(default_factory=list)   # per identified static torque: what the data determine
     preload_evidence: list = field(default_factory=list)   # per identified static torque: `preload_fit.Evidence`
+    covariance: np.ndarray | None = None   # (P, P) SI: the estimate's covariance (inf where not determined)
 
     def __post_init__(self) -> None:
         if self.outlier is None:
@@ -201,7 +209,7 @@ def _param(model, k):
 
 def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfev: int = 100,
         sigma: np.ndarray | None = None, robust: bool = True, nonnegative: bool = False,
-        progress: Callable[[str], None] | None = None) -> FitResult:
+        progress: Callable[[str], None] | None = None, prior: Prior | None = None) -> FitResult:
     """Identify every parameter of ``model`` from ``data``; returns a fitted copy in the result.
 
     Parameters
@@ -224,9 +232,13 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     progress : callable, optional
         Called with a few words at each stage and at each evaluation of the nonlinear solver (a fit with
         an identified preload takes minutes); `tools.common.Progress` shows them.
+    prior : Prior, optional
+        What is known of the parameters before these data (`stiffness.prior`): its rows are solved with
+        the data's at every step, and the standard errors and the covariance include it.
     """
     say = progress or (lambda stage: None)
     model = model.copy()
+    pr = _PriorRows(prior, model)
     ctx = data if isinstance(data, Context) else model.context(data)
     fresh_start(model, ctx, fit, say)      # an identified preload still at its prior: start where the data step
     measured = ctx.data.measured
@@ -251,10 +263,10 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
             def counted(n: int, stage: str = stage) -> None:
                 say(f"{stage}: {n} evaluations of the {len(nl)} nonlinear parameters")
             theta, converged, message = _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev,
-                                                         lower, counted)
+                                                         lower, counted, pr)
         else:
-            theta = _solve_linear(model, ctx, y, w, theta, lin, lower)
-        theta = _exact_step(model, ctx, y, w, scale, theta, lower)
+            theta = _solve_linear(model, ctx, y, w, theta, lin, lower, pr)
+        theta = _exact_step(model, ctx, y, w, scale, theta, lower, pr)
         resid = np.where(measured, y - model.predict(ctx, theta), np.nan)
         if robust:
             keep = ~gross_errors(resid, robust_scale(resid, stated), group)
@@ -267,8 +279,10 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     model.theta = theta
     w = weights(measured, inlier, sigma)
     J = jacobian(model, ctx, theta)
-    blind = unidentifiable(_weighted(J, w) * scale)
-    se, t = _standard_errors(J, resid, w, scale, theta, blind)
+    Jw = _weighted(J, w) * scale
+    blind = unidentifiable_information(Jw.T @ Jw + pr.information(scale))
+    se, t, cov = _standard_errors(J, resid, w, scale, theta, blind, pr)
+    model.covariance = covariance_entry(model, cov, _source_text(ctx, prior))
     labels = model.param_labels()
     own = held_preload(model)      # an identified preload's unseen combinations are named by its own lines
     undetermined = [lab for lab, tv, o in zip(labels, t, own) if not tv >= T_DETERMINED and not o]
@@ -289,7 +303,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     say("checking each identified preload against the noise")
     found = evidence(model, ctx, y, w, resid, lambda m, th: _solve_linear(m, ctx, y, w, th, linear_index(m)))
     result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
-                       ~inlier, ctx.data.line, preload_notes(model, ctx, found), found)
+                       ~inlier, ctx.data.line, preload_notes(model, ctx, found), found, cov)
     if result.outlier.any():
         warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
                         + ", ".join(map(str, result.outlier_lines[:20]))
@@ -307,11 +321,12 @@ def _weighted(X: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (X * w[:, :, None]).reshape(-1, X.shape[2])
 
 
-def _solve_linear(model, ctx, y, w, theta, lin, lower=None):
+def _solve_linear(model, ctx, y, w, theta, lin, lower=None, prior=None):
     """The linear parameters in closed form (minimum-norm step from ``theta``), the others held.
 
     With ``lower`` (P,) below which a parameter may not go (-inf: unbounded), and any finite, the
-    bounded problem is solved by scipy.optimize.lsq_linear on unit-norm columns instead."""
+    bounded problem is solved by scipy.optimize.lsq_linear on unit-norm columns instead. With ``prior``
+    (`_PriorRows`) its rows are solved with the data's."""
     theta = theta.copy()
     start = theta[lin].copy()
     theta[lin] = 0.0
@@ -319,6 +334,9 @@ def _solve_linear(model, ctx, y, w, theta, lin, lower=None):
     X = design(model, ctx, model.frame_wrenches(ctx, theta), theta)
     Xw = _weighted(X, w)
     b = (rest * w).reshape(-1)
+    if prior is not None and prior.R.shape[0]:          # R theta_lin = c - R theta_other
+        Xw = np.vstack([Xw, prior.R[:, lin]])
+        b = np.concatenate([b, prior.c - prior.R @ theta])
     lo = None if lower is None else lower[lin]
     if lo is None or not np.isfinite(lo).any():
         theta[lin] = start + solve_ls(Xw, b - Xw @ start)
@@ -345,9 +363,9 @@ def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegat
             "an effect; `--nonnegative` bounds them at 0. The service refuses a model holding one")]
 
 
-def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None, counted=None):
+def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None, counted=None, prior=None):
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation (each
-    counted with ``counted(n)``)."""
+    counted with ``counted(n)``; with the prior's rows, `_PriorRows`, in both)."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
     x0 = np.clip(theta[nl] / scale[nl], lo, hi)
@@ -360,9 +378,10 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=No
             counted(cache["n"])
         th = theta.copy()
         th[nl] = (z if T is None else x0 + T @ z) * scale[nl]
-        th = _solve_linear(model, ctx, y, w, th, lin, lower)
+        th = _solve_linear(model, ctx, y, w, th, lin, lower, prior)
         cache["theta"] = th
-        return ((y - model.predict(ctx, th, linear=True)) * w).reshape(-1)
+        r = ((y - model.predict(ctx, th, linear=True)) * w).reshape(-1)
+        return r if prior is None else np.concatenate([r, prior.residual(th)])
 
     if T is None:
         z0, bounds = x0, (lo, hi)
@@ -377,7 +396,7 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=No
     return cache["theta"], bool(sol.status > 0), sol.message
 
 
-def _exact_step(model, ctx, y, w, scale, theta, lower=None):
+def _exact_step(model, ctx, y, w, scale, theta, lower=None, prior=None):
     """One Gauss-Newton step on the exact chain from the linearised optimum (kept within the
     parameters' bounds and ``lower``). An identified preload is held: it moves a step function, which
     a linearisation does not follow (`stiffness.preload`)."""
@@ -386,8 +405,11 @@ def _exact_step(model, ctx, y, w, scale, theta, lower=None):
         lo = np.maximum(lo, lower)
     hi = np.array([p.bounds[1] for e in model.effects for p in e.params])
     J = _weighted(jacobian(model, ctx, theta), w) * scale
-    J[:, held_preload(model)] = 0.0
     r = ((y - model.predict(ctx, theta)) * w).reshape(-1)
+    if prior is not None and prior.R.shape[0]:
+        J = np.vstack([J, prior.R * scale])
+        r = np.concatenate([r, -prior.residual(theta)])
+    J[:, held_preload(model)] = 0.0
     return np.clip(theta + solve_ls(J, r) * scale, lo, hi)
 
 
@@ -401,14 +423,42 @@ def _noise_from_residual(resid: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     return out
 
 
-def _standard_errors(X, resid, w, scale, theta, blind):
+def _standard_errors(X, resid, w, scale, theta, blind, prior):
+    """Standard errors (P,), t values (P,) and the covariance (P, P, SI; inf where not determined).
+
+    The data's information is scaled by the residual's variance per degree of freedom, s2 (about 1 when
+    the noise is right); the prior's counts as stated."""
     Xw = _weighted(X, w) * scale
     p = Xw.shape[1]
     n = int(np.count_nonzero(w))
     s2 = float(np.sum(np.nan_to_num(resid * w) ** 2)) / max(n - p, 1)
-    cov = np.linalg.pinv(Xw.T @ Xw) * s2
-    se = np.sqrt(np.clip(np.diag(cov), 0, None)) * scale
-    se[blind] = np.inf
+    cov = np.linalg.pinv(Xw.T @ Xw / max(s2, 1e-300) + prior.information(scale)) * np.outer(scale, scale)
+    cov[blind, :] = 0.0
+    cov[:, blind] = 0.0
+    cov[blind, blind] = np.inf
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.abs(theta) / se
-    return se, np.nan_to_num(t, nan=0.0)
+    return se, np.nan_to_num(t, nan=0.0), cov
+
+
+class _PriorRows:
+    """A prior's rows for one model: residual R theta - c (in standard deviations), empty without one."""
+
+    def __init__(self, prior: Prior | None, model: StiffnessModel):
+        P = len(model.theta)
+        self.R, self.c = prior.rows(model.param_labels()) if prior is not None else (np.zeros((0, P)), np.zeros(0))
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        return self.R @ theta - self.c
+
+    def information(self, scale: np.ndarray) -> np.ndarray:
+        """R^T R in the parameters divided by ``scale`` (the fit's scaled units)."""
+        Rs = self.R * scale
+        return Rs.T @ Rs
+
+
+def _source_text(ctx: Context, prior: Prior | None) -> str:
+    """What the fit's covariance summarises, in words (the model YAML's covariance.source)."""
+    data = f"{ctx.data.source} ({len(ctx.data)} rows)"
+    return data if prior is None else f"{data} with the prior {prior.source}"

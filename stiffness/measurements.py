@@ -8,6 +8,12 @@ vector log(R_loaded R_unloaded^T) in base axes (deg).
 A campaign may measure any subset of the six deflection components: a laser tracker gives the TCP
 position only. A component that was not measured is an absent column or an empty cell; in memory it
 is NaN (``Dataset.measured`` is False there). A NaN or inf written in the file stays an error.
+
+Measurement axes. A row may give its deflection in axes of its own instead of the base axes
+(``Dataset.axes``, in memory only): a CMM or a probe measures a machined surface along its normal, so
+a point of a part (`stiffness.part_rows`) is a TCP row whose first axis is the surface normal and whose
+only measured component is that one. The model's predictions and the fit's design follow the row's
+axes (`stiffness.context.Context`), so the same identification code fits campaigns and parts.
 """
 
 from __future__ import annotations
@@ -46,6 +52,9 @@ class Dataset:
     body : (N,) body index, 0..5 for A1..A6 and 6 for the TCP
     deflection : (N, 6) [dx, dy, dz (mm), rx, ry, rz (deg)] in base axes; NaN where not measured
     line : (N,) the file line (or parquet row + 2) each row came from
+    axes : (N, 3, 3) or None
+        Row n's deflection components in its own axes: row k of ``axes[n]`` is axis k in base axes
+        (an orthonormal matrix), for both the position and the rotation components; None: base axes.
     """
 
     time_s: np.ndarray
@@ -57,6 +66,7 @@ class Dataset:
     line: np.ndarray | None = None
     source: str = "<memory>"
     ignored_columns: list[str] = field(default_factory=list)
+    axes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.time_s)
@@ -67,6 +77,12 @@ class Dataset:
         for name in ("config", "q_deg", "wrench", "body", "deflection", "line"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"Dataset.{name} has {len(getattr(self, name))} rows, expected {n}")
+        if self.axes is not None:
+            self.axes = np.asarray(self.axes, dtype=float)
+            if self.axes.shape != (n, 3, 3):
+                raise ValueError(f"Dataset.axes has shape {self.axes.shape}, expected ({n}, 3, 3)")
+            if not np.allclose(self.axes @ np.swapaxes(self.axes, 1, 2), np.eye(3), atol=1e-9):
+                raise ValueError("Dataset.axes must hold orthonormal matrices (one set of axes per row)")
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -81,6 +97,7 @@ class Dataset:
         return Dataset(
             self.time_s[mask], self.config[mask], self.q_deg[mask], self.wrench[mask], self.body[mask],
             self.deflection[mask], self.line[mask], self.source, list(self.ignored_columns),
+            None if self.axes is None else self.axes[mask],
         )
 
     @property
@@ -107,6 +124,9 @@ class Dataset:
         A component measured in no row is left out of the header; one measured in some rows only is
         an empty cell in the others.
         """
+        if self.axes is not None:
+            raise ValueError(f"{self.source}: rows measured in axes of their own (a part's points) have no "
+                             "place in the measurement format, which gives deflections in base axes")
         keep = np.nonzero(self.measured.any(axis=0))[0]
         digits = np.array([6, 6, 6, 7, 7, 7])
         with open(path, "w", newline="") as fh:

@@ -11,6 +11,7 @@ position in base axes (mm) and log(R'_k R_k^T) in base axes (deg).
 
 from __future__ import annotations
 
+import copy
 import os
 from pathlib import Path
 from typing import Any
@@ -23,13 +24,14 @@ from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
 from .measurements import Dataset
 from .preload import PreloadTerm
+from .prior import read_covariance
 from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
 from .statics import PayloadConfig, Statics, statics_for
 from .units import M_TO_MM, RAD_TO_DEG
-from .yamlio import dump_yaml, read_yaml, validate
+from .yamlio import FlowList, dump_yaml, read_yaml, validate
 
-TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects"}
+TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects", "covariance"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
 
 
@@ -48,12 +50,18 @@ class StiffnessModel:
     payload : PayloadConfig, optional
         What the sensor carried while the campaign was measured: with the robot's masses it gives the
         static joint torque tau_s at which backlash, nonlinear stiffness and hysteresis act.
+    covariance : dict, optional
+        What the campaign that identified the model told of its parameters (the YAML's ``covariance``:
+        params, std_error, correlation; written by `stiffcomp fit`), the prior of a later fit such as
+        `stiffcomp part learn` (`stiffness.prior.Prior.from_model`).
     """
 
     def __init__(self, robot: Robot, effects: list[Effect], name: str = "model", description: str = "",
                  robot_ref: str | None = None, noise: dict[str, float] | None = None,
-                 source: str = "<model>", payload: PayloadConfig | None = None):
+                 source: str = "<model>", payload: PayloadConfig | None = None,
+                 covariance: dict[str, Any] | None = None):
         self.robot = robot
+        self.covariance = covariance
         self.payload = payload
         self.effects = list(effects)
         self.name = name
@@ -114,7 +122,7 @@ class StiffnessModel:
             effects.append(EFFECTS[name].from_config(entry, robot, where))
         effects += _read_preload(data.get("preload"), robot, source)
         return cls(robot, effects, str(data.get("name", Path(source).stem)), str(data.get("description", "")),
-                   robot_ref, noise, source, payload)
+                   robot_ref, noise, source, payload, read_covariance(data.get("covariance"), source))
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"name": self.name}
@@ -134,6 +142,8 @@ class StiffnessModel:
         if preload:
             out["preload"] = preload
         out["effects"] = effects
+        if self.covariance is not None:
+            out["covariance"] = _flow_rows(self.covariance)
         return out
 
     def to_yaml(self, path: str | Path, header: str = "") -> None:
@@ -156,7 +166,12 @@ class StiffnessModel:
             return str(robot_file.resolve())
 
     def copy(self) -> StiffnessModel:
-        return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)
+        """A copy through the YAML form; a model holding an effect from outside the library (a part's
+        placement while learning, `stiffness.part_learn`) is copied effect by effect instead."""
+        if all(EFFECTS.get(e.name) is type(e) or isinstance(e, PreloadTerm) for e in self.effects):
+            return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)
+        return StiffnessModel(self.robot, [copy.deepcopy(e) for e in self.effects], self.name, self.description,
+                              self.robot_ref, self.noise, self.source, self.payload, self.covariance)
 
     def check(self) -> None:
         """Reject the same effect twice at one place, or a spring component given twice."""
@@ -298,6 +313,13 @@ class StiffnessModel:
         return loaded_deflection(ctx, tw)
 
 
+def _flow_rows(covariance: dict[str, Any]) -> dict[str, Any]:
+    """The covariance section with its correlation matrix written one row per line."""
+    out = dict(covariance)
+    out["correlation"] = [FlowList(row) for row in covariance["correlation"]]
+    return out
+
+
 def _read_preload(entries: Any, robot: Robot, source: str) -> list[PreloadTerm]:
     """The model's ``preload`` list: one entry per joint whose static torque is identified."""
     if entries is None:
@@ -330,4 +352,4 @@ def loaded_deflection(ctx: Context, tw: np.ndarray) -> np.ndarray:
     dp = (Fp[:, 1:, :3, 3] - F[:, 1:, :3, 3]) * M_TO_MM                         # (R, 7, 3)
     dr = log_so3(Fp[:, 1:, :3, :3] @ np.swapaxes(F[:, 1:, :3, :3], -1, -2)) * RAD_TO_DEG
     per_reading = np.concatenate([dp, dr], axis=-1)                         # (R, 7, 6)
-    return per_reading[ctx.row_reading, ctx.body]
+    return ctx.in_row_axes(per_reading[ctx.row_reading, ctx.body])

@@ -42,16 +42,20 @@ def worst(ctx: Context, resid: np.ndarray, sigma: np.ndarray) -> dict:
 
 
 def repeat_groups(ctx: Context, tolerance: float = 0.01) -> np.ndarray:
-    """Group readings that repeat one load state: consecutive in time within a configuration, with a
-    force within ``tolerance`` of the campaign's largest force *of the group's first reading* (so a
-    slow ramp of small steps never chains into one group). Returns a group id per reading."""
+    """Group readings that repeat one load state: consecutive in time within a configuration, at the same
+    joints, with a force within ``tolerance`` of the campaign's largest force *of the group's first
+    reading* (so a slow ramp of small steps never chains into one group). Returns a group id per reading.
+
+    The points of a part (`stiffness.part_rows`) each sit at joints of their own: none repeats another."""
     f = ctx.wrench_sensor[:, :3]
+    q = ctx.q
     tol = tolerance * max(np.linalg.norm(f, axis=1).max(), 1e-9)
     order = np.lexsort((ctx.time, ctx.config))
     gid = np.empty(ctx.n_readings, dtype=int)
     g, first = -1, None
     for n in order:
-        if first is None or ctx.config[first] != ctx.config[n] or np.linalg.norm(f[n] - f[first]) > tol:
+        if (first is None or ctx.config[first] != ctx.config[n] or np.linalg.norm(f[n] - f[first]) > tol
+                or np.abs(q[n] - q[first]).max() > 1e-9):
             g += 1
             first = n
         gid[n] = g

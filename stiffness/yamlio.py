@@ -29,6 +29,14 @@ class _NoAliasDumper(yaml.SafeDumper):
         return True
 
 
+class FlowList(list):
+    """A list `dump_yaml` writes on one line (``[a, b, c]``): a matrix's row."""
+
+
+_NoAliasDumper.add_representer(
+    FlowList, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True))
+
+
 def dump_yaml(data: Any, **options: Any) -> str:
     """YAML text of ``data`` without aliases (`read_yaml` refuses them), the one way stiffcomp writes
     YAML a person or stiffcomp reads again; ``options`` as for ``yaml.safe_dump``."""

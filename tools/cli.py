@@ -34,6 +34,7 @@ COMMANDS = {
     "plan": "tools.plan_cmd",
     "model": "tools.model_cmd",
     "hil": "tools.hil_cmd",
+    "part": "tools.part_cmd",
 }
 
 EXIT_USER_ERROR = 2

@@ -52,6 +52,6 @@ def run(args) -> int:
     if d.best is not None:
         b = d.best
         loc = f" --joint {b.joint}" if b.joint is not None else ""
-        loc += " --preload identify" if b.preload is not None else ""
+        loc += "".join(f" --{k} {v}" for k, v in b.add_options().items())
         print(f"  next: stiffcomp model add {args.model} {b.name}{loc} -o with_{b.name}.yaml")
     return 0

@@ -22,6 +22,15 @@ def register(sub) -> None:
     c.add_argument("--no-compensation", action="store_true", help="only the pass without compensation")
     c.add_argument("--report", default=None, metavar="DIR", help="write hil_circle.png, summary.json, errors")
     c.add_argument("--json", action="store_true", help="print the summary as JSON")
+    c.add_argument("--trace", default=None, metavar="FILE",
+                   help="the service records every cycle of the (compensated) cut to FILE (.csv or .parquet)")
+    c.add_argument("--cmm", default=None, metavar="FILE.csv",
+                   help="write the cut part as the virtual CMM measures it (docs/part_format.md)")
+    c.add_argument("--lockstep", action="store_true",
+                   help="step the service, sensor and PLC together in one process, as fast as the host runs "
+                        "them (deterministic; no real time, no protocols' transport)")
+    c.add_argument("--center-q", type=float, nargs=6, default=None, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="cut the circle here instead (joints at its centre, deg; the scenario's circle.center_q_deg)")
     c.set_defaults(func=run)
 
 
@@ -29,8 +38,16 @@ def run(args) -> int:
     from hil.circle import run_circle
 
     scenario = load_scenario(args.scenario)
+    if args.center_q is not None:
+        scenario.circle.center_q_deg = list(args.center_q)
+    if args.trace is not None:
+        from service.trace import TraceOptions
+
+        TraceOptions(Path(args.trace)).check()          # a bad name fails now, not after the first pass
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
-                     compensation=not args.no_compensation, report=Path(args.report) if args.report else None)
+                     compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
+                     trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
+                     lockstep=args.lockstep)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
@@ -41,7 +58,12 @@ def run(args) -> int:
             red = 100 * (1 - s["mean_error_mm"] / s["mean_error_mm_uncompensated"])
             print(f"path error with compensation:    mean {s['mean_error_mm']:.3f} mm, "
                   f"max {s['max_error_mm']:.3f} mm ({red:.0f} % less)")
+        print(f"part error (virtual CMM, mean |normal deviation|): {s['part_error_mm']:.3f} mm")
         print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded: {s['timing']['verdict']}")
+        if args.trace:
+            print(f"trace: {args.trace}")
+        if args.cmm:
+            print(f"part measurement: {args.cmm}")
         if args.report:
             print(f"report: {Path(args.report) / 'hil_circle.png'}, {Path(args.report) / 'summary.json'}")
     return 0

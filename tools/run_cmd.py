@@ -34,7 +34,32 @@ def register(sub) -> None:
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     p.add_argument("--log-format", default="text", choices=sorted(FORMATTERS),
                    help="text (default) or json: one JSON object per line, for a log collector")
+    add_trace_options(p)
     p.set_defaults(func=run)
+
+
+def add_trace_options(p) -> None:
+    """--trace FILE and its size limit: every cycle recorded outside the cycle (docs/part_format.md)."""
+    from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB
+
+    p.add_argument("--trace", default=None, metavar="FILE",
+                   help="record every cycle (joints, wrench, prediction, correction, state) to FILE, .csv or "
+                        ".parquet; off by default")
+    p.add_argument("--trace-max-mb", type=float, default=DEFAULT_MAX_MB, metavar="MB",
+                   help=f"rotate the trace at this size (default {DEFAULT_MAX_MB:g})")
+    p.add_argument("--trace-keep", type=int, default=DEFAULT_KEEP, metavar="N",
+                   help=f"rotated trace files kept, FILE.1 the newest (default {DEFAULT_KEEP})")
+
+
+def trace_options(args):
+    """The TraceOptions of --trace, or None."""
+    if args.trace is None:
+        return None
+    from pathlib import Path
+
+    from service.trace import TraceOptions
+
+    return TraceOptions(Path(args.trace), args.trace_max_mb * 1e6, args.trace_keep)
 
 
 WATCH_S = 0.1          # the main thread's longest wait: the I/O process is checked this often
@@ -45,7 +70,7 @@ def run(args) -> int:
     from service.app import Service
 
     cfg = load_config(args.config)
-    service = Service(cfg)              # everything validated and opened, nothing started yet
+    service = Service(cfg, trace_options(args))   # everything validated and opened, nothing started yet
     if args.check:
         service.stop()                  # closes what the constructor opened; nothing ran
         print(f"{args.config}: ok, the service would start: model {cfg.resolve(cfg.model.file)}, register map "

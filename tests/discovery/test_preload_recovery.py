@@ -1,4 +1,5 @@
-"""The loop on preloaded campaigns: diagnose -> add the first named effect -> fit, until nothing is missing.
+"""The loop on preloaded campaigns, as a script follows `diagnose --json`: diagnose -> add the first named
+effect (its effect, joint and entry, nothing else) -> fit, until nothing is missing.
 
 The truth carries masses 50 % off the shipped KR 125 ones (1.5 x; and 0.5 x for the backlash from the
 shipped masses) and its balancer, so its backlash and soft zone sit at a static torque the start does not know: the loop must name exactly the truth's effect at its
@@ -8,6 +9,8 @@ robot with no masses at all; a linear truth (the control) gives nothing.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from stiffcomp_testlib import MODELS, ROOT
@@ -15,14 +18,17 @@ from stiffcomp_testlib import MODELS, ROOT
 from discovery.campaigns import campaign
 from service.compensation import FastPredictor
 from stiffness.diagnose import diagnose
+from stiffness.diagnose_report import to_dict
 from stiffness.edit import add_effect
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 from stiffness.yamlio import dump_yaml, read_yaml
+from tools.common import to_jsonable
 
 ROBOTS = ROOT / "config" / "robots"
+ADD_OPTIONS = ("preload",)      # the options of `stiffcomp model add` a diagnosis entry may carry
 NOISE_MM, NOISE_DEG = 0.03, 0.002
 STEP_N = 300           # load steps of the campaign ramps (N); coarser ramps leave a crossing between two load states
 BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.02, "width_Nm": 40.0}
@@ -49,19 +55,24 @@ def model_on(robot_file, extra=()) -> StiffnessModel:
 
 
 def loop(model: StiffnessModel, data, rounds: int = 3):
-    """Diagnose, add the named effect (with its preload when found off the model's static torque), fit;
-    returns the effects named in order, their texts, and the last fit."""
+    """Diagnose, add the named effect as `diagnose --json` says (its effect, joint and entry, nothing else: a
+    key of the entry that is no parameter of the effect is an option of `model add`), fit; returns the
+    effects named in order, their texts, and the last fit."""
     named, texts = [], []
     for _ in range(rounds):
         d = diagnose(model, data)
         result = d.fit
-        if d.best is None:
+        advice = json.loads(json.dumps(to_jsonable(to_dict(d))))          # what a script reads
+        best = advice["candidates"][0] if advice["candidates"] and advice["candidates"][0]["significant"] else None
+        if best is None:
             return named, texts, result, d
-        b = d.best
-        named.append((b.name, b.joint))
-        texts.append(d.message)
-        shape = {k: v for k, v in b.entry().items() if k not in ("effect", "joint")}
-        model = fit(add_effect(result.model, b.name, b.joint, shape, preload=b.preload), data).model
+        named.append((best["effect"], best["joint"]))
+        texts.append(advice["message"])
+        entry = dict(best["entry"])
+        options = {k: entry.pop(k) for k in ADD_OPTIONS if k in entry}
+        shape = {k: v for k, v in entry.items() if k not in ("effect", "joint")}
+        preload = {"joint": best["joint"]} if options.get("preload") == "identify" else None
+        model = fit(add_effect(result.model, best["effect"], best["joint"], shape, preload=preload), data).model
     return named, texts, result, d
 
 

@@ -8,7 +8,12 @@ import subprocess
 import sys
 import time
 
+import numpy as np
+
 from hil.testing import ROOT, free_port, write_config
+from plc_interface.contract import TaskState
+from service.config import load_config
+from stiffness.trace import read_trace
 
 STATS_KEYS = {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
 
@@ -17,16 +22,25 @@ def stiffcomp(*args):
     return [sys.executable, "-m", "tools.cli", *args]
 
 
-def test_run_for_a_duration_writes_stats_and_exits_0(tmp_path):
+def test_run_for_a_duration_writes_stats_and_a_trace_of_every_cycle_and_exits_0(tmp_path):
+    """The run's statistics, and its trace (--trace, issue 29): one row per cycle, none lost, in order, the
+    PLC's joints in every row, the last row the stopped state."""
     cfg = write_config(tmp_path, {"plc": {"port": free_port()}})
-    stats = tmp_path / "stats.json"
-    p = subprocess.run(stiffcomp("run", "--config", str(cfg), "--duration", "1.5", "--stats-json", str(stats)),
+    stats, trace = tmp_path / "stats.json", tmp_path / "trace.csv"
+    p = subprocess.run(stiffcomp("run", "--config", str(cfg), "--duration", "1.5", "--stats-json", str(stats),
+                                 "--trace", str(trace)),
                        cwd=ROOT, check=False, capture_output=True, text=True, timeout=60)
     assert p.returncode == 0, p.stderr
     s = json.loads(stats.read_text())
     assert STATS_KEYS <= set(s)
     assert s["cycles"] > 0 and s["status"] == "stopped"
     assert "status: stopped" in p.stderr
+    t = read_trace(trace)
+    assert s["trace"] == {"file": str(trace), "cycles": s["cycles"], "written": s["cycles"], "lost": 0}
+    np.testing.assert_array_equal(t.cycle, np.arange(1, s["cycles"] + 1))
+    assert np.all(np.diff(t.time_s) > 0)
+    np.testing.assert_allclose(t.q_deg, np.tile(load_config(cfg).plc.initial_q_deg, (len(t), 1)), atol=1e-4)
+    assert t.column("task_state")[-1] == TaskState.STOP and np.all(t.column("task_state")[:-1] == TaskState.RUN)
 
 
 def test_sigterm_and_ctrl_c_stop_cleanly_with_exit_0(tmp_path):

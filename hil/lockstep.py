@@ -1,0 +1,127 @@
+"""The HIL in lock step: the service, the virtual sensor and the virtual PLC stepped together in one process,
+as fast as the host runs them (`stiffcomp hil circle --lockstep`).
+
+The same parts as the real-time run (`hil.run`), without the protocols' transport and without real time:
+
+* the service is `service.app.Service` itself, its `work` called once per 1 ms step: its process image, its
+  contract record and its trace ring (`--trace`) are the real ones; no I/O process and no task thread;
+* the sensor is the HIL's `HilSensor`: its frames (the ATI protocol, noise, its own low-pass and clock) go
+  to the service's source decoder one cycle after the request, as ``request_each_cycle`` has them;
+* the PLC is `PlcLogic` on its own period, reading the to_plc block from the image and writing its
+  from_plc words into it as a Modbus client's requests would (the image's Modbus rules apply);
+* the robot stub evaluates the pass as in real time (`hil.report.evaluate`).
+
+So a pass takes a second or two instead of its real length plus three process start-ups, and gives the
+same figures on a busy host as on a quiet one: what tests and what-ifs need. What it leaves out is what
+real time adds: late cycles, Modbus latency, a stalled process (the real-time run shows those).
+"""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import can
+import numpy as np
+
+from service.app import Service
+from service.config import load_config
+from service.sources.base import FtSource
+from service.trace import TraceOptions
+from stiffness.model import StiffnessModel
+from stiffness.trace import TraceFile
+
+from .run import PassResult, write_service_config
+from .scenario import Scenario
+from .sensor import HilSensor
+from .virtual_plc import CycleLog, PlcLogic
+from .world import World
+
+WARM_UP_S = 1.0          # the service runs this long before the PLC's program starts (as it starts first)
+
+
+class FramesSource(FtSource):
+    """The service's F/T source fed by a sensor's answers in process: each poll returns the frames that
+    answered the previous cycle's request, then requests again (one cycle of latency, as on CAN)."""
+
+    def __init__(self, sensor: HilSensor, **common):
+        super().__init__(**common)
+        self.sensor = sensor
+        self.pending: list[tuple[int, bytes]] = []
+        self.scenario_t = 0.0           # the scenario time of the cycle that polls next (set by the loop)
+
+    @classmethod
+    def from_config(cls, section, timeout_s, resolve):
+        raise NotImplementedError("the lock-step HIL builds its source from its sensor, not from a config")
+
+    def _frames(self, t: float):
+        out, self.pending = self.pending, self.sensor.answer_at(self.scenario_t)
+        return [(arb, data, False) for arb, data in out]
+
+
+def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
+                 service_overrides: dict | None = None, trace: Path | None = None) -> PassResult:
+    """One pass in lock step; returns what `hil.run.run_pass` returns (the PLC's log, the service's stats)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    cfg_path = write_service_config(scenario, model_path, folder, f"239.74.{random.randint(1, 254)}.1", 1, 1,
+                                     service_overrides)
+    cfg = load_config(cfg_path)
+    world = World(scenario, truth.robot, scenario.payload, truth.input_map())
+    bus = can.Bus(interface="virtual", channel=f"lockstep-{id(world)}")
+    sensor = HilSensor(bus, _protocol(cfg), world,
+                       lambda: None, [scenario.sensor.noise_N] * 3 + [scenario.sensor.noise_Nm] * 3,
+                       scenario.sensor.seed, None, scenario.sensor.rate_hz, scenario.sensor.lowpass_hz)
+    source = FramesSource(sensor, **FtSource.common_args(cfg.source, cfg.faults.sensor_timeout_ms / 1000.0))
+    service = Service(cfg, TraceOptions(Path(trace)) if trace is not None else None, source=source)
+    out_file = TraceFile(trace) if trace is not None else None
+    try:
+        log = _loop(scenario, world, service, cfg, compensate, out_file)
+    finally:
+        service.stop()
+        sensor.bus.shutdown()
+        if out_file is not None:
+            out_file.close()
+    stats = service.info.stats()
+    stats["status"] = "stopped"
+    return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True})
+
+
+def _protocol(cfg):
+    from service.ati import AtiProtocol
+
+    return AtiProtocol.from_config(cfg.source.ati)
+
+
+def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: bool, out: TraceFile | None) -> dict:
+    """Step the service every cycle and the PLC every PLC period from WARM_UP_S before the lead to the end."""
+    rmap = cfg.register_map()
+    c = scenario.plc
+    logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s)
+    out_codec, in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
+    out_block, in_block = rmap.blocks["to_plc"], rmap.blocks["from_plc"]
+    image = service.image
+    period = cfg.cycle.period_ms / 1000.0
+    plc_every = max(1, round(c.period_ms / 1000.0 / period))
+    t_first = world.t_start - WARM_UP_S
+    n = round((world.t_end - t_first) / period) + 1
+    log = CycleLog(n // plc_every + 2, len(out_codec.names))
+    for k in range(n):
+        t = t_first + k * period
+        service.source.scenario_t = t
+        service.work(k * period, False)
+        service.info.record(0.0, None)
+        if out is not None and k % 1000 == 999:
+            out.write(service.trace.take())
+        if k % plc_every or t < world.t_start:
+            continue
+        values = out_codec.decode(image.read(out_block.table, out_block.start, out_codec.words))
+        words, q_cmd = logic.step(t, values)
+        image.write(in_block.table, in_block.start, in_codec.encode(words))
+        j = log.k
+        log.t[j], log.t_read[j], log.link[j] = t, t, logic.link_ok
+        log.q_ref[j], log.q_cmd[j], log.applied[j], log.to_plc[j] = logic.reference(t), q_cmd, logic.applied, values
+        log.k += 1
+    if out is not None:
+        out.write(service.trace.take())
+    arrays = log.arrays()
+    return {**arrays, "written": np.array([]), "overruns": 0, "errors": 0, "period": c.period_ms / 1000.0, "t0": 0.0}

@@ -1,0 +1,210 @@
+"""The trace of a cut, written outside the cycle (`stiffcomp run --trace FILE`, docs/part_format.md).
+
+    cycle process                               trace writer (a process of its own)
+    ┌────────────────────────────┐   shared     ┌──────────────────────────────────────────┐
+    │ each cycle: one row, one   │   memory     │ every DRAIN_S: the rows since the last,   │
+    │ struct copy, count += 1  ──┼─▶ TraceRing ◀┼─ written by stiffness.trace.TraceFile     │
+    └────────────────────────────┘              │ (CSV or Parquet, rotated at a size limit) │
+                                                └──────────────────────────────────────────┘
+
+The cycle never waits and never touches a file: `TraceRing.put` packs the row into slot
+``count % rows`` and then raises the count (x86-64 keeps the two stores in order, as the process image
+relies on). The writer reads the slots between its own count and the cycle's, then checks the count
+again: a slot the cycle overwrote meanwhile (the writer fell more than a ring behind, 65 s at 1 ms) is
+not written but counted as lost, and the log and the service's statistics say how many. Nothing is
+dropped in silence. The writer watches its parent as the I/O process does, and drains the ring to the
+last row when the service stops.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import struct
+from dataclasses import dataclass
+from multiprocessing.shared_memory import SharedMemory
+from pathlib import Path
+
+import numpy as np
+
+from plc_interface.image import release
+from plc_interface.io_process import describe_exit, ignore_cycle_signals, spawn_child
+from plc_interface.log_format import configure_logging, current_format
+from stiffness.errors import StiffnessError
+from stiffness.trace import COLUMNS, DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
+
+from .errors import TraceError
+
+log = logging.getLogger("stiffcomp.trace")
+
+ROWS = 1 << 16          # the ring: 65 s of cycles at 1 ms
+DRAIN_S = 0.1           # the writer's period
+_HEADER = 4             # int64: rows put by the cycle, rows taken by the writer, rows lost, rows written
+_ROW = struct.Struct(f"<{len(COLUMNS)}d")
+
+
+@dataclass(frozen=True)
+class TraceOptions:
+    """Where and how much to trace: the file (.csv or .parquet), its size limit and rotated files kept."""
+
+    path: Path
+    max_bytes: float = DEFAULT_MAX_MB * 1e6
+    keep: int = DEFAULT_KEEP
+
+    def check(self) -> None:
+        """TraceError naming the option when the trace cannot be written (before anything starts)."""
+        try:
+            check_path(self.path)
+        except StiffnessError as e:
+            raise TraceError(str(e)) from None
+        if not self.max_bytes > 0 or self.keep < 0:
+            raise TraceError(f"--trace-max-mb must be > 0 and --trace-keep >= 0 (got {self.max_bytes / 1e6:g} MB, "
+                             f"{self.keep})")
+
+
+class TraceRing:
+    """Trace rows in shared memory: one writer (the cycle), one reader (the trace writer); pickles to a handle."""
+
+    def __init__(self, rows: int = ROWS, _name: str | None = None):
+        self.rows = int(rows)
+        self._owner = _name is None
+        self.shm = SharedMemory(name=_name, create=self._owner, size=8 * _HEADER + _ROW.size * self.rows)
+        self.h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
+        self.table = np.ndarray((self.rows, len(COLUMNS)), dtype=np.float64, buffer=self.shm.buf, offset=8 * _HEADER)
+        if self._owner:
+            self.h[:] = 0
+        self._pack, self._buf = _ROW.pack_into, self.shm.buf
+        self._put_count = self.shm.buf[:8].cast("q")     # the cycle's own store of its count (cheaper than NumPy's)
+        self._n = int(self.h[0])
+
+    def __reduce__(self):
+        return (TraceRing, (self.rows, self.shm.name))
+
+    def put(self, values: tuple) -> None:
+        """The cycle's side: one row (`stiffness.trace.COLUMNS`) into the next slot; never waits."""
+        n = self._n
+        self._pack(self._buf, 8 * _HEADER + _ROW.size * (n % self.rows), *values)
+        self._n = n = n + 1
+        self._put_count[0] = n
+
+    def put_cycle(self, t: float, unix_s: float, cycle: int, q_deg, sig, task_state: int) -> None:
+        """The cycle's side: its row from its time, the joints the PLC reported and its `Signals`, packed in one
+        struct call without an intermediate tuple (about 1 us)."""
+        n = self._n
+        self._pack(self._buf, 8 * _HEADER + _ROW.size * (n % self.rows), t, unix_s, cycle, *q_deg,
+                   *sig.wrench_base, *sig.deflection, *sig.correction, sig.status_word, sig.fault_word, task_state)
+        self._n = n = n + 1
+        self._put_count[0] = n
+
+    def take(self) -> np.ndarray:
+        """The writer's side: a copy of the rows put since the last take (lost rows counted, not returned)."""
+        h = self.h
+        start, end = int(h[1]), int(h[0])
+        if end - start > self.rows:                 # already overwritten before we came
+            h[2] += end - start - self.rows
+            start = end - self.rows
+        idx = np.arange(start, end) % self.rows
+        out = self.table[idx].copy()
+        now = int(h[0])
+        clobbered = max(0, now - self.rows - start)      # slots the cycle wrote again while we copied
+        if clobbered:
+            h[2] += min(clobbered, len(out))
+            out = out[min(clobbered, len(out)):]
+        h[1] = end
+        return out
+
+    @property
+    def counts(self) -> dict[str, int]:
+        return {"cycles": int(self.h[0]), "written": int(self.h[3]), "lost": int(self.h[2])}
+
+    def close(self) -> None:
+        self.h = self.table = None
+        self._buf = None
+        if self._put_count is not None:
+            self._put_count.release()
+            self._put_count = None
+        release(self.shm, self._owner)
+
+
+def _writer_main(ring: TraceRing, options: TraceOptions, log_level: int, log_format: str, stop, ready) -> None:
+    ignore_cycle_signals()
+    configure_logging(log_level, log_format)
+    parent = os.getppid()
+    try:
+        out = TraceFile(options.path, options.max_bytes, options.keep)
+    except StiffnessError as e:
+        ready.send(str(e))
+        ring.close()
+        return
+    ready.send("")
+    lost = 0
+    try:
+        while True:
+            done = stop.wait(DRAIN_S) or os.getppid() != parent
+            rows = ring.take()
+            out.write(rows)
+            ring.h[3] += len(rows)
+            if int(ring.h[2]) > lost:
+                log.warning("trace: %d cycle(s) lost so far: the writer fell more than %d cycles behind (a slow "
+                            "disk?)", int(ring.h[2]), ring.rows)
+                lost = int(ring.h[2])
+            if done:
+                break
+    finally:
+        out.close()
+        ring.close()
+
+
+class TraceWriter:
+    """The trace writer process: drains ``ring`` into ``options.path`` until `stop`.
+
+    Parameters
+    ----------
+    ring : TraceRing
+        Created by the service; the cycle `put`s into it.
+    options : TraceOptions
+    """
+
+    def __init__(self, ring: TraceRing, options: TraceOptions):
+        ctx = multiprocessing.get_context("spawn")
+        self.ring, self.options = ring, options
+        self._stop = ctx.Event()
+        self._ready, child_end = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_writer_main, name="stiffcomp-trace", daemon=True, args=(
+            ring, options, logging.getLogger().getEffectiveLevel(), current_format(), self._stop, child_end))
+        self._child_end = child_end
+
+    def start(self, timeout: float = 60.0) -> None:
+        """Start it; StiffnessError when it cannot write the file (nothing else started yet)."""
+        spawn_child(self._proc)
+        self._child_end.close()
+        msg = self._ready.recv() if self._ready.poll(timeout) else "the trace writer did not start in time"
+        if msg:
+            self.stop()
+            raise TraceError(msg)
+        log.info("tracing every cycle to %s (rotated at %.0f MB, %d kept)", self.options.path,
+                 self.options.max_bytes / 1e6, self.options.keep)
+
+    def stop(self, timeout: float = 60.0) -> dict[str, int]:
+        """Stop after it wrote every row the cycle put; returns the ring's counts."""
+        self._stop.set()
+        if self._proc.pid is not None:
+            self._proc.join(timeout)
+            if self._proc.is_alive():
+                log.error("the trace writer did not finish in %g s; stopped", timeout)
+                self._proc.kill()
+                self._proc.join(2.0)
+            elif self._proc.exitcode:
+                log.error("the trace writer ended with %s", describe_exit(self._proc.exitcode))
+        self._ready.close()
+        counts = self.ring.counts
+        missing = counts["cycles"] - counts["written"]
+        (log.warning if missing else log.info)(
+            "trace: %d of %d cycles written to %s%s", counts["written"], counts["cycles"], self.options.path,
+            f" ({missing} lost, see above)" if missing else "")
+        return counts
+
+    @property
+    def alive(self) -> bool:
+        return self._proc.is_alive()

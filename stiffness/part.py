@@ -1,0 +1,176 @@
+"""A machined part's measurement: points on its surface from a CMM or an on-machine probe
+(docs/part_format.md).
+
+A CSV file: a few ``# key: value`` lines (YAML), then a header row and one row per point:
+
+    # stiffcomp part: the paper's circle, CMM of 2026-11-24
+    # tool_radius_mm: 4.0
+    # part_frame: {xyz_mm: [1524.1, 0.0, 1020.5], rpy_deg: [0.0, 0.0, 0.0]}
+    point,x_mm,y_mm,z_mm
+    1,39.0012,0.0000,-2.0000
+    2,38.9953,0.6803,-2.0000
+
+x_mm, y_mm, z_mm   the point on the machined surface, mm, in the part's frame (required)
+point              a label per point (optional; the line number names a point otherwise)
+tool_radius_mm     the cutter's radius (required): the surface lies that far from the tool's axis
+part_frame         the part frame in the robot's base (xyz_mm, rpy_deg as the robot YAML's poses: URDF
+                   roll-pitch-yaw), from the fixture's calibration; without it the part has no datum and
+                   only ``--best-fit`` can place it (which hides a constant offset, `stiffness.part_rows`)
+
+Errors name the file and the line. Units: the format is millimetres; a file whose points sit where the
+trace says the tool went only after scaling by 25.4 or 1000 is named as inches or metres
+(`stiffness.part_rows`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydantic import Field
+
+from .errors import DataError, Problems, quote
+from .robot import PoseConfig
+from .yamlio import NoAliasLoader, Strict, format_validation_error
+
+POINT_COLS = ("x_mm", "y_mm", "z_mm")
+
+
+class PartHeader(Strict):
+    """The ``# key: value`` lines of a part file."""
+
+    stiffcomp_part: str | None = None
+    tool_radius_mm: float = Field(gt=0.0, le=500.0)
+    part_frame: PoseConfig | None = None
+
+
+@dataclass
+class PartMeasurement:
+    """Points on a machined surface (part frame, mm), where they came from, and the cut's geometry."""
+
+    source: str
+    points_mm: np.ndarray          # (N, 3) in the part frame
+    labels: list[str]
+    lines: np.ndarray              # (N,) the file line of each point
+    tool_radius_mm: float
+    frame: np.ndarray | None       # (4, 4) base <- part (m), or None: no datum
+    title: str = ""
+
+    def __len__(self) -> int:
+        return len(self.points_mm)
+
+    def in_base(self, frame: np.ndarray | None = None) -> np.ndarray:
+        """The points in the robot's base (m), through ``frame`` (default: the file's part frame)."""
+        T = self.frame if frame is None else frame
+        if T is None:
+            raise DataError(f"{self.source}: no part_frame: the points cannot be placed in the robot's base "
+                            "(give the fixture's calibration as part_frame, or --best-fit)")
+        return self.points_mm / 1000.0 @ T[:3, :3].T + T[:3, 3]
+
+    def where(self, k: int) -> str:
+        """``FILE: line N`` of point ``k``."""
+        return f"{self.source}: line {self.lines[k]}"
+
+
+def read_part(path: str | Path) -> PartMeasurement:
+    """Read and check a part file; DataError names the file and the line of every problem."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: part file not found")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: cannot read: {e}") from e
+    lines = text.splitlines()
+    head = []
+    k = 0
+    while k < len(lines) and (lines[k].startswith("#") or not lines[k].strip()):
+        head.append(lines[k][1:] if lines[k].startswith("#") else "")
+        k += 1
+    header = _header(path, head)
+    if k >= len(lines):
+        raise DataError(f"{path}: no header row after the '#' lines; expected point,x_mm,y_mm,z_mm")
+    reader = csv.reader(io.StringIO("\n".join(lines[k:])))
+    cols = [c.strip() for c in next(reader)]
+    missing = [c for c in POINT_COLS if c not in cols]
+    if missing:
+        unit = next((c for c in cols if c.lower() in ("x_in", "x_inch", "x_m")), None)
+        hint = f" ({unit} is not millimetres: the format is mm)" if unit else ""
+        raise DataError(f"{path}: line {k + 1}: missing column(s) {', '.join(missing)}{hint}; "
+                        f"the format needs {', '.join(POINT_COLS)} (docs/part_format.md)")
+    idx = [cols.index(c) for c in POINT_COLS]
+    label_col = cols.index("point") if "point" in cols else None
+    problems = Problems()
+    pts, labels, where = [], [], []
+    for n, row in enumerate(reader):
+        line = k + 2 + n
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(cols):
+            problems.add(f"{path}: line {line}: {len(row)} fields, the header has {len(cols)}")
+            continue
+        try:
+            p = [float(row[i]) for i in idx]
+        except ValueError:
+            problems.add(f"{path}: line {line}: x_mm, y_mm and z_mm must be numbers, got "
+                         f"{', '.join(quote(row[i].strip()) for i in idx)}")
+            continue
+        if not all(math.isfinite(v) for v in p):
+            problems.add(f"{path}: line {line}: a coordinate is not finite")
+            continue
+        pts.append(p)
+        labels.append(row[label_col].strip() if label_col is not None else str(line))
+        where.append(line)
+    if problems:
+        raise DataError(f"{path}: {problems.count} problem(s); nothing was loaded", problems)
+    if len(pts) < 3:
+        raise DataError(f"{path}: {len(pts)} point(s); a contour needs at least 3")
+    frame = header.part_frame.matrix() if header.part_frame is not None else None
+    return PartMeasurement(str(path), np.array(pts), labels, np.array(where), header.tool_radius_mm, frame,
+                           header.stiffcomp_part or "")
+
+
+def _header(path: Path, head: list[str]) -> PartHeader:
+    """The '#' lines as YAML (errors at the file's line)."""
+    try:
+        data = yaml.load("\n".join(head), Loader=NoAliasLoader) or {}
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise DataError(f"{path}:{where}: the '# key: value' lines are not valid YAML: "
+                        f"{getattr(e, 'problem', e)}") from None
+    if not isinstance(data, dict):
+        raise DataError(f"{path}: the '#' lines must be 'key: value' lines (tool_radius_mm, part_frame)")
+    data = {k.replace(" ", "_"): v for k, v in data.items()}
+    if "tool_radius_mm" not in data:
+        raise DataError(f"{path}: '# tool_radius_mm: R' is missing: the surface lies the cutter's radius from "
+                        "the tool's axis (docs/part_format.md)")
+    try:
+        return PartHeader.model_validate(data)
+    except Exception as e:  # pydantic's ValidationError: one readable line per problem
+        from pydantic import ValidationError
+
+        if isinstance(e, ValidationError):
+            raise DataError(format_validation_error(str(path), e)) from None
+        raise
+
+
+def write_part(path: str | Path, points_mm: np.ndarray, tool_radius_mm: float, frame: PoseConfig | None,
+               title: str = "", labels: list[str] | None = None) -> Path:
+    """Write points (N, 3, part frame, mm) in the part format."""
+    path = Path(path)
+    lines = [f"# stiffcomp part: {title or 'points on a machined surface'}",
+             f"# tool_radius_mm: {tool_radius_mm:g}"]
+    if frame is not None:
+        lines.append(f"# part_frame: {{xyz_mm: [{', '.join(f'{v:.4f}' for v in frame.xyz_mm)}], "
+                     f"rpy_deg: [{', '.join(f'{v:.6g}' for v in frame.rpy_deg)}]}}")
+    lines.append("point," + ",".join(POINT_COLS))
+    labels = labels or [str(k + 1) for k in range(len(points_mm))]
+    lines += [f"{lab}," + ",".join(f"{v:.4f}" for v in p) for lab, p in zip(labels, points_mm)]
+    path.write_text("\n".join(lines) + "\n")
+    return path

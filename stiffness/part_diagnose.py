@@ -1,0 +1,104 @@
+"""Diagnose from the part: which effect the model misses, read from a machined part and the trace of its cut
+(`stiffcomp part diagnose`, docs/part.md).
+
+The part's points are a campaign of one configuration measuring one component each (`stiffness.part_rows`),
+so the project's diagnosis runs on them as it runs on a campaign (`stiffness.diagnose`): every library
+effect the model lacks, through each effect's own ``candidates``, judged by cross-validation over blocks of
+the contour, BIC and an F-test. A part sees only a few combinations of the model's parameters, so the model's
+prior holds the rest (`stiffness.prior`), in the fit and in every candidate's nested fit.
+
+What the campaign's diagnosis says about a configuration, this one says about the contour: where along it
+the named effect shows. An effect on a joint's axis that switches with the direction of the joint's torque
+(its evidence plot is the torque's branches, hysteresis) shows as a step at each reversal of that torque; one
+that acts around zero torque (backlash, a soft zone) where the torque crosses zero; any other along the whole
+contour, with the load.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .diagnose import Candidate, Diagnosis, diagnose
+from .effects.axial import joint_torque
+from .errors import DataError
+from .measurements import Dataset
+from .model import StiffnessModel
+from .part_compare import at_points
+from .part_learn import _concat
+from .part_rows import PartRows, when_made
+from .prior import Prior
+
+REVERSAL_FRACTION = 0.05     # a torque reversal counts once the torque moved back by this share of its range
+
+
+@dataclass
+class PartDiagnosis:
+    """The diagnosis of one or more parts and, for the named effect, where along the contour it shows."""
+
+    diagnosis: Diagnosis
+    parts: list[PartRows]
+    data: Dataset
+    where: str = ""                 # "a step at each reversal of joint 1's torque (at 97 and 277 deg ...)"
+    marks_deg: list[float] | None = None
+
+    @property
+    def message(self) -> str:
+        return self.diagnosis.message + (f" Along the contour it shows as {self.where}." if self.where else "")
+
+
+def diagnose_parts(model: StiffnessModel, parts: list[PartRows], prior: Prior, progress=None) -> PartDiagnosis:
+    """Run the diagnosis on the parts' points with ``prior``; name where the best candidate shows."""
+    parts = [when_made(p, model) for p in parts]
+    data = _concat([p.dataset(model.robot, model.input_map()) for p in parts])
+    need = 2 * (len(model.theta) + 6)
+    if int(data.measured.sum()) < need:
+        raise DataError(f"{data.source}: {int(data.measured.sum())} points; the diagnosis of a model of "
+                        f"{len(model.theta)} parameters and its candidates needs at least {need}")
+    d = diagnose(model, data, progress, prior=prior)
+    out = PartDiagnosis(d, parts, data)
+    if d.best is not None:
+        out.where, out.marks_deg = where_it_shows(d.best, parts[0], d.fit.model)
+    return out
+
+
+def where_it_shows(c: Candidate, rows: PartRows, model: StiffnessModel) -> tuple[str, list[float]]:
+    """Words for where candidate ``c`` shows along a part's contour, and the angles (deg) to mark there."""
+    e = c.effect
+    if e.joint is None or e.location_key != "joint" or e.evidence_plot not in ("axial", "axial_branches"):
+        return "a deviation along the whole contour that follows the load", []
+    data = rows.dataset(model.robot, model.input_map())
+    ctx = model.context(data)
+    total = joint_torque(ctx.frame_wrench, e.joint) + ctx.static_torque[:, e.joint - 1]
+    tau = at_points(rows, data, total[ctx.row_reading])
+    order = np.argsort(rows.t, kind="stable")
+    arc = rows.arc_deg[order]
+    if e.evidence_plot == "axial_branches":
+        marks, what = _reversals(tau[order], arc), f"a step at each reversal of joint {e.joint}'s torque"
+    else:
+        marks, what = _zero_crossings(tau[order], arc), f"a step where joint {e.joint}'s total torque crosses zero"
+    at = ", ".join(f"{m:.0f}" for m in sorted(m % 360 for m in marks)[:6])
+    return (f"{what} (at {at} deg along the contour)" if marks else
+            f"{what} (which the measured contour does not hold: its size is uncertain)"), marks
+
+
+def _reversals(tau: np.ndarray, arc: np.ndarray) -> list[float]:
+    """Where a torque series turns back by more than REVERSAL_FRACTION of its range (its extrema)."""
+    thr = REVERSAL_FRACTION * max(float(np.ptp(tau)), 1e-9)
+    out, ref, direction, k_ref = [], tau[0], 0.0, 0
+    for k in range(1, len(tau)):
+        delta = tau[k] - ref
+        if delta * direction > 0:
+            ref, k_ref = tau[k], k
+        elif abs(delta) > thr:
+            if direction != 0:
+                out.append(float(arc[k_ref]))
+            direction, ref, k_ref = np.sign(delta), tau[k], k
+    return out
+
+
+def _zero_crossings(tau: np.ndarray, arc: np.ndarray) -> list[float]:
+    s = np.sign(tau)
+    k = np.nonzero(s[1:] * s[:-1] < 0)[0]
+    return [float(arc[i]) for i in k]

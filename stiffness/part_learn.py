@@ -1,0 +1,234 @@
+"""Learn from parts: each machined part is one more measurement of the same model (docs/part.md).
+
+A part's points, read against the trace of its cut (`stiffness.part_rows`), are rows of a campaign that
+measure one component each, the deflection along the surface normal: e = n . dX(q, W; theta), linear in
+the model's compliances through the joints and the wrench of the moment the tool passed. The project's
+one identification code fits them (`identify.fit`), with the model's earlier information as the prior
+(`stiffness.prior`): the covariance its campaign fit stored, a campaign given again, or, for a model no
+campaign identified, its own values within a stated fraction. So a part moves the parameter combinations
+it determines better than the prior did, and leaves the others where they were; `Learned.determined`
+names them. Compliances are bounded at zero as `fit --nonnegative` bounds them, and a model that is still
+not physical is refused, as the service refuses it.
+
+A part without a datum (``--best-fit``) adds its placement to the fit, a shift in its plane that absorbs any
+constant shift of its contour, and with it what the model would have said of one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .context import Context
+from .effects.base import Effect, Param
+from .errors import ConfigError, StiffnessError
+from .identify import FitResult, fit, jacobian
+from .measurements import Dataset
+from .model import StiffnessModel
+from .part_rows import PartRows, plane_basis, when_made
+from .prior import Prior, covariance_entry
+from .units import M_TO_MM
+
+DETERMINED = 1.0        # a combination is the parts' when their information exceeds the prior's by this factor
+SHOWN = 6               # combinations listed
+PLACEMENT_M = 0.001     # the best fit placed a part; learning refines its shift within this (1 sigma)
+
+
+class Placement(Effect):
+    """The placement of each part without a datum, as far as learning refines it: a shift in the plane across
+    the tool axis (two numbers a part), applied to everything at the base site. The best fit
+    (`part_rows.read_against`) turned and shifted the part already; along a circle's normal a turn about any
+    point is a shift and nothing else, so refining it too would only trade the two. Not a physical effect and
+    not in the library: `learn` adds it for a ``--best-fit`` part and removes it again.
+
+    Parameters
+    ----------
+    parts : the parts, each with its label, its tool axis and its points (`PartRows`)
+    """
+
+    name = "placement"
+    per_joint = False
+    joints = ()
+
+    def __init__(self, parts: list[PartRows]):
+        self.labels = [p.label for p in parts]
+        self.frames = []
+        for p in parts:
+            a = p.axis.mean(axis=0)
+            self.frames.append(plane_basis(a / np.linalg.norm(a)))
+        params = []
+        for lab in self.labels:
+            params += [Param(f"{_key(lab)}_u_mm", "mm", 1e-4, M_TO_MM), Param(f"{_key(lab)}_v_mm", "mm", 1e-4, M_TO_MM)]
+        super().__init__(params, np.zeros(len(params)), None)
+        self.loose = np.full(len(params), PLACEMENT_M)        # its weak prior, SI
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Placement:
+        raise ConfigError(f"{where}: placement is not a model effect (it exists only while learning from parts)")
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        B = self.zeros(ctx, 2 * len(self.labels))
+        for i, (lab, (e1, e2)) in enumerate(zip(self.labels, self.frames)):
+            rows = ctx.config == ctx.config_labels.index(lab)
+            B[rows, 2 * i, 0, :3] = e1
+            B[rows, 2 * i + 1, 0, :3] = e2
+        return B
+
+
+def _key(label: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in label)
+
+
+@dataclass
+class Combination:
+    """A direction in the parameters the parts determine: its weights, its information over the prior's,
+    and how far the learning moved along it in the prior's standard deviations."""
+
+    weights: dict[str, float]
+    ratio: float
+    moved_sigma: float
+
+    def text(self) -> str:
+        terms = sorted(self.weights.items(), key=lambda kv: -abs(kv[1]))[:4]
+        body = " ".join(f"{w:+.2f} {lab}" for lab, w in terms)
+        more = f" (+{len(self.weights) - 4} more)" if len(self.weights) > 4 else ""
+        return (f"{body}{more}: the parts know it {self.ratio:.3g} x better than the prior; moved "
+                f"{self.moved_sigma:+.2f} prior sigma")
+
+
+@dataclass
+class Learned:
+    """What `learn` did: the new model, its fit, and what the parts told."""
+
+    model: StiffnessModel
+    fit: FitResult
+    prior: Prior
+    parts: list[PartRows]
+    determined: list[Combination]
+    n_params: int
+    before_mm: float             # RMS of the parts' deviation the model leaves, before and after
+    after_mm: float
+    changes: list[tuple[str, float, float]]      # (label, before, after) SI, largest relative first
+    notes: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        n_pts = sum(int(p.used.sum()) for p in self.parts)
+        out = [f"learned from {len(self.parts)} part(s), {n_pts} points: "
+               + "; ".join(f"{p.label}: {p.part.source} against {p.trace.source}" for p in self.parts),
+               f"prior: {self.prior.source}",
+               (f"the parts' normal deviation the model leaves: RMS {self.before_mm:.4f} mm before, "
+                f"{self.after_mm:.4f} mm after")]
+        k = len(self.determined)
+        out.append(f"the parts determine {k} combination(s) of the model's {self.n_params} parameters better than "
+                   f"the prior; the other {self.n_params - k} stay at the prior"
+                   + (":" if k else " (nothing was learned)"))
+        out += [f"  {i + 1}. {c.text()}" for i, c in enumerate(self.determined[:SHOWN])]
+        if k > SHOWN:
+            out.append(f"  ... and {k - SHOWN} more")
+        if self.changes:
+            out.append("largest changes: " + ", ".join(
+                f"{lab} {100 * (b1 / b0 - 1):+.0f} %" for lab, b0, b1 in self.changes[:5]))
+        out += [f"warning: {w}" for w in self.fit.warnings if "the non-negative bound" in w]
+        out += self.notes
+        return out
+
+
+def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: bool = False,
+          progress=None) -> Learned:
+    """Fit ``model`` to the points of ``parts`` with ``prior`` (module docstring); refuses a model that is
+    not physical (StiffnessError naming the parameter)."""
+    say = progress or (lambda msg: None)
+    if not parts:
+        raise StiffnessError("learning needs at least one part (a trace and its part's measurement)")
+    labels = [p.label for p in parts]
+    if len(set(labels)) != len(labels):
+        raise StiffnessError(f"two parts share the label {labels}: each part needs its own")
+    parts = [when_made(p, model) for p in parts]
+    data = _concat([p.dataset(model.robot, model.input_map()) for p in parts])
+    work, fit_prior = model, prior
+    if best_fit:
+        placement = Placement(parts)
+        work = StiffnessModel(model.robot, model.effects + [placement], model.name, model.description,
+                              model.robot_ref, model.noise, model.source, model.payload)
+        fit_prior = prior.with_more(work.param_labels()[len(model.theta):], placement.loose)
+    ctx = work.context(data)
+    before = _rms(ctx, data, work.predict(ctx))
+    say(f"fitting {len(model.theta)} parameters to {int(data.measured.sum())} points with the prior")
+    result = fit(work, ctx, prior=fit_prior, nonnegative=True)
+    learned = _without_placement(result, model) if best_fit else result.model
+    problem = learned.unphysical()
+    if problem:
+        raise StiffnessError(f"refused: {problem}; the parts pull the model where no robot is (the service "
+                             "refuses such a model too): check the trace and the part belong together")
+    say("naming what the parts determine")
+    combos = _determined(result, work, ctx, prior, len(model.theta))
+    after = _rms(ctx, data, result.model.predict(ctx))
+    labs = model.param_labels()
+    ch = [(lab, b0, b1) for lab, b0, b1 in zip(labs, model.theta, learned.theta) if b0 != 0 and b1 != b0]
+    ch.sort(key=lambda c: -abs(c[2] / c[1] - 1))
+    notes = [n for p in parts for n in p.notes]
+    return Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes)
+
+
+def _concat(sets: list[Dataset]) -> Dataset:
+    cat = [np.concatenate([getattr(d, a) for d in sets]) for a in ("time_s", "config", "q_deg", "wrench", "body",
+                                                                  "deflection", "line", "axes")]
+    return Dataset(*cat[:7], source=", ".join(d.source for d in sets), axes=cat[7])
+
+
+def _rms(ctx: Context, data: Dataset, pred: np.ndarray) -> float:
+    m = data.measured[:, 0]
+    return float(np.sqrt(np.mean((data.deflection[m, 0] - pred[m, 0]) ** 2)))
+
+
+def _without_placement(result: FitResult, model: StiffnessModel) -> StiffnessModel:
+    """The learned model without the placement, its covariance restricted to the model's own parameters."""
+    out = model.copy()
+    P = len(model.theta)
+    out.theta = result.model.theta[:P]
+    for e, e_fit in zip(out.effects, result.model.effects):
+        e.std_error = e_fit.std_error
+    out.covariance = covariance_entry(out, result.covariance[:P, :P], result.model.covariance["source"])
+    return out
+
+
+def _determined(result: FitResult, work: StiffnessModel, ctx: Context, prior: Prior, P: int) -> list[Combination]:
+    """The combinations of the model's P parameters whose information from the parts exceeds the prior's:
+    the generalised eigenvectors of the two informations, in the prior's standard deviations."""
+    J = jacobian(result.model, ctx)
+    Jw = (J * result.weights[:, :, None]).reshape(-1, J.shape[2])[:, :P]
+    s2 = max(float(np.nansum((result.residual * result.weights) ** 2)) / max(np.count_nonzero(result.weights) - P, 1),
+             1e-300)
+    F_data = Jw.T @ Jw / s2
+    labels = work.param_labels()[:P]
+    R, _ = prior.rows(labels)
+    F_prior = R.T @ R
+    known = np.diag(F_prior) > 0
+    if not known.any():
+        return []
+    idx = np.nonzero(known)[0]
+    L = np.linalg.cholesky(F_prior[np.ix_(idx, idx)] + 1e-12 * np.eye(len(idx)) * np.trace(F_prior) / len(idx))
+    Li = np.linalg.inv(L)
+    M = Li @ F_data[np.ix_(idx, idx)] @ Li.T
+    lam, U = np.linalg.eigh((M + M.T) / 2)
+    order = np.argsort(lam)[::-1]
+    moved = result.model.theta[:P][idx] - _prior_mean(prior, labels)[idx]
+    out = []
+    for k in order:
+        if lam[k] < DETERMINED:
+            break
+        u = U[:, k]
+        v = Li.T @ u                       # the direction in the parameters (the prior's sigma as unit)
+        sd = 1.0 / np.sqrt(np.diag(F_prior)[idx])
+        w = v / sd
+        w /= np.max(np.abs(w))
+        out.append(Combination({labels[i]: float(x) for i, x in zip(idx, w) if abs(x) > 0.05}, float(lam[k]),
+                               float(u @ (L.T @ moved))))
+    return out
+
+
+def _prior_mean(prior: Prior, labels: list[str]) -> np.ndarray:
+    where = {lab: k for k, lab in enumerate(prior.labels)}
+    return np.array([prior.mean[where[lab]] if lab in where else 0.0 for lab in labels])

@@ -1,0 +1,408 @@
+"""A part's points read against the trace of its cut: where the tool was, and what loaded it, when it
+made each point (docs/part.md).
+
+The cutter's edge makes the surface: a point p of the wall lies the tool radius r from the tool's axis
+at the moment the tool passed it. The trace gives the commanded joints q(t) of every cycle, so the
+commanded tool centre c(t) (forward kinematics of the TCP) and the tool axis a(t). The moment a point was
+made is the one where the commanded path passes abeam of it: the closest point c(u) of the path (a
+fractional cycle index u), in the plane across the tool axis. There
+
+    n = P (p - c(u)) / |P (p - c(u))|,    e = |P (p - c(u))| - r        (P = I - a a^T)
+
+n is the surface normal (from the tool's centre to the wall) and e the normal deviation the cut left:
+the arm's deflection along n when it made the point, n . dX(q(u), W(u)) (the joints in the trace already
+hold the service's correction, so e is the deflection itself, whatever the correction was). The part's
+error against its nominal contour is the same with the nominal path c_nom(u) = FK(q(u) - correction(u)).
+
+When the point was made. The commanded path passes abeam of a point at u, but the tool that made it was
+the deflected one, which passed there earlier or later by its deflection along the path over the feed:
+t* = u - (dX . t) / |dc/du|. `when_made` places each point at t* with a model's prediction of dX (the loads
+at t* are what deflected the arm then). On a curved wall the point then lies a little inside what n . dX
+says: the deflection along the path d_t carries the tool around the curve,
+
+    e = n . dX(t*) - kappa_w d_t^2 / 2,      kappa_w = kappa / (1 + r kappa)
+
+kappa the commanded path's curvature, signed positive where the path bends away from the wall (a few um at
+0.5 mm along a 35 mm circle). `when_made` adds the term to the row's measured deviation.
+
+The wrench is the trace's, smoothed without lag (a zero-phase low-pass at ``smooth_hz``, 10 Hz by
+default): the arm does not follow the tooth passing, and the joint torque's ripple and the sensor's noise
+(a few Nm) would otherwise flip a hysteresis state back and forth near each reversal of the torque, where
+the arm's own state flips once.
+
+Each point becomes one row of a `Dataset`: the TCP at q(u), loaded by the trace's wrench at u (turned back
+to the sensor's axes), measured in axes of its own (`Dataset.axes`: n, a x n, a) with only the first
+component, e, measured. Rows of the trace between the points, with nothing measured, carry the load's
+history for effects that have one (hysteresis).
+
+Checks, each naming the file and the line: points far from where the tool went; a file whose points fit
+the traced path only after scaling by 25.4 or 1000 (inches, metres); a trace that never passes the
+contour at all. A point the tool passed twice (the overlap of a closed contour's entry and exit: another
+pass came within PASS_MARGIN_MM as close to it as the closest one) is left out and counted: which pass made
+it cannot be told.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+from scipy.spatial import cKDTree
+
+from .errors import DataError, Problems
+from .measurements import Dataset
+from .part import PartMeasurement
+from .robot import Robot
+from .trace import Trace
+
+TASK_RUN = 1
+NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
+                         # than an arm deflects under a cut (a few tenths of a mm to about 2 mm)
+HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
+CHORD_M = 0.002          # the path's curvature is taken over this length either side of a point
+PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
+SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
+UNITS = {"inches": 25.4, "metres": 1000.0}
+
+
+@dataclass
+class PartRows:
+    """A part's points, each at the moment the tool made it (arrays over the used points)."""
+
+    part: PartMeasurement
+    trace: Trace
+    label: str
+    used: np.ndarray             # (N points,) bool: matched to one pass of the tool
+    u: np.ndarray                # fractional trace row of each used point
+    t: np.ndarray                # trace time_s at u
+    point: np.ndarray            # (n, 3) the point in the base, m
+    tool: np.ndarray             # (n, 3) the commanded tool centre c(u), m
+    normal: np.ndarray           # (n, 3) from the tool's centre to the wall
+    axis: np.ndarray             # (n, 3) the tool axis
+    deviation_mm: np.ndarray     # e: the deflection along n the cut left
+    nominal_mm: np.ndarray       # the error against the nominal contour, along n
+    q_deg: np.ndarray            # (n, 6) at u
+    wrench_base: np.ndarray      # (n, 6) the trace's wrench at u, smoothed (base axes, moment about the sensor origin)
+    predicted_mm: np.ndarray     # the service's predicted deflection at u, along n (the trace's)
+    correction_mm: np.ndarray    # how far the service's correction moved the tool along n
+    frame: np.ndarray            # (4, 4) base <- part used (the file's, or the best fit's)
+    smooth_wrench: np.ndarray    # (N trace, 6) the trace's wrench, smoothed
+    trace_tool: np.ndarray       # (N trace, 3) the commanded tool centre of every trace row, m
+    notes: list[str] = field(default_factory=list)
+    curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`when_made`); None: not placed yet
+
+    @property
+    def measured_mm(self) -> np.ndarray:
+        """What a row measures of n . dX: the deviation plus the curve's term once `when_made` placed it."""
+        return self.deviation_mm if self.curve_mm is None else self.deviation_mm + self.curve_mm
+
+    @property
+    def arc_deg(self) -> np.ndarray:
+        """Each used point's position along the contour: its angle about the contour's centroid in the plane
+        across the tool axis (deg, 0..360, in the order the tool went)."""
+        a = self.axis.mean(axis=0)
+        e1, e2 = plane_basis(a / np.linalg.norm(a))
+        d = self.point - self.point.mean(axis=0)
+        ang = np.degrees(np.arctan2(d @ e2, d @ e1))
+        order = np.argsort(self.u)
+        unwrapped = np.empty_like(ang)
+        unwrapped[order] = np.degrees(np.unwrap(np.radians(ang[order])))
+        return unwrapped - unwrapped[order[0]] + (ang[order[0]] % 360.0)
+
+    def dataset(self, robot: Robot, input_map: np.ndarray | None = None,
+                history_step_s: float | None = HISTORY_STEP_S) -> Dataset:
+        """The points as rows of a campaign (TCP, measured along n only), and the trace between them as
+        rows measuring nothing (the load's history), in time order; configuration ``label``.
+
+        ``input_map``: the model's L (W_true = L W_measured; `StiffnessModel.input_map`): the trace's wrench
+        is the true one in base axes, so a row's sensor wrench is L^-1 of it in the sensor's axes.
+        ``history_step_s`` None: the points alone."""
+        tr = self.trace
+        lo, hi = float(self.t.min()), float(self.t.max())
+        first = np.searchsorted(tr.time_s, lo - 0.2)
+        rows = np.arange(first, np.searchsorted(tr.time_s, hi, side="right"))
+        keep = (rows[np.r_[True, np.diff(np.floor(tr.time_s[rows] / history_step_s)) > 0]]
+                if history_step_s is not None else rows[:0])
+        t = np.concatenate([self.t, tr.time_s[keep]])
+        q = np.concatenate([self.q_deg, tr.q_deg[keep]])
+        wb = np.concatenate([self.wrench_base, self.smooth_wrench[keep]])
+        n = len(self.t)
+        defl = np.full((len(t), 6), np.nan)
+        defl[:n, 0] = self.measured_mm
+        axes = np.broadcast_to(np.eye(3), (len(t), 3, 3)).copy()
+        axes[:n, 0] = self.normal
+        axes[:n, 2] = self.axis
+        axes[:n, 1] = np.cross(self.axis, self.normal)
+        order = np.argsort(t, kind="stable")
+        F = robot.frames(np.radians(q))
+        R_s = robot.sensor_pose(F)[:, :3, :3]
+        w = np.concatenate([np.einsum("nji,nj->ni", R_s, wb[:, :3]), np.einsum("nji,nj->ni", R_s, wb[:, 3:])], 1)
+        if input_map is not None:
+            w = w @ np.linalg.inv(input_map).T
+        line = np.concatenate([self.part.lines[self.used], np.full(len(keep), -1)])
+        return Dataset(t[order], np.full(len(t), self.label), q[order], w[order], np.full(len(t), 6),
+                       defl[order], line[order], self.part.source, axes=axes[order])
+
+
+def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str = "part",
+                 best_fit: bool = False, near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
+    """Match every point of ``part`` to the moment its ``trace`` passed it (the module's docstring).
+
+    ``best_fit``: place the part by a best fit to the traced path instead of (or, with a part frame,
+    starting from) its part frame: for a part without a datum. The fit hides a constant offset of the
+    contour (a rigid shift of all points), and the notes say so. ``near_mm``: how far from the tool radius
+    off the traced path a point may lie and still be on the contour (the largest deflection expected).
+    ``smooth_hz``: the zero-phase low-pass of the trace's wrench (0: none).
+    """
+    run = trace.column("task_state") == TASK_RUN
+    if not run.any():
+        raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
+    F = robot.frames(np.radians(trace.q_deg))
+    c_all, a_all = F[:, 7, :3, 3], F[:, 7, :3, 2]
+    moving = _moving(trace.time_s, c_all) & run
+    if moving.sum() < 3:
+        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {part.source}")
+    a = np.median(a_all[moving], axis=0)
+    a /= np.linalg.norm(a)
+    e1, e2 = plane_basis(a)
+    idx = np.nonzero(moving)[0]
+    c2 = np.column_stack([c_all[idx] @ e1, c_all[idx] @ e2])
+    r = part.tool_radius_mm / 1000.0
+    _check_units(part, c2, r, trace)
+    if best_fit or part.frame is None:
+        if not best_fit:
+            raise DataError(f"{part.source}: no part_frame: the points cannot be placed in the robot's base; give "
+                            "the fixture's calibration as '# part_frame: {xyz_mm: [...], rpy_deg: [...]}', or "
+                            "--best-fit (which hides a constant offset of the contour)")
+        frame = _best_fit(part, c_all[idx], a, r)
+    else:
+        frame = part.frame
+    p = part.in_base(frame)
+    p2 = np.column_stack([p @ e1, p @ e2])
+    tree = cKDTree(c2)
+    problems, used, u_of = Problems(), np.zeros(len(p), dtype=bool), np.full(len(p), np.nan)
+    near = tree.query(p2)[0]
+    far = np.abs(near - r) > near_mm / 1000.0
+    if far.mean() > 0.5:
+        raise DataError(f"{part.source}: the trace {trace.source} never passes the measured contour: the tool's "
+                        f"centre came no closer than {1000 * np.median(near):.1f} mm (median over the points) "
+                        f"where the tool radius is {part.tool_radius_mm:g} mm; they do not belong together, or "
+                        "the part_frame is wrong")
+    twice = 0
+    for k in range(len(p)):
+        if far[k]:
+            problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
+                         f"(tolerance {near_mm:g} mm): it is not on the machined contour")
+            continue
+        cand = np.array(tree.query_ball_point(p2[k], near[k] + PASS_MARGIN_MM / 1000.0), dtype=int)
+        passes = _passes(np.sort(cand))
+        if passes > 1:
+            twice += 1
+            continue
+        u_of[k] = _abeam(idx, c2, p2[k], cand)
+        used[k] = True
+    if problems:
+        raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
+                        "nothing was used", problems)
+    if used.sum() < 3:
+        raise DataError(f"{part.source}: only {int(used.sum())} point(s) lie where the tool passed once")
+    notes = []
+    if twice:
+        notes.append(f"{twice} point(s) left out: the tool passed them twice (a closed contour's entry and exit "
+                     "overlap), so which pass made them cannot be told")
+    if best_fit:
+        notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
+                     "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
+                     "neither shown nor learned")
+    return _rows(part, trace, robot, label, used, u_of[used], p[used], F, a, r, frame, notes,
+                 smoothed(trace, smooth_hz))
+
+
+def smoothed(trace: Trace, cutoff_hz: float) -> np.ndarray:
+    """The trace's wrench low-passed without lag (Butterworth, order 2, forward and backward) at ``cutoff_hz``;
+    the trace's own where the cutoff is 0 or the trace too short."""
+    w = trace.wrench_base
+    dt = float(np.median(np.diff(trace.time_s))) if len(trace) > 1 else 0.0
+    if cutoff_hz <= 0 or dt <= 0 or len(w) < 30 or cutoff_hz >= 0.5 / dt:
+        return w.copy()
+    sos = signal.butter(2, cutoff_hz, fs=1.0 / dt, output="sos")
+    return signal.sosfiltfilt(sos, w, axis=0)
+
+
+def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) -> PartRows:
+    """The used points at their fractional trace rows ``u``: normals, deviations, and the trace between."""
+    k0 = np.clip(np.floor(u).astype(int), 0, len(trace) - 2)
+    w = (u - k0)[:, None]
+
+    def at(x):
+        return (1.0 - w) * x[k0] + w * x[k0 + 1]
+
+    c = at(F[:, 7, :3, 3])
+    d = (p - c) @ (np.eye(3) - np.outer(a, a))
+    dist = np.linalg.norm(d, axis=1)
+    n = d / dist[:, None]
+    q = at(trace.q_deg)
+    c_nom = robot.frames(np.radians(q - at(trace.correction_deg)))[:, 7, :3, 3]
+    shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
+    e = (dist - r) * 1000.0
+    return PartRows(part, trace, label, used, u, at(trace.time_s[:, None])[:, 0], p, c, n,
+                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench),
+                    np.einsum("na,na->n", n, at(trace.deflection[:, :3])), shift, frame, wrench, F[:, 7, :3, 3],
+                    notes)
+
+
+def when_made(rows: PartRows, model, iterations: int = 2) -> PartRows:
+    """``rows`` with each point's time, joints and wrench at the moment the deflected tool made it, and the
+    curve's term of its deviation (module docstring), from ``model``'s prediction of the deflection."""
+    tool = rows.trace_tool
+    step = np.gradient(tool, axis=0)                             # dc/du per trace row
+    u = rows.u
+    d_t = np.zeros(len(u))
+    for _ in range(iterations):
+        out = _at(rows, u, None)
+        data = out.dataset(model.robot, model.input_map(), history_step_s=None)
+        pred = model.predict(model.context(data))[:, :3]          # in the rows' axes (n, a x n, a)
+        dX = np.empty((len(u), 3))
+        dX[np.argsort(out.t, kind="stable")] = np.einsum("nji,nj->ni", data.axes, pred)   # base axes
+        d = _interp(step, rows.u)
+        speed = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+        d_t = np.einsum("na,na->n", dX / 1000.0, d / speed[:, None])
+        u = np.clip(rows.u - d_t / speed, 0.0, len(rows.trace) - 1.0)
+    kappa = _curvature(tool, rows.u, rows.normal)
+    r = rows.part.tool_radius_mm / 1000.0
+    kappa_w = kappa / np.maximum(1.0 + r * kappa, 1e-3)
+    return _at(rows, u, kappa_w * d_t**2 / 2.0 * 1000.0)
+
+
+def _curvature(tool: np.ndarray, u: np.ndarray, n: np.ndarray, chord: float = CHORD_M) -> np.ndarray:
+    """The commanded path's curvature at fractional rows ``u`` (1/m), from the points ``chord`` before and
+    after along its length (a traced path is a staircase of the PLC's cycle: no derivative of it is smooth),
+    signed positive where it bends away from ``n``: kappa = -(A + C - 2 B) . n / chord^2."""
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tool, axis=0), axis=1))])
+    s_u = _interp(s, u)
+    keep = np.r_[True, np.diff(s) > 0]                 # arc length strictly rising: a stopped tool adds nothing
+    s_k, tool_k = s[keep], tool[keep]
+
+    def at(x):
+        return np.column_stack([np.interp(x, s_k, tool_k[:, k]) for k in range(3)])
+
+    A, B, C = at(s_u - chord), at(s_u), at(s_u + chord)
+    return -np.einsum("na,na->n", A + C - 2.0 * B, n) / chord**2
+
+
+def _interp(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Rows of ``x`` (per trace row) at fractional rows ``u``, linearly."""
+    k0 = np.clip(np.floor(u).astype(int), 0, len(x) - 2)
+    w = (u - k0).reshape((-1,) + (1,) * (x.ndim - 1))
+    return (1.0 - w) * x[k0] + w * x[k0 + 1]
+
+
+def _at(rows: PartRows, u: np.ndarray, curve_mm: np.ndarray | None) -> PartRows:
+    """``rows`` with time, joints and wrench taken at the fractional trace rows ``u``, and the curve's term."""
+    import dataclasses
+
+    tr = rows.trace
+    return dataclasses.replace(rows, t=_interp(tr.time_s, u), q_deg=_interp(tr.q_deg, u),
+                               wrench_base=_interp(rows.smooth_wrench, u), curve_mm=curve_mm)
+
+
+def _moving(t: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Samples where the tool moves at a cutting feed: faster than a quarter of its typical speed."""
+    v = np.zeros(len(t))
+    dt = np.diff(t)
+    step = np.linalg.norm(np.diff(c, axis=0), axis=1)
+    v[1:] = np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), 0.0)
+    fast = v[v > 1e-6]
+    if not len(fast):
+        return np.zeros(len(t), dtype=bool)
+    return v > 0.25 * np.percentile(fast, 90)
+
+
+def plane_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors spanning the plane across ``a``."""
+    h = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = h - (h @ a) * a
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(a, e1)
+
+
+def _passes(positions: np.ndarray) -> int:
+    """How many separate passes of the tool the (sorted) positions among the moving samples hold: the tool
+    left the neighbourhood between two that are not consecutive (a stalled host leaves no such gap)."""
+    return 1 + int(np.sum(np.diff(positions) > 1)) if len(positions) else 0
+
+
+def _abeam(idx: np.ndarray, c2: np.ndarray, p: np.ndarray, cand: np.ndarray) -> float:
+    """The fractional trace row where the path (moving samples ``idx``, in-plane ``c2``) passes abeam of ``p``:
+    the foot of the perpendicular from p on the polyline near its nearest sample."""
+    j = int(cand[np.argmin(np.linalg.norm(c2[cand] - p, axis=1))])
+    best = (np.inf, float(idx[j]))
+    for s in (j - 1, j):
+        if s < 0 or s + 1 >= len(c2) or idx[s + 1] != idx[s] + 1:
+            continue
+        seg = c2[s + 1] - c2[s]
+        L2 = float(seg @ seg)
+        f = 0.0 if L2 == 0 else float(np.clip((p - c2[s]) @ seg / L2, 0.0, 1.0))
+        dist = float(np.linalg.norm(c2[s] + f * seg - p))
+        if dist < best[0]:
+            best = (dist, idx[s] + f)
+    return best[1]
+
+
+def _check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace: Trace) -> None:
+    """A part whose contour is 25.4 or 1000 times smaller (or larger) than the traced path's is in the
+    wrong unit: DataError naming the likely one."""
+    pts = part.points_mm / 1000.0
+    size = float(np.max(np.ptp(pts, axis=0)))
+    path = float(np.max(np.ptp(c2, axis=0))) + 2 * r
+    if size <= 0 or path <= 0:
+        return
+    ratio = path / size
+    for unit, factor in UNITS.items():
+        for k, name in ((factor, unit), (1.0 / factor, None)):
+            if abs(np.log(ratio / k)) < np.log(1.25):
+                if name is None:        # the points are larger than the path by the factor
+                    raise DataError(f"{part.source}: the measured contour is {1 / ratio:.0f} x larger than the "
+                                    f"path the trace {trace.source} cut: the points look like they are in a unit "
+                                    f"{factor:g} x smaller than mm (the format is millimetres)")
+                raise DataError(f"{part.source}: the measured contour is {ratio:.1f} x smaller than the path the "
+                                f"trace {trace.source} cut: the points look like they are in {unit}, not millimetres "
+                                f"(docs/part_format.md); multiply them by {factor:g}")
+
+
+def _best_fit(part: PartMeasurement, c: np.ndarray, a: np.ndarray, r: float, iterations: int = 30) -> np.ndarray:
+    """base <- part by a fit of the points to the traced path offset by r (in-plane rotation and shift, and
+    the shift along the axis to the path's height): iterative closest points."""
+    e1, e2 = plane_basis(a)
+    T = np.eye(4) if part.frame is None else part.frame.copy()
+    pts = part.points_mm / 1000.0
+    if part.frame is None:          # start with the part's axes as the base's, its centroid on the path's
+        T[:3, 3] = c.mean(axis=0) - pts.mean(axis=0)
+    c2 = np.column_stack([c @ e1, c @ e2])
+    tree = cKDTree(c2)
+    for _ in range(iterations):
+        p = pts @ T[:3, :3].T + T[:3, 3]
+        p2 = np.column_stack([p @ e1, p @ e2])
+        dist, j = tree.query(p2)
+        target = c2[j] + (p2 - c2[j]) * (r / np.maximum(dist, 1e-12))[:, None]   # r from the path, abeam
+        R2, t2 = _rigid_2d(p2, target)
+        step = np.eye(4)
+        B = np.column_stack([e1, e2, a])
+        R3 = np.eye(3)
+        R3[:2, :2] = R2
+        step[:3, :3] = B @ R3 @ B.T
+        step[:3, 3] = t2[0] * e1 + t2[1] * e2
+        T = step @ T
+        if np.linalg.norm(t2) < 1e-9 and abs(np.arctan2(R2[1, 0], R2[0, 0])) < 1e-9:
+            break
+    return T
+
+
+def _rigid_2d(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R (2, 2), t (2,) minimising |R x + t - y| (Kabsch in the plane)."""
+    mx, my = x.mean(axis=0), y.mean(axis=0)
+    U, _, Vt = np.linalg.svd((x - mx).T @ (y - my))
+    D = np.diag([1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    return R, my - R @ mx

@@ -1,0 +1,245 @@
+"""The trace of a cut: what the service did in every cycle (docs/part_format.md, "The trace").
+
+`stiffcomp run --trace FILE` (and `stiffcomp hil circle --trace FILE`) records one row per cycle:
+
+=================================  ===============================================================
+time_s, unix_time_s                the cycle's start: s since the task started; and wall-clock time
+cycle                              the cycle count
+q1_deg .. q6_deg                   the joint positions the PLC reported (what the encoders read: the
+                                   commanded joints, correction included)
+fx_N .. mz_Nm                      the wrench the cycle used: filtered, gravity and bias removed, in
+                                   base axes, moment about the sensor origin
+dx_mm .. rz_deg                    the TCP deflection the model predicted, base axes
+c1_deg .. c6_deg                   the joint correction the service sent (after limits)
+status_word, fault_word, task_state  the contract's words (`plc_interface.contract`)
+=================================  ===============================================================
+
+The file is CSV or Parquet, by its suffix. `TraceFile` writes it in batches and rotates it: when the
+file reaches ``max_bytes`` it becomes ``NAME.1.SUFFIX`` (the older ones move up to ``keep``; the oldest
+goes, and the log says so) and a new ``NAME.SUFFIX`` starts. `read_trace` reads one file back.
+
+Example: a round trip through CSV.
+
+>>> import numpy as np, tempfile, pathlib
+>>> rows = np.zeros((3, len(COLUMNS))); rows[:, 0] = [0.0, 0.001, 0.002]; rows[:, 2] = [1, 2, 3]
+>>> path = pathlib.Path(tempfile.mkdtemp()) / "trace.csv"
+>>> with TraceFile(path) as f:
+...     f.write(rows)
+>>> read_trace(path).cycle.tolist()
+[1, 2, 3]
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Self
+
+import numpy as np
+
+from .errors import DataError, OutputError
+
+log = logging.getLogger("stiffcomp.trace")
+
+Q = tuple(f"q{i}_deg" for i in range(1, 7))
+WRENCH = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
+DEFLECTION = ("dx_mm", "dy_mm", "dz_mm", "rx_deg", "ry_deg", "rz_deg")
+CORRECTION = tuple(f"c{i}_deg" for i in range(1, 7))
+WORDS = ("status_word", "fault_word", "task_state")
+COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *DEFLECTION, *CORRECTION, *WORDS)
+INTEGER = {"cycle", *WORDS}
+SUFFIXES = (".csv", ".parquet")
+DEFAULT_MAX_MB = 200.0
+DEFAULT_KEEP = 4
+
+
+def check_path(path: str | Path) -> Path:
+    """The trace file ``path``, or OutputError naming what is wrong (suffix, folder, pyarrow)."""
+    path = Path(path)
+    if path.suffix.lower() not in SUFFIXES:
+        raise OutputError(f"--trace {path}: the suffix must be .csv or .parquet (the file's format)")
+    if not path.parent.is_dir():
+        raise OutputError(f"--trace {path}: the folder {path.parent} does not exist")
+    if path.suffix.lower() == ".parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise OutputError(f"--trace {path}: writing Parquet needs pyarrow (pip install 'stiffcomp[parquet]'); "
+                              "or name a .csv file") from None
+    return path
+
+
+class TraceFile:
+    """Writes trace rows to ``path`` (CSV or Parquet by its suffix), rotating at ``max_bytes``.
+
+    Parameters
+    ----------
+    path : the trace file
+    max_bytes : rotate when the file reaches this size
+    keep : rotated files kept beside the current one (NAME.1.SUFFIX is the newest)
+    """
+
+    def __init__(self, path: str | Path, max_bytes: float = DEFAULT_MAX_MB * 1e6, keep: int = DEFAULT_KEEP):
+        self.path = check_path(path)
+        self.max_bytes = float(max_bytes)
+        self.keep = int(keep)
+        self.parquet = self.path.suffix.lower() == ".parquet"
+        self.rows = 0                 # written in all
+        self.in_file = 0              # written to the current file
+        self.rotations = 0
+        self._open()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _open(self) -> None:
+        try:
+            if self.parquet:
+                import pyarrow as pa
+                import pyarrow.parquet as pq
+
+                self._schema = pa.schema([(c, pa.int64() if c in INTEGER else pa.float64()) for c in COLUMNS])
+                self._writer = pq.ParquetWriter(self.path, self._schema)
+            else:
+                self._fh = open(self.path, "w", newline="")  # noqa: SIM115 - open across writes, closed by close()
+                self._csv = csv.writer(self._fh)
+                self._csv.writerow(COLUMNS)
+        except OSError as e:
+            raise OutputError(f"{self.path}: cannot write the trace: {e.strerror or e}") from e
+
+    def write(self, rows: np.ndarray) -> None:
+        """Append rows (k, len(COLUMNS)), in time order; a full file is rotated first, so the current file
+        never ends empty."""
+        if not len(rows):
+            return
+        if self.in_file and self.path.stat().st_size >= self.max_bytes:
+            self._rotate()
+        if self.parquet:
+            import pyarrow as pa
+
+            cols = [pa.array(rows[:, k].astype(np.int64) if c in INTEGER else rows[:, k]) for k, c in enumerate(COLUMNS)]
+            self._writer.write_table(pa.Table.from_arrays(cols, schema=self._schema))
+        else:
+            self._csv.writerows(_csv_row(r) for r in rows)
+            self._fh.flush()
+        self.rows += len(rows)
+        self.in_file += len(rows)
+
+    def _rotate(self) -> None:
+        self._close_current()
+        stem, suffix = self.path.with_suffix(""), self.path.suffix
+        oldest = Path(f"{stem}.{self.keep}{suffix}")
+        if oldest.exists():
+            oldest.unlink()
+            log.warning("trace: %s removed, the oldest of %d rotated files (--trace-keep)", oldest, self.keep)
+        for k in range(self.keep - 1, 0, -1):
+            src = Path(f"{stem}.{k}{suffix}")
+            if src.exists():
+                src.rename(Path(f"{stem}.{k + 1}{suffix}"))
+        if self.keep > 0:
+            self.path.rename(Path(f"{stem}.1{suffix}"))
+        self.rotations += 1
+        self._open()
+        self.in_file = 0
+
+    def _close_current(self) -> None:
+        if self.parquet:
+            self._writer.close()
+        else:
+            self._fh.close()
+
+    def close(self) -> None:
+        self._close_current()
+
+
+def _csv_row(r: np.ndarray) -> list[str]:
+    return [str(int(v)) if c in INTEGER else repr(float(v)) for c, v in zip(COLUMNS, r)]
+
+
+@dataclass
+class Trace:
+    """A trace read back: one array per column (``trace.time_s``, ``trace.q_deg`` ...)."""
+
+    source: str
+    table: np.ndarray                 # (N, len(COLUMNS)), the columns in COLUMNS' order
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.table[:, COLUMNS.index(name)]
+
+    def block(self, names: tuple[str, ...]) -> np.ndarray:
+        return self.table[:, [COLUMNS.index(n) for n in names]]
+
+    time_s = property(lambda self: self.column("time_s"))
+    cycle = property(lambda self: self.column("cycle").astype(np.int64))
+    q_deg = property(lambda self: self.block(Q))
+    wrench_base = property(lambda self: self.block(WRENCH))
+    deflection = property(lambda self: self.block(DEFLECTION))
+    correction_deg = property(lambda self: self.block(CORRECTION))
+    fault_word = property(lambda self: self.column("fault_word").astype(np.int64))
+    status_word = property(lambda self: self.column("status_word").astype(np.int64))
+
+
+def read_trace(path: str | Path) -> Trace:
+    """Read a trace file (CSV or Parquet); DataError names the file, the line and the column."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: trace file not found")
+    if path.suffix.lower() == ".parquet":
+        try:
+            import pyarrow.parquet as pq
+        except ImportError as e:
+            raise DataError(f"{path}: reading Parquet needs pyarrow (pip install 'stiffcomp[parquet]')") from e
+        try:
+            t = pq.read_table(path)
+        except Exception as e:  # pyarrow raises several unrelated types for corrupt files
+            raise DataError(f"{path}: cannot read Parquet: {e}") from e
+        missing = [c for c in COLUMNS if c not in t.column_names]
+        if missing:
+            raise DataError(f"{path}: not a stiffcomp trace: column(s) {', '.join(missing)} missing")
+        table = np.column_stack([t.column(c).to_numpy().astype(float) for c in COLUMNS]) if t.num_rows else \
+            np.zeros((0, len(COLUMNS)))
+        return _checked(path, table, None)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            missing = [c for c in COLUMNS if c not in header]
+            if missing:
+                raise DataError(f"{path}: line 1: not a stiffcomp trace: column(s) {', '.join(missing)} missing")
+            idx = [header.index(c) for c in COLUMNS]
+            rows, lines = [], []
+            for row in reader:
+                if not row:
+                    continue
+                try:
+                    rows.append([float(row[k]) for k in idx])
+                except (ValueError, IndexError):
+                    raise DataError(f"{path}: line {reader.line_num}: not {len(header)} numbers") from None
+                lines.append(reader.line_num)
+    except (OSError, csv.Error, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: cannot read the trace: {e}") from e
+    return _checked(path, np.array(rows, dtype=float).reshape(-1, len(COLUMNS)), np.array(lines))
+
+
+def _checked(path: Path, table: np.ndarray, lines: np.ndarray | None) -> Trace:
+    if not len(table):
+        raise DataError(f"{path}: the trace holds no cycle")
+    bad = ~np.isfinite(table[:, [COLUMNS.index(c) for c in ("time_s", "cycle", *Q)]]).all(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        where = f"line {lines[k]}" if lines is not None else f"row {k + 1}"
+        raise DataError(f"{path}: {where}: a time, cycle or joint position is not finite")
+    if np.any(np.diff(table[:, 0]) < 0):
+        k = int(np.argmax(np.diff(table[:, 0]) < 0)) + 1
+        where = f"line {lines[k]}" if lines is not None else f"row {k + 1}"
+        raise DataError(f"{path}: {where}: time_s goes back (a trace is one run in time order; "
+                        "give the rotated files one at a time)")
+    return Trace(str(path), table)

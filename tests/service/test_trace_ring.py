@@ -1,0 +1,48 @@
+"""The trace ring between the cycle and the trace writer (`service.trace`, issue 29): rows come out as they
+went in, in order; a writer that falls behind loses the oldest rows and counts every one; a trace that cannot
+be written stops the service before anything starts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hil.testing import CONFIG
+from service.app import Service
+from service.config import load_config
+from service.errors import TraceError
+from service.trace import TraceOptions, TraceRing
+from stiffness.trace import COLUMNS
+
+
+@settings(max_examples=25, deadline=None)
+@given(batches=st.lists(st.integers(0, 150), min_size=1, max_size=8))
+def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
+    """Property: after puts in batches (each taken or not), the rows taken are the put rows minus exactly the
+    ones counted lost, which are the oldest of each overrun, in order."""
+    ring = TraceRing(rows=64)
+    try:
+        got, n = [], 0
+        for k, size in enumerate(batches):
+            for _ in range(size):
+                n += 1
+                ring.put((float(n),) + (0.0,) * (len(COLUMNS) - 1))
+            if k % 2 == 0 or k == len(batches) - 1:
+                got.append(ring.take()[:, 0])
+        seen = np.concatenate(got) if got else np.zeros(0)
+        c = ring.counts
+        assert c["cycles"] == n and len(seen) + c["lost"] == n
+        assert np.all(np.diff(seen) > 0) and (len(seen) == 0 or seen[-1] == n)
+    finally:
+        ring.close()
+
+
+@pytest.mark.parametrize("name", ["trace.txt", "nowhere/trace.csv"])
+def test_a_trace_that_cannot_be_written_stops_the_service_before_it_opens_anything(tmp_path, name):
+    cfg = load_config(CONFIG / "default.yaml")
+    with pytest.raises(TraceError, match="--trace"):
+        Service(cfg, TraceOptions(Path(tmp_path) / name))

@@ -1,0 +1,142 @@
+"""A part read against the trace of its cut (`stiffness.part_rows`): the deviations it recovers, and every
+bad input named by file and line (issue 29, item 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from part_testlib import synthetic_cut
+from stiffcomp_testlib import ROOT
+
+from stiffness.errors import DataError
+from stiffness.model import StiffnessModel
+from stiffness.part import read_part, write_part
+from stiffness.part_rows import read_against, when_made
+from stiffness.robot import PoseConfig
+from stiffness.trace import read_trace
+
+TRUTH = ROOT / "examples" / "truth_reference.yaml"
+
+
+@pytest.fixture(scope="module")
+def truth() -> StiffnessModel:
+    return StiffnessModel.from_yaml(TRUTH)
+
+
+@pytest.fixture(scope="module")
+def cut(truth, tmp_path_factory):
+    return synthetic_cut(truth, tmp_path_factory.mktemp("cut"))
+
+
+def test_the_deviation_along_the_normal_is_the_arms_deflection_there(cut, truth):
+    """Recovery: each point's normal deviation is n . dX of the truth where the tool made it (the probe's
+    2 um noise and the second-order geometry of the circle apart), and the normals lie across the tool;
+    placed when the deflected tool made it, a point's row measures the truth's prediction there."""
+    rows = read_against(read_part(cut.part), read_trace(cut.trace), truth.robot, smooth_hz=0)
+    assert rows.used.all() and not rows.notes
+    made = when_made(rows, truth)
+    data = made.dataset(truth.robot, history_step_s=None)
+    predicted = truth.predict(truth.context(data))[:, 0]
+    np.testing.assert_allclose(data.deflection[:, 0], predicted, atol=0.0075)     # 2 um x 3 + 1.5 um geometry
+    assert np.sqrt(np.mean((data.deflection[:, 0] - predicted) ** 2)) < 0.003
+    assert np.abs(np.einsum("na,na->n", rows.normal, rows.axis)).max() < 1e-9
+    assert np.all(np.diff(rows.u) > 0)               # the points in the order the tool made them
+    # uncompensated: the nominal contour is the commanded one, so the part error is the deviation
+    np.testing.assert_allclose(rows.nominal_mm, rows.deviation_mm, atol=1e-5)       # chords between cycles
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(turn=st.floats(-180.0, 180.0), shift=st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-20, 20)))
+def test_the_part_frame_chosen_changes_nothing(cut, truth, tmp_path, turn, shift):
+    """Invariance: the same points written in another part frame (turned about the tool axis and shifted)
+    give the same deviations."""
+    part = read_part(cut.part)
+    rows = read_against(part, read_trace(cut.trace), truth.robot)
+    frame = PoseConfig(xyz_mm=list(np.add(cut.frame.xyz_mm, shift)), rpy_deg=[0.0, 0.0, turn])
+    T = frame.matrix()
+    path = write_part(tmp_path / "moved.csv", (cut.points_base - T[:3, 3]) @ T[:3, :3] * 1000.0, 4.0, frame)
+    again = read_against(read_part(path), read_trace(cut.trace), truth.robot)
+    np.testing.assert_allclose(again.deviation_mm, rows.deviation_mm, atol=5e-4)       # the file holds 0.1 um
+
+
+def test_best_fit_hides_a_constant_offset_and_says_so(cut, truth, tmp_path):
+    """Without a datum (the part's axes the base's, its origin 0.36 mm off): after the best fit its deviations are
+    the datum's up to a rigid shift of the contour, which along a circle's normal is a first harmonic
+    (a cos phi + b sin phi), and nothing more; the notes say what the fit hides."""
+    part = read_part(cut.part)
+    origin = np.array(cut.frame.xyz_mm) / 1000.0 + [0.0003, -0.0002, 0.0]
+    moved = write_part(tmp_path / "nodatum.csv", (cut.points_base - origin) * 1000.0, 4.0, None)
+    rows = read_against(read_part(moved), read_trace(cut.trace), truth.robot, best_fit=True)
+    ref = read_against(part, read_trace(cut.trace), truth.robot)
+    both = rows.used & ref.used
+    assert both.sum() > 0.9 * len(part)
+    d = _per_point(rows)[both] - _per_point(ref)[both]
+    phi = np.arctan2(part.points_mm[both, 1], part.points_mm[both, 0])
+    shift = np.column_stack([np.cos(phi), np.sin(phi)])
+    left = d - shift @ np.linalg.lstsq(shift, d, rcond=None)[0]
+    assert np.abs(left).max() < 0.004 and any("constant offset" in n for n in rows.notes)
+    with pytest.raises(DataError, match="no part_frame.*--best-fit"):
+        read_against(read_part(moved), read_trace(cut.trace), truth.robot)
+
+
+def _per_point(rows) -> np.ndarray:
+    out = np.full(len(rows.used), np.nan)
+    out[rows.used] = rows.deviation_mm
+    return out
+
+
+@pytest.mark.parametrize("factor, unit", [(1 / 25.4, "inches"), (1 / 1000.0, "metres")])
+def test_a_part_in_inches_or_metres_is_named_so(cut, truth, tmp_path, factor, unit):
+    part = read_part(cut.part)
+    path = write_part(tmp_path / f"{unit}.csv", part.points_mm * factor, 4.0, cut.frame)
+    with pytest.raises(DataError, match=f"{path}: .*look like they are in {unit}"):
+        read_against(read_part(path), read_trace(cut.trace), truth.robot)
+
+
+def test_points_nowhere_near_the_path_are_named_by_line(cut, truth, tmp_path):
+    part = read_part(cut.part)
+    pts = part.points_mm.copy()
+    radial = pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1)[:, None]     # the part frame is at the centre
+    pts[[10, 40], :2] += 6.0 * radial[[10, 40]]
+    path = write_part(tmp_path / "far.csv", pts, 4.0, cut.frame)
+    with pytest.raises(DataError) as e:
+        read_against(read_part(path), read_trace(cut.trace), truth.robot)
+    text = str(e.value)
+    assert "2 point(s) are not on the contour" in text
+    for k in (10, 40):
+        assert f"{path}: line {part.lines[k]}: the point lies" in text
+
+
+def test_a_trace_that_never_passes_the_part_is_refused(cut, truth, tmp_path):
+    part = read_part(cut.part)
+    elsewhere = PoseConfig(xyz_mm=list(np.add(cut.frame.xyz_mm, [250.0, 0.0, 0.0])), rpy_deg=cut.frame.rpy_deg)
+    path = write_part(tmp_path / "elsewhere.csv", part.points_mm, 4.0, elsewhere)
+    with pytest.raises(DataError, match="never passes the measured contour"):
+        read_against(read_part(path), read_trace(cut.trace), truth.robot)
+
+
+def test_points_the_tool_passed_twice_are_left_out_and_counted(truth, tmp_path):
+    """With no mask, the points at the closed circle's start were cut at the entry and again at the exit."""
+    c = synthetic_cut(truth, tmp_path, "overlap", mask_deg=0.0, points=360)
+    rows = read_against(read_part(c.part), read_trace(c.trace), truth.robot)
+    left = int((~rows.used).sum())
+    assert 0 < left < 40
+    assert any(f"{left} point(s) left out: the tool passed them twice" in n for n in rows.notes)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("point,x_mm,y_mm,z_mm\n1,1,2,3\n", "tool_radius_mm: R' is missing"),
+    ("# tool_radius_mm: 4\n# part_frame: {xyz_mm: [1, 2]\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n", r"line 2.*not valid YAML"),
+    ("# tool_radius_mm: 4\npoint,x_in,y_in,z_in\n1,1,2,3\n", r"line 2: missing column.*x_in is not millimetres"),
+    ("# tool_radius_mm: 4\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n2,1,two,3\n3,1,2,3\n4,1,2,3\n", r"line 4: x_mm, y_mm and z_mm must be numbers"),
+    ("# tool_radius_mm: -4\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n", "tool_radius_mm"),
+    ("# tool_radius_mm: 4\n# colour: red\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n", "colour"),
+])
+def test_a_bad_part_file_is_refused_naming_the_file_and_line(tmp_path, text, match):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(DataError, match=match) as e:
+        read_part(path)
+    assert str(path) in str(e.value)

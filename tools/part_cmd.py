@@ -1,0 +1,194 @@
+"""`stiffcomp part compare|learn|diagnose`: the machined part and the trace of its cut (docs/part.md).
+
+    stiffcomp part compare  MODEL TRACE PART [--report DIR] [--json]
+    stiffcomp part learn    MODEL TRACE PART [--part TRACE PART]... -o NEW.yaml [--campaign DATA]
+    stiffcomp part diagnose MODEL TRACE PART [--part TRACE PART]... [--report DIR] [--json]
+
+TRACE is `stiffcomp run --trace` (or `hil circle --trace`); PART a CMM's or a probe's points in the part
+format (docs/part_format.md).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+
+from .common import Progress, print_json, write_output
+
+
+def register(sub) -> None:
+    p = sub.add_parser("part", help="compare, learn and diagnose from a machined part and the trace of its cut")
+    ps = p.add_subparsers(dest="part_command", metavar="ACTION", required=True)
+    c = ps.add_parser("compare", help="the part's error beside the model's account of it (Fig. 8)")
+    _common(c)
+    c.add_argument("--report", metavar="DIR", help="write the plots and an HTML page into DIR")
+    c.set_defaults(func=run_compare)
+    ln = ps.add_parser("learn", help="update the model from parts: each is one more measurement of it")
+    _common(ln, more=True)
+    _prior_options(ln)
+    ln.add_argument("-o", "--output", required=True, help="where to write the learned model YAML")
+    ln.add_argument("--report", metavar="DIR", help="write what the model misses before and after into DIR")
+    ln.set_defaults(func=run_learn)
+    d = ps.add_parser("diagnose", help="name the effect the model misses, from parts (as `diagnose` does from a campaign)")
+    _common(d, more=True)
+    _prior_options(d)
+    d.add_argument("--report", metavar="DIR", help="write the evidence into DIR")
+    d.set_defaults(func=run_diagnose)
+
+
+def _common(p, more: bool = False) -> None:
+    from stiffness.part_rows import NEAR_MM, SMOOTH_HZ
+
+    p.add_argument("model", help="model YAML")
+    p.add_argument("trace", help="the trace of the cut (`stiffcomp run --trace FILE`, .csv or .parquet)")
+    p.add_argument("part", help="the part's measured points (docs/part_format.md)")
+    if more:
+        p.add_argument("--part", dest="more", nargs=2, action="append", default=[], metavar=("TRACE", "PART"),
+                       help="another part and the trace of its cut (repeat for more)")
+    p.add_argument("--best-fit", action="store_true",
+                   help="place the part by a best fit to the traced path (no datum); hides a constant offset")
+    p.add_argument("--near-mm", type=float, default=NEAR_MM, metavar="MM",
+                   help=f"a point farther than this off where the tool passed is not on the contour (default {NEAR_MM:g})")
+    p.add_argument("--smooth-hz", type=float, default=SMOOTH_HZ, metavar="HZ",
+                   help=f"low-pass the trace's wrench without lag at HZ (default {SMOOTH_HZ:g}; 0: none)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+
+
+def _prior_options(p) -> None:
+    p.add_argument("--campaign", metavar="DATA",
+                   help="the campaign the model was identified from, given again: its fit is the prior "
+                        "(default: the covariance the model's YAML carries from `stiffcomp fit`)")
+    p.add_argument("--prior-relative", type=float, default=0.5, metavar="F",
+                   help="for a model without a covariance or a campaign: each parameter within F of its value "
+                        "(1 sigma; default 0.5)")
+
+
+def _parts(args, model) -> list:
+    from stiffness.part import read_part
+    from stiffness.part_rows import read_against
+    from stiffness.trace import read_trace
+
+    pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
+    out = []
+    for k, (trace, part) in enumerate(pairs):
+        out.append(read_against(read_part(part), read_trace(trace), model.robot, f"part {k + 1}",
+                                best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz))
+    return out
+
+
+def _prior(args, model, say):
+    """The prior and the model to start from: the YAML's covariance, a campaign's fit, or the catalogue's."""
+    from stiffness.identify import fit
+    from stiffness.measurements import read_measurements
+    from stiffness.prior import Prior
+
+    if args.campaign:
+        say(f"fitting the campaign {args.campaign} for the prior")
+        result = fit(model, read_measurements(args.campaign, model.robot))
+        return Prior.from_fit(result, f"the fit of {args.campaign}"), result.model
+    prior = Prior.from_model(model)
+    if prior is not None:
+        return prior, model
+    return Prior.catalogue(model, args.prior_relative), model
+
+
+def _command() -> str:
+    return "stiffcomp " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def run_compare(args) -> int:
+    from stiffness.model import StiffnessModel
+    from stiffness.part_compare import compare_part
+
+    model = StiffnessModel.from_yaml(args.model)
+    comp = compare_part(model, _parts(args, model)[0])
+    if args.report:
+        from stiffness.part_report import compare_report
+
+        rep = compare_report(comp, _command())
+        path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
+        print(f"report: {path}", file=sys.stderr)
+    if args.json:
+        print_json(comp.summary())
+        return 0
+    print("\n".join(comp.lines()))
+    return 0
+
+
+def _setup(args, command: str):
+    """Progress, the prior, the model to start from and the parts, for learn and diagnose."""
+    from stiffness.model import StiffnessModel
+
+    progress = Progress(command)
+    prior, start = _prior(args, StiffnessModel.from_yaml(args.model), progress)
+    return progress, prior, start, _parts(args, start)
+
+
+def run_learn(args) -> int:
+    from stiffness.part_learn import learn
+
+    progress, prior, start, parts = _setup(args, "part learn")
+    result = learn(start, parts, prior, args.best_fit, progress)
+    progress.done()
+    header = (f"# {args.model} learned from {len(parts)} part(s) by `stiffcomp part learn`; its covariance is "
+              "the prior of the next")
+    write_output(args.output, lambda p: result.model.to_yaml(p, header))
+    if args.report:
+        from stiffness.part_compare import compare_part
+        from stiffness.part_report import learn_report
+
+        rep = learn_report(result.lines(), [compare_part(start, p) for p in parts],
+                           [compare_part(result.model, p) for p in parts], _command())
+        path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
+        print(f"report: {path}", file=sys.stderr)
+    if args.json:
+        print_json({"output": args.output, "prior": prior.source, "points": sum(int(p.used.sum()) for p in parts),
+                    "rms_before_mm": result.before_mm, "rms_after_mm": result.after_mm,
+                    "parameters": result.n_params,
+                    "determined": [{"weights": c.weights, "information_ratio": c.ratio, "moved_prior_sigma": c.moved_sigma}
+                                   for c in result.determined],
+                    "changes": [{"parameter": lab, "before": b0, "after": b1} for lab, b0, b1 in result.changes],
+                    "notes": result.notes})
+        return 0
+    print("\n".join(result.lines()))
+    print(f"written: {args.output}")
+    return 0
+
+
+def run_diagnose(args) -> int:
+    from stiffness.diagnose_report import VERDICT_KIND, to_dict
+    from stiffness.part_diagnose import diagnose_parts
+
+    progress, prior, start, parts = _setup(args, "part diagnose")
+    pd = diagnose_parts(start, parts, prior, progress)
+    progress.done()
+    d = pd.diagnosis
+    if args.report:
+        from stiffness.part_compare import compare_part
+        from stiffness.part_report import diagnose_report
+
+        rep = diagnose_report(pd.message, VERDICT_KIND[d.verdict], compare_part(d.fit.model, parts[0]), pd,
+                              _command())
+        path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
+        print(f"report: {path}", file=sys.stderr)
+    if args.json:
+        out = to_dict(d)
+        out["message"] = pd.message
+        out["where"] = pd.where
+        out["marks_deg"] = pd.marks_deg or []
+        print_json(out)
+        return 0
+    print(f"verdict: {d.verdict}")
+    print(f"  {pd.message}")
+    print(f"  the parts' residual RMS {d.fit.rms_position_mm:.4f} mm along the normal; prior: {prior.source}")
+    print("  candidates (best first):")
+    for c in d.candidates[:8]:
+        where = f"{c.effect.location_key} {c.joint}" if c.joint is not None else "global"
+        print(f"    {'*' if c.named else ' '} {c.name:20s} {where:8s} CV {100 * c.cv_improvement:5.1f} %  "
+              f"dBIC {c.delta_bic:10.1f}  after {c.rms_position_mm_after:.4f} mm")
+    if d.best is not None:
+        b = d.best
+        loc = f" --joint {b.joint}" if b.joint is not None else ""
+        print(f"  next: stiffcomp model add {args.model} {b.name}{loc} -o with_{b.name}.yaml")
+    return 0
