@@ -40,7 +40,7 @@ from .model import StiffnessModel
 from .preload import directions, held_preload
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
-from .prior import Prior, covariance_entry
+from .prior import Prior, PriorRows, covariance_entry
 from .residuals import repeat_groups
 from .robot import BODIES
 from .robust import gross_errors, robust_scale
@@ -238,7 +238,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     """
     say = progress or (lambda stage: None)
     model = model.copy()
-    pr = _PriorRows(prior, model)
+    pr = PriorRows(prior, model)
     ctx = data if isinstance(data, Context) else model.context(data)
     fresh_start(model, ctx, fit, say)      # an identified preload still at its prior: start where the data step
     measured = ctx.data.measured
@@ -326,7 +326,7 @@ def _solve_linear(model, ctx, y, w, theta, lin, lower=None, prior=None):
 
     With ``lower`` (P,) below which a parameter may not go (-inf: unbounded), and any finite, the
     bounded problem is solved by scipy.optimize.lsq_linear on unit-norm columns instead. With ``prior``
-    (`_PriorRows`) its rows are solved with the data's."""
+    (`stiffness.prior.PriorRows`) its rows are solved with the data's."""
     theta = theta.copy()
     start = theta[lin].copy()
     theta[lin] = 0.0
@@ -365,7 +365,7 @@ def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegat
 
 def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None, counted=None, prior=None):
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation (each
-    counted with ``counted(n)``; with the prior's rows, `_PriorRows`, in both)."""
+    counted with ``counted(n)``; with the prior's rows, `stiffness.prior.PriorRows`, in both)."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
     x0 = np.clip(theta[nl] / scale[nl], lo, hi)
@@ -440,22 +440,6 @@ def _standard_errors(X, resid, w, scale, theta, blind, prior):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.abs(theta) / se
     return se, np.nan_to_num(t, nan=0.0), cov
-
-
-class _PriorRows:
-    """A prior's rows for one model: residual R theta - c (in standard deviations), empty without one."""
-
-    def __init__(self, prior: Prior | None, model: StiffnessModel):
-        P = len(model.theta)
-        self.R, self.c = prior.rows(model.param_labels()) if prior is not None else (np.zeros((0, P)), np.zeros(0))
-
-    def residual(self, theta: np.ndarray) -> np.ndarray:
-        return self.R @ theta - self.c
-
-    def information(self, scale: np.ndarray) -> np.ndarray:
-        """R^T R in the parameters divided by ``scale`` (the fit's scaled units)."""
-        Rs = self.R * scale
-        return Rs.T @ Rs
 
 
 def _source_text(ctx: Context, prior: Prior | None) -> str:

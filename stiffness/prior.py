@@ -154,6 +154,22 @@ class Prior:
                                             f"stored in {model.source}")
 
 
+class PriorRows:
+    """A prior's rows for one model: residual R theta - c (in standard deviations), empty without one."""
+
+    def __init__(self, prior: Prior | None, model):
+        P = len(model.theta)
+        self.R, self.c = prior.rows(model.param_labels()) if prior is not None else (np.zeros((0, P)), np.zeros(0))
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        return self.R @ theta - self.c
+
+    def information(self, scale: np.ndarray) -> np.ndarray:
+        """R^T R in the parameters divided by ``scale`` (the fit's scaled units)."""
+        Rs = self.R * scale
+        return Rs.T @ Rs
+
+
 def covariance_entry(model, covariance: np.ndarray, source: str) -> dict[str, Any]:
     """The model YAML's ``covariance`` section for ``covariance`` (P, P, SI) of its parameters:
     standard errors in the YAML's units (null: not determined) and correlations."""
