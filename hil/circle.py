@@ -13,7 +13,7 @@ from stiffness.model import StiffnessModel
 
 from .cmm import CmmResult, measure
 from .lockstep import run_lockstep
-from .report import errors, evaluate, plot
+from .report import end_to_end_delay, errors, evaluate, plot, window_errors, windows_figure
 from .robot_stub import RobotStub
 from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
@@ -58,7 +58,7 @@ def timing_verdict(cycles: int, exceeded: int) -> dict:
 
 def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, dict]:
     world = World(scenario, truth.robot)
-    return world, evaluate(world, RobotStub(truth, scenario.robot.structure_hz, scenario.payload), result.log)
+    return world, evaluate(world, RobotStub(truth, scenario.robot, scenario.payload), result.log)
 
 
 def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,
@@ -104,6 +104,11 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                "mean_error_mm_uncompensated": round(mean_u, 4), "max_error_mm_uncompensated": round(max_u, 4),
                "cycles": int(last.get("cycles", 0)), "exceed_count": int(last.get("exceed_count", 0))}
     last = "compensated" if compensation else "uncompensated"
+    for name, suffix in (("compensated", ""), ("uncompensated", "_uncompensated")):
+        if name in evals:
+            summary.update({k + suffix: round(v, 4) for k, v in window_errors(world, evals[name]).items()})
+    delay = end_to_end_delay(world, passes[last].log) if compensation else None
+    summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
     summary["part_error_mm"] = round(parts[last].part_error_mm, 4)
     summary["part_error_mm_uncompensated"] = round(parts["uncompensated"].part_error_mm, 4)
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
@@ -145,6 +150,7 @@ def write_report(folder: Path, world: World, evals: dict, passes: dict, summary:
     """hil_circle.png (Fig. 8), summary.json (with the task statistics) and the per-cycle errors."""
     folder.mkdir(parents=True, exist_ok=True)
     plot(world, evals, folder / "hil_circle.png")
+    windows_figure(world, evals).savefig(folder / "hil_windows.png", dpi=110)
     detail = dict(summary)
     detail["reduction_pct"] = (round(100.0 * (1 - summary["mean_error_mm"] / summary["mean_error_mm_uncompensated"]),
                                      1) if summary["mean_error_mm_uncompensated"] > 0 else None)

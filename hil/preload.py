@@ -59,7 +59,7 @@ def preload_path_errors(folder: Path) -> dict[str, dict]:
     truth = models["aware"]
     truth_path = Path(folder) / "truth.yaml"
     truth.to_yaml(truth_path)
-    stub = RobotStub(truth, sc.robot.structure_hz, sc.payload)
+    stub = RobotStub(truth, sc.robot, sc.payload)
     evals = {"uncompensated": evaluate_uncompensated(World(sc, truth.robot), stub, sc.plc.period_ms / 1e3)}
     out: dict[str, dict] = {"cycles": {}, "exceed_count": {}}
     for name, model in models.items():

@@ -18,16 +18,11 @@ from stiffness.plots import legend_below
 from .robot_stub import RobotStub
 from .world import World
 
-GRID_S = 2.5e-4          # the structural filter runs on this uniform grid
-
 
 def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
     """Actual TCP, path angle and radial error (mm) of every cycle of a pass; ``cut`` marks the cut."""
     t = np.asarray(log["t"])
-    grid = np.arange(world.t_start, world.t_end + GRID_S, GRID_S)
-    F = stub.structural_load(grid, world.force(grid))
-    F_t = np.stack([np.interp(t, grid, F[:, k]) for k in range(3)], axis=1)
-    p = stub.tcp(log["q_cmd"], F_t, t)
+    p, F_t = stub.actual(t, np.asarray(log["q_cmd"]), world.force, world.t_start, world.t_end)
     angle, err = world.path.radial_error(p)
     cut = (t >= 0.0) & (t <= world.path.duration)
     return {"t": t, "p": p, "angle": angle, "err_mm": err * 1000.0, "cut": cut, "force": F_t}
@@ -40,6 +35,59 @@ def evaluate_uncompensated(world: World, stub: RobotStub, period_s: float) -> di
     t = np.arange(world.t_start, world.t_end, period_s)
     q = np.array([world.path.q_ref_deg(x) for x in t])
     return evaluate(world, stub, {"t": t, "q_cmd": q})
+
+
+WINDOW_S = 0.1          # the entry and exit windows: this long after the force starts and after the circle closes
+LAGS_S = np.arange(0.0, 0.0605, 0.0005)      # the delays the end-to-end estimate tries
+
+
+def windows(world: World) -> dict[str, tuple[float, float]]:
+    """The entry and exit windows (s since the cut started): the 100 ms after the tool meets the material,
+    and the 100 ms after the circle closes (when the cutter leaves it)."""
+    end = world.path.duration
+    return {"entry": (0.0, WINDOW_S), "exit": (end, end + WINDOW_S)}
+
+
+def window_errors(world: World, ev: dict) -> dict[str, float]:
+    """Peak and mean |path error| (mm) in the entry and exit windows and over the steady part of the cut (the
+    cut without the windows): ``entry_peak_mm``, ``entry_mean_mm``, ``exit_…``, ``steady_peak_mm``, ``steady_mean_mm``."""
+    t, e = ev["t"], np.abs(ev["err_mm"])
+    out, inside = {}, np.zeros(len(t), dtype=bool)
+    for name, (a, b) in windows(world).items():
+        m = (t >= a) & (t <= b)
+        inside |= m
+        out[f"{name}_peak_mm"] = float(e[m].max()) if m.any() else float("nan")
+        out[f"{name}_mean_mm"] = float(e[m].mean()) if m.any() else float("nan")
+    steady = ev["cut"] & ~inside
+    out["steady_peak_mm"], out["steady_mean_mm"] = float(e[steady].max()), float(e[steady].mean())
+    return out
+
+
+def end_to_end_delay(world: World, log: dict) -> float | None:
+    """The delay (s) from the force at the tool to the correction the PLC applied: the lag at which the
+    applied correction's TCP displacement, FK(q_cmd) - FK(q_ref), is best explained as a linear function of
+    the process force (least squares over `LAGS_S`, refined on a parabola); None without a correction."""
+    t = np.asarray(log["t"])
+    use = (t >= 0.0) & (t <= world.t_end)
+    if use.sum() < 50:
+        return None
+    robot = world.robot
+    moved = (robot.frames(np.radians(np.asarray(log["q_cmd"])[use]))[:, 7, :3, 3]
+             - robot.frames(np.radians(np.asarray(log["q_ref"])[use]))[:, 7, :3, 3])
+    if np.abs(moved).max() < 1e-7:
+        return None
+    moved = moved - moved.mean(axis=0)
+    cost = []
+    for lag in LAGS_S:
+        f = world.force(t[use] - lag)
+        X = np.column_stack([f, np.ones(len(f))])
+        cost.append(float(np.sum((moved - X @ np.linalg.lstsq(X, moved, rcond=None)[0]) ** 2)))
+    k = int(np.argmin(cost))
+    if 0 < k < len(cost) - 1:                       # the parabola through the best three
+        c0, c1, c2 = cost[k - 1: k + 2]
+        den = c0 - 2 * c1 + c2
+        return float(LAGS_S[k] + (0.5 * (c0 - c2) / den if den > 0 else 0.0) * (LAGS_S[1] - LAGS_S[0]))
+    return float(LAGS_S[k])
 
 
 def errors(ev: dict) -> tuple[float, float]:
@@ -84,4 +132,25 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
     bx.set_title("b) point-to-point error")
     bx.grid(alpha=0.3)
     legend_below(fig, ax, bx, ncols=3)
+    return fig
+
+
+def windows_figure(world: World, passes: dict[str, dict]) -> Figure:
+    """The path error in the entry and the exit windows (and 50 ms either side), each pass a line."""
+    fig = Figure(figsize=(12, 4.4), layout="constrained")
+    styles = {"uncompensated": "tab:red", "compensated": "tab:blue"}
+    axes = []
+    for k, (name, (a, b)) in enumerate(windows(world).items()):
+        ax = fig.add_subplot(1, 2, k + 1)
+        for pname, ev in passes.items():
+            m = (ev["t"] >= a - 0.05) & (ev["t"] <= b + 0.05)
+            ax.plot(1000 * (ev["t"][m] - a), ev["err_mm"][m], color=styles.get(pname), lw=0.9, label=pname)
+        ax.axvspan(0, 1000 * (b - a), color="0.9")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(f"ms after the {name} (shaded: the {name} window)")
+        ax.set_ylabel("path error, mm")
+        ax.set_title(f"{name}")
+        ax.grid(alpha=0.3)
+        axes.append(ax)
+    legend_below(fig, *axes, ncols=3)
     return fig

@@ -6,10 +6,11 @@ truth model's prediction (Eq. 4-7, the full loaded chain, every effect the truth
 
     p_actual = p_TCP(q_cmd) + dp_truth(q_cmd, W_s)
 
-W_s is the process force at the TCP seen through the arm's first mode: a critically damped
-second-order low-pass at ``structure_hz`` (the arm does not follow the 400 Hz tooth passing; 0 makes
-the deflection static). Nothing in the loop reads the actual pose (the PLC gets encoder values), so
-the stub evaluates a whole pass in one batch after it.
+W_s is the process force at the TCP through the arm's structure (`hil.structure`): by default the arm
+rings (its modes carry the static deflection as oscillators, the load through a low-pass first), or it
+follows the load through a critically damped low-pass at ``structure_hz``. Nothing in the loop reads the
+actual pose (the PLC gets encoder values), so the stub evaluates a whole pass in one batch after it
+(`actual`), the servos holding the commanded joints between PLC cycles.
 
 History. The truth sees a pass as one load history in time order: one configuration, the cycle times
 as the readings' times, so a history-dependent effect (hysteresis, `stiffness.effects.hysteresis`)
@@ -35,7 +36,6 @@ and the truth's own input effects map it back to W.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from stiffness.context import Context
 from stiffness.measurements import Dataset
@@ -44,6 +44,7 @@ from stiffness.spatial import transform, transport_wrench
 from stiffness.statics import statics_for
 
 from .payload import TruePayload
+from .structure import GRID_S, Structure, StructureConfig
 
 
 class RobotStub:
@@ -52,17 +53,18 @@ class RobotStub:
     Parameters
     ----------
     truth : StiffnessModel
-    structure_hz : float
-        Natural frequency of the arm's first mode (Hz); 0 = static.
+    structure : StructureConfig or float
+        The arm's structure (`hil.structure`); a number: the critically damped low-pass at that frequency
+        (Hz; 0 = static).
     payload : a payload section (the scenario's ``payload``, `hil.payload.TruePayload`)
         What the arm carries at the sensor, in the static torque; None: the truth model's own
         ``payload`` (none when it has no such key).
     """
 
-    def __init__(self, truth: StiffnessModel, structure_hz: float = 0.0, payload=None):
+    def __init__(self, truth: StiffnessModel, structure: StructureConfig | float = 0.0, payload=None):
         self.truth = truth
         self.robot = truth.robot
-        self.structure_hz = float(structure_hz)
+        self.structure = Structure(structure)
         self.measured_from_true = np.linalg.inv(truth.input_map())          # L^-1
         if payload is None:
             self.statics = truth.statics()
@@ -71,12 +73,24 @@ class RobotStub:
 
     def structural_load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The force (N, 3) the arm feels at times ``t`` (uniformly spaced, s) for the process force."""
-        if self.structure_hz <= 0 or len(t) < 2:
-            return np.asarray(force, dtype=float)
-        w = 2 * np.pi * self.structure_hz
-        fs = 1.0 / float(t[1] - t[0])
-        b, a = signal.bilinear([w * w], [1.0, 2 * w, w * w], fs)         # critically damped
-        return signal.lfilter(b, a, force, axis=0)
+        return self.structure.load(t, force)
+
+    def actual(self, t_log: np.ndarray, q_log: np.ndarray, force, t_start: float, t_end: float):
+        """The actual TCP (N, 3, m) at the PLC's cycle times ``t_log`` for its commanded joints ``q_log`` (deg,
+        held by the servos until the next cycle) and the process force ``force(t)`` (N, 3), over
+        [t_start, t_end]; and the load the arm felt at those times (N, 3)."""
+        grid = np.arange(t_start, t_end + GRID_S, GRID_S)
+        F = self.structure.load(grid, force(grid))
+        F_t = np.stack([np.interp(t_log, grid, F[:, k]) for k in range(3)], axis=1)
+        if not self.structure.modal:
+            return self.tcp(q_log, F_t, t_log), F_t
+        k = np.clip(np.searchsorted(t_log, grid, side="right") - 1, 0, len(t_log) - 1)     # the servo holds q
+        q_grid = np.asarray(q_log, dtype=float)[k]
+        frames = self.robot.frames(np.radians(q_grid))
+        x_static = self.tcp(q_grid, F, grid) - frames[:, 7, :3, 3]
+        x = self.structure.respond(grid, q_grid, frames[:, 7, :3, 3], x_static)
+        tcp = self.robot.frames(np.radians(np.atleast_2d(q_log)))[:, 7, :3, 3]
+        return tcp + np.stack([np.interp(t_log, grid, x[:, j]) for j in range(3)], axis=1), F_t
 
     def tcp(self, q_cmd_deg: np.ndarray, force_tcp: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Actual TCP positions (m, base), (N, 3), for commanded joints (N, 6 deg) and true TCP forces

@@ -11,6 +11,8 @@ from service.gravity import GravityConfig
 from stiffness.robot import PoseConfig
 from stiffness.yamlio import Strict, read_yaml, validate
 
+from .structure import StructureConfig
+
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIO = ROOT / "config" / "hil" / "circle.yaml"
 
@@ -49,14 +51,11 @@ class SensorConfig(Strict):
     lowpass_hz: float = Field(52.0, ge=0.0, le=5000.0)
 
 
-class RobotStubConfig(Strict):
-    structure_hz: float = Field(40.0, ge=0.0, le=1000.0)
-
-
 class PlcConfig(Strict):
     period_ms: float = Field(2.0, ge=1.0, le=4.0)
     service_timeout_ms: float = Field(100.0, gt=0.0)
     max_rate_deg_s: float = Field(2.0, gt=0.0, le=100.0)
+    extra_delay_ms: float = Field(0.0, ge=0.0, le=100.0)     # the PLC applies each correction this much later
 
 
 class CmmConfig(Strict):
@@ -77,7 +76,7 @@ class Scenario(Strict):
     circle: CircleConfig
     milling: MillingConfig = Field(default_factory=MillingConfig)
     sensor: SensorConfig = Field(default_factory=SensorConfig)
-    robot: RobotStubConfig = Field(default_factory=RobotStubConfig)
+    robot: StructureConfig = Field(default_factory=StructureConfig)
     plc: PlcConfig = Field(default_factory=PlcConfig)
     payload: GravityConfig = Field(default_factory=GravityConfig)     # the truth: what the sensor carries
     cmm: CmmConfig = Field(default_factory=CmmConfig)

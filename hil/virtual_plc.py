@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -62,10 +63,14 @@ class PlcLogic:
     service_timeout_s : float
     max_rate_deg_s : float
     faults : PlcFaults
+    delay_s : float
+        Extra delay (s): the PLC applies each correction it read this much later (a slower fieldbus, a
+        PLC task that runs late; the HIL's ``plc.extra_delay_ms``).
     """
 
     def __init__(self, rmap: RegisterMap, reference: Callable[[float], list[float]], compensate: bool = True,
-                 service_timeout_s: float = 0.1, max_rate_deg_s: float = 2.0, faults: PlcFaults | None = None):
+                 service_timeout_s: float = 0.1, max_rate_deg_s: float = 2.0, faults: PlcFaults | None = None,
+                 delay_s: float = 0.0):
         self.out_names = rmap.codecs["to_plc"].names
         self.in_names = rmap.codecs["from_plc"].names
         self._corr = [self.out_names.index(f"correction_q{i}") for i in range(1, 7)]
@@ -87,6 +92,8 @@ class PlcLogic:
         self.t_prev: float | None = None
         self.link_ok = False
         self.payload_index = 0          # the payload set the program selects (gravity.payloads)
+        self.delay = float(delay_s)
+        self._late: deque[tuple[float, list[float]]] = deque()      # (t, target) waiting for their time
 
     def step(self, t: float, to_plc: list[float] | None) -> tuple[list[float], list[float]]:
         """One cycle at ``t`` (s): the from_plc values (codec order) and q_cmd (deg)."""
@@ -105,6 +112,12 @@ class PlcLogic:
             self.was_lost = False
         self.link_ok = fresh
         target = [to_plc[k] for k in self._corr] if (fresh and self.compensate) else [0.0] * 6
+        if self.delay > 0:              # the newest target read at or before t - delay
+            self._late.append((t, target))
+            while len(self._late) > 1 and self._late[1][0] <= t - self.delay + 1e-9:
+                self._late.popleft()
+            t0, due = self._late[0]
+            target = due if t0 <= t - self.delay + 1e-9 else [0.0] * 6
         step = self.rate * dt
         self.applied = [a + min(max(x - a, -step), step) for a, x in zip(self.applied, target)]
         q_ref = self.reference(t)

@@ -64,7 +64,7 @@ def test_fitted_effect_compensates_better_than_springs_alone(entry, expected, tm
     models = {"exact": truth_path, "fitted": write_model(fitted.model, tmp_path / "fitted.yaml"),
               "springs-only": write_model(springs, tmp_path / "springs.yaml")}
     sc = scenario(center_q_deg=LOW_TABLE_Q_DEG)
-    stub = RobotStub(truth, sc.robot.structure_hz)
+    stub = RobotStub(truth, sc.robot)
     e = {"uncompensated": mean_error(evaluate_uncompensated(World(sc, truth.robot), stub, sc.plc.period_ms / 1e3))}
     exceed = {}
     for name, path in models.items():

@@ -26,6 +26,8 @@ def register(sub) -> None:
                    help="the service records every cycle of the (compensated) cut to FILE (.csv or .parquet)")
     c.add_argument("--cmm", default=None, metavar="FILE.csv",
                    help="write the cut part as the virtual CMM measures it (docs/part_format.md)")
+    c.add_argument("--extra-delay-ms", type=float, default=None, metavar="MS",
+                   help="the virtual PLC applies each correction this much later (the scenario's plc.extra_delay_ms)")
     c.add_argument("--lockstep", action="store_true",
                    help="step the service, sensor and PLC together in one process, as fast as the host runs "
                         "them (deterministic; no real time, no protocols' transport)")
@@ -40,6 +42,8 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario)
     if args.center_q is not None:
         scenario.circle.center_q_deg = list(args.center_q)
+    if args.extra_delay_ms is not None:
+        scenario.plc.extra_delay_ms = args.extra_delay_ms
     if args.trace is not None:
         from service.trace import TraceOptions
 

@@ -55,6 +55,6 @@ def test_hil_circle_plot():
     sc = load_scenario()
     truth = StiffnessModel.from_yaml(TRUTH)
     world = World(sc, truth.robot)
-    ev = evaluate_uncompensated(world, RobotStub(truth, sc.robot.structure_hz), sc.plc.period_ms / 1e3)
+    ev = evaluate_uncompensated(world, RobotStub(truth, sc.robot), sc.plc.period_ms / 1e3)
     compensated = {**ev, "err_mm": ev["err_mm"] * 0.03}
     assert legends_off_the_data(circle_figure(world, {"uncompensated": ev, "compensated": compensated})) == 1

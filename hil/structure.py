@@ -1,0 +1,146 @@
+"""The arm's dynamics in the robot stub: how the deflection follows the load in time (docs/hil.md).
+
+Two structures, the scenario's ``robot.model``:
+
+``modal`` (the default): the arm rings. The load reaches the joints through a critically damped low-pass
+at ``residual_hz`` (the arm does not follow the 400 Hz tooth passing), the truth model turns it into the
+static deflection x_s(t), and each mode k (frequency f_k, damping zeta_k, unit direction phi_k) carries its
+share of it as a second-order oscillator of unit static gain:
+
+    a_k'' + 2 zeta_k w_k a_k' + w_k^2 a_k = w_k^2 (phi_k . x_s),       w_k = 2 pi f_k(q)
+    x = sum_k phi_k a_k + (I - sum_k phi_k phi_k^T) x_s
+
+The directions are in the arm's frame (x away from the base's axis, y across it, z up: the base turned by
+q1), so a mode turns with the arm. Its frequency moves across the workspace with the reach r (the TCP's
+distance from the base's axis): f_k(q) = f_k (r_ref / r)^exponent; a farther TCP hangs on a softer, heavier
+arm. Defaults: 10 Hz and 16 Hz at 3 % damping (published modal maps of milling robots: first modes at
+about 7, 10 and 16 Hz, 2-4 % damping, moving by up to 40 % over the workspace; docs/hil.md cites them).
+
+``lowpass``: the arm's first mode as a critically damped second-order low-pass at ``structure_hz`` on the
+load (the stub before the modes; 0: static).
+
+Both act on a uniform time grid (`GRID_S`); the servos hold the commanded joints between PLC cycles.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, field_validator
+from scipy import signal
+
+from stiffness.yamlio import Strict
+
+GRID_S = 5e-4            # the structure's time step
+
+
+class ModeConfig(Strict):
+    """One mode: frequency (Hz, at the reference reach), damping ratio and direction (the arm's frame)."""
+
+    hz: float = Field(gt=0.0, le=500.0)
+    damping: float = Field(ge=1e-3, le=2.0)
+    direction: list[float] = Field(min_length=3, max_length=3)
+
+    @field_validator("direction")
+    @classmethod
+    def _unit(cls, v: list[float]) -> list[float]:
+        n = float(np.linalg.norm(v))
+        if n < 1e-9:
+            raise ValueError("must not be zero: the direction the mode moves the TCP, [x, y, z] in the arm's frame")
+        return [float(x) / n for x in v]
+
+
+def _default_modes() -> list[ModeConfig]:
+    return [ModeConfig(hz=10.0, damping=0.03, direction=[1.0, 0.0, 0.0]),
+            ModeConfig(hz=16.0, damping=0.03, direction=[0.0, 1.0, 0.0])]
+
+
+class StructureConfig(Strict):
+    """``robot``: the robot stub's structure (module docstring)."""
+
+    model: Literal["modal", "lowpass"] = "modal"
+    structure_hz: float = Field(20.0, ge=0.0, le=1000.0)
+    modes: list[ModeConfig] = Field(default_factory=_default_modes)
+    residual_hz: float = Field(40.0, gt=0.0, le=1000.0)
+    reach_ref_m: float = Field(1.8, gt=0.1, le=10.0)
+    reach_exponent: float = Field(1.0, ge=0.0, le=4.0)
+
+    @field_validator("modes")
+    @classmethod
+    def _orthogonal(cls, v: list[ModeConfig]) -> list[ModeConfig]:
+        d = np.array([m.direction for m in v]).reshape(-1, 3)
+        if len(d) and not np.allclose(d @ d.T, np.eye(len(d)), atol=1e-6):
+            raise ValueError("the modes' directions must be orthogonal (a modal basis in Cartesian space)")
+        return v
+
+
+class Structure:
+    """The structure of one robot stub: `load` filters the process force, `respond` the static deflection."""
+
+    def __init__(self, cfg: StructureConfig | float):
+        if not isinstance(cfg, StructureConfig):          # a number: the critically damped low-pass at that frequency
+            cfg = StructureConfig(model="lowpass", structure_hz=float(cfg))
+        self.cfg = cfg
+        self.modal = cfg.model == "modal"
+        self.directions = np.array([m.direction for m in cfg.modes]).reshape(-1, 3) if self.modal else np.zeros((0, 3))
+
+    @property
+    def load_hz(self) -> float:
+        return self.cfg.residual_hz if self.modal else self.cfg.structure_hz
+
+    def load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """The force (N, 3) the joints feel at uniformly spaced times ``t`` for the process force."""
+        hz = self.load_hz
+        if hz <= 0 or len(t) < 2:
+            return np.asarray(force, dtype=float)
+        w = 2 * np.pi * hz
+        b, a = signal.bilinear([w * w], [1.0, 2 * w, w * w], 1.0 / float(t[1] - t[0]))    # critically damped
+        return signal.lfilter(b, a, force, axis=0)
+
+    def frequencies(self, q_deg: np.ndarray, tcp: np.ndarray) -> np.ndarray:
+        """(N, K) the modes' frequencies (Hz) at the poses with TCP positions ``tcp`` (N, 3, base, m)."""
+        reach = np.maximum(np.hypot(tcp[:, 0], tcp[:, 1]), 0.05)
+        scale = (self.cfg.reach_ref_m / reach) ** self.cfg.reach_exponent
+        return scale[:, None] * np.array([m.hz for m in self.cfg.modes])[None, :]
+
+    def respond(self, t: np.ndarray, q_deg: np.ndarray, tcp: np.ndarray, x_static: np.ndarray) -> np.ndarray:
+        """The dynamic deflection (N, 3) at uniformly spaced times ``t`` for the static one ``x_static`` (N, 3,
+        base axes), the joints ``q_deg`` and TCP positions ``tcp`` (for the modes' directions and frequencies)."""
+        if not self.modal or not len(self.cfg.modes) or len(t) < 2:
+            return np.asarray(x_static, dtype=float)
+        dt = float(t[1] - t[0])
+        c, s = np.cos(np.radians(q_deg[:, 0])), np.sin(np.radians(q_deg[:, 0]))
+        arm = np.stack([np.stack([c, -s, np.zeros_like(c)], 1), np.stack([s, c, np.zeros_like(c)], 1),
+                        np.tile([0.0, 0.0, 1.0], (len(c), 1))], axis=1)          # base <- the arm's frame
+        phi = np.einsum("nij,kj->nki", arm, self.directions)                       # (N, K, 3) in base axes
+        share = np.einsum("nki,ni->nk", phi, x_static)                              # phi_k . x_s
+        f = self.frequencies(q_deg, tcp)
+        zeta = np.array([m.damping for m in self.cfg.modes])
+        moved = oscillate(share, 2 * np.pi * f, zeta, dt)
+        return x_static + np.einsum("nki,nk->ni", phi, moved - share)
+
+
+def oscillate(u: np.ndarray, w: np.ndarray, zeta: np.ndarray, dt: float) -> np.ndarray:
+    """a (N, K) of a'' + 2 zeta w a' + w^2 a = w^2 u, each column its own oscillator, w (N, K) rad/s varying
+    slowly; starting at rest at u[0]. The trapezoidal rule (stable, no numerical damping) with the frequency
+    prewarped at each step."""
+    n, k = u.shape
+    a = np.empty_like(u)
+    x, v = u[0].astype(float).copy(), np.zeros(k)
+    h = dt / 2.0
+    u_prev = u[0]
+    for i in range(n):
+        wi = 2.0 / dt * np.tan(w[i] * h)                        # prewarped: the discrete resonance where it belongs
+        w2, c = wi * wi, 2.0 * zeta * wi
+        # [x1, v1] = [x, v] + h ([v, f(x, v, u0)] + [v1, f(x1, v1, u1)]), f(x, v, u) = w2 (u - x) - c v
+        ui = u[i]
+        f0 = w2 * (u_prev - x) - c * v
+        rhs_x = x + h * v
+        rhs_v = v + h * f0 + h * w2 * ui
+        u_prev = ui
+        # x1 = rhs_x + h v1;  v1 (1 + h c) + h w2 x1 = rhs_v  ->  v1 (1 + h c + h^2 w2) = rhs_v - h w2 rhs_x
+        v = (rhs_v - h * w2 * rhs_x) / (1.0 + h * c + h * h * w2)
+        x = rhs_x + h * v
+        a[i] = x
+    return a
