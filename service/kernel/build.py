@@ -26,6 +26,7 @@ from stiffness.units import RAD_TO_DEG
 from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
+COMPILED_FILES = ("chain.py", "signal.py", "template.py", "build.py")     # what the generated module runs
 _HEAD = {"axial": "(tau, p)", "history": "(s, p, tau)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}
 
@@ -51,8 +52,8 @@ def _source_of(fn) -> str:
         raise NotCompilable(f"the source of {fn.__qualname__} cannot be read ({e})") from None
 
 
-def generate(laws: dict[str, list]) -> tuple[str, dict[str, object]]:
-    """The module's text and its globals (name -> law function) for the laws of each kind."""
+def generate(laws: dict[str, list]) -> tuple[str, dict[str, str], dict[str, object]]:
+    """The globals' lines, the dispatch bodies by kind, and the globals (name -> law function)."""
     bodies, names = {}, {}
     for kind in KINDS:
         lines = []
@@ -75,7 +76,7 @@ def module_for(laws: dict[str, list]) -> ModuleType:
     here = Path(__file__).parent
     h = hashlib.sha256()
     for part in [glob, *bodies.values(), *(_source_of(fn) for fn in names.values()),
-                 *(p.read_text() for p in sorted(here.glob("*.py"))), numba.__version__, sys.version]:
+                 *((here / f).read_text() for f in COMPILED_FILES), numba.__version__, sys.version]:
         h.update(part.encode())
     key = h.hexdigest()[:20]
     if key in _MODULES:

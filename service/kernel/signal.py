@@ -48,13 +48,11 @@ def condition(x, sp, last, max_step, coef, z, y):
 def limit(dt, target, safe, lim, out, ramp_rate):
     """The limiter (`service.filters`' neighbour `service.limits.CorrectionLimiter`): out (6,) deg moves
     toward ``target`` (deg) by at most rate * dt. lim: [max (6), rate (6), ramp_s, max_dt, safe_before]."""
-    if safe:
-        if lim[14] == 0.0:
-            for i in range(6):
-                ramp_rate[i] = abs(out[i]) / lim[12]
+    if safe and lim[14] == 0.0:             # the safe state begins: ramp from here to zero in ramp_s
+        for i in range(6):
+            ramp_rate[i] = abs(out[i]) / lim[12]
     lim[14] = 1.0 if safe else 0.0
-    if dt > lim[13]:
-        dt = lim[13]
+    dt = min(dt, lim[13])
     for i in range(6):
         if safe:
             tg, r = 0.0, ramp_rate[i]

@@ -72,8 +72,8 @@ def settle(axis, oR, op, tmp, pw, st, lever, c_pay, pre_rows, pre_w, tau_s, axj,
     for i in range(3):
         c[i] = op[6, i] + R[i, 0] * c_pay[0] + R[i, 1] * c_pay[1] + R[i, 2] * c_pay[2]
     chain.statics(axis, oR, op, st, lever, c, pre_rows, pre_w, tau_s, pw[0, :3], pw[1, :3], pw[0, 3:])
-    for n in range(len(axj)):
-        at_rest[n] = axial_law(axl[n], tau_s[axj[n]], axp[n])
+    for n in range(len(axj)):           # without a static torque the terms act at the external torque alone
+        at_rest[n] = axial_law(axl[n], tau_s[axj[n]], axp[n]) if st[0] != 0.0 else 0.0
 
 
 @njit(cache=True)
