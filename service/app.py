@@ -185,7 +185,8 @@ class Service:
             self._compiling.join()              # loaded from numba's cache in well under a second
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
-                               lock_memory=self.cfg.cycle.lock_memory)
+                               lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
+                               lead_s=self.source.lead_s)
         self.task.start()
         p = self.cfg.plc
         a = self.cfg.ads

@@ -155,6 +155,7 @@ class FastPredictor:
             self._q = q_rad
             self.kernel.kinematics(q_rad)
             return
+        self._q = q_rad
         pm, pd = self.pm, self.pd
         pin.computeJointJacobians(pm, pd, q_rad)
         pin.updateFramePlacements(pm, pd)
@@ -173,7 +174,6 @@ class FastPredictor:
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
         if self.statics is not None:
-            self._q = q_rad
             self._settle()
 
     def _settle(self) -> None:

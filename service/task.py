@@ -136,12 +136,15 @@ class CyclicTask:
         of a core.
     lock_memory : bool
         mlockall before the first cycle (`lock_memory`; one warning where not permitted).
+    prepare : callable () -> None, optional
+        Called ``lead_s`` before each deadline, between two cycles (the sensor's request: its answer is
+        then read by the cycle at that deadline); right away when the last cycle ended later than that.
     """
 
     def __init__(self, period_s: float, work: Callable[[float, bool], bool | None], info: TaskInfo,
                  on_error: Callable[[BaseException], None], realtime_priority: int = 0,
                  clock: Callable[[], float] = time.perf_counter, cpu: int | None = None, spin_s: float = 0.0,
-                 lock_memory: bool = False):
+                 lock_memory: bool = False, prepare: Callable[[], None] | None = None, lead_s: float = 0.0):
         self.period = float(period_s)
         self.work = work
         self.info = info
@@ -150,6 +153,8 @@ class CyclicTask:
         self.cpu = cpu
         self.spin = float(spin_s)
         self.lock = lock_memory
+        self.prepare = prepare if lead_s > 0 else None
+        self.lead = float(lead_s)
         self.clock = clock
         self.stop_requested = False
         self.stopped = threading.Event()
@@ -204,6 +209,7 @@ class CyclicTask:
         gc.disable()             # no collection at an allocation in the cycle: only after the work (below)
         clock, info, work, spin = self.clock, self.info, self.work, self.spin
         period, collect, count = self.period, gc.collect, gc.get_count
+        prepare, lead, sleep = self.prepare, self.lead, time.sleep
         deadlines = Deadlines(self.period, clock=clock)
         t0 = deadlines.due
         prev_start: float | None = None
@@ -211,6 +217,11 @@ class CyclicTask:
         try:
             go_on: bool | None = None
             while go_on is True or (go_on is None and not self.stop_requested):
+                if prepare is not None:
+                    ahead = deadlines.due - lead - clock()
+                    if ahead > 0:
+                        sleep(ahead)
+                    prepare()
                 deadlines.sleep_until(spin)
                 start = clock()
                 go_on = work(start - t0, exceeded)

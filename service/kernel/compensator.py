@@ -55,8 +55,9 @@ class CompiledSignal:
         self.bind(comp)
 
     def unbind(self, comp) -> None:
-        """Copy the state back into the stages (the Python path takes the next cycle)."""
-        s, f, lim = comp.spikes, comp.filter, comp.limiter
+        """Copy the state back into the stages it was bound to (the Python path takes the next cycle, or a
+        reload has replaced a stage: the replaced one keeps its state, the new one is bound next)."""
+        s, f, lim = self.bound[0], self.bound[3], self.bound[4]
         if self.sp[0]:
             s.last = self.last.tolist()
         s.held, s.rejected = int(self.sp[1]), int(self.sp[3])

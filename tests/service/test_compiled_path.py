@@ -227,3 +227,36 @@ def test_a_compiled_cycle_in_steady_state_allocates_nothing_that_stays(cfg):
     finally:
         gc.enable()
     assert max(grown) <= 10, f"blocks that stayed per window of 1,500 cycles: {grown}"
+
+
+def test_a_model_reload_ramps_alike_on_both_paths(cfg):
+    """A reload's new predictor (compiled in the main thread, `service.reload`) is ramped in on the Python
+    path, with each predictor's compiled form, and the compiled path takes over again after the ramp."""
+    from service.model_ramp import PredictorRamp
+
+    model = model_with(EXAMPLES["backlash"][0])
+    d = model.to_dict()
+    for e in d["effects"]:
+        for key in e:
+            if key.endswith(("_per_N", "_per_Nm")):
+                e[key] *= 2.0
+    doubled = StiffnessModel.from_dict(d, "doubled", robot=model.robot)
+    py, cc = Cycle.from_config(cfg, model), Cycle.from_config(cfg, model)
+    cc.compensator.compile()
+    runs = [drive(py, 900), drive(cc, 900)]
+    for step, _ in enumerate(zip(*runs)):
+        if step == 100:                         # the reload's swap, as service.reload builds it
+            for cycle in (py, cc):
+                comp = cycle.compensator
+                pred = FastPredictor.from_config(cfg.model, doubled)
+                pred.carry(comp.gravity.mass, comp.gravity.cog, comp.gravity.g)
+                pred.kinematics(comp.q_rad)
+                if comp.kernel is not None:
+                    pred.compile()
+
+                def done(comp=comp, pred=pred):
+                    comp.predictor = comp.payloads.predictor = pred
+
+                comp.predictor = comp.payloads.predictor = PredictorRamp(comp.predictor, pred, 200, done)
+        assert close(cc.deflection, py.deflection), (step, cc.deflection, py.deflection)
+    assert cc.compensator.predictor.kernel is not None and cc.compensator.kernel.bound
