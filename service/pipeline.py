@@ -231,9 +231,10 @@ class Compensator:
             pred.reset_history()
             self.tare_refused = False
         moved = self.payloads.update(dt, payload_index)
-        key = k.key(self)
-        if not k.bound or any(a is not b for a, b in zip(key, k.bound)):
-            k.rebind(self)                      # a reload replaced a stage or its parameters
+        b, sp, f, lim = k.bound, self.spikes, self.filter, self.limiter
+        if (not b or sp is not b[0] or sp.max_step is not b[1] or sp.max_held is not b[2] or f is not b[3]
+                or lim is not b[4] or lim.max is not b[5] or lim.rate is not b[6] or lim.ramp_s is not b[7]):
+            k.rebind(self)                      # a reload replaced a stage or its parameters (k.key)
         gravity_on = False
         if reading is not None:
             self.samples += 1
@@ -260,21 +261,22 @@ class Compensator:
         finite = self._signal_path(k, pred.kernel, gravity_on, dt, safe)
         pk = pred.kernel
         self.wrench_sensor, self.wrench_base = pk.ws.tolist(), pk.wb.tolist()
-        self.deflection = (pk.dX * _OUT_SCALE).tolist()
+        self.deflection = np.multiply(pk.dX, _OUT_SCALE, out=k.deflection).tolist()
         self.dq_deg = k.dq_deg.tolist()
         if not finite:
             self.faults.trip(Fault.VALUE_INVALID, "the predicted correction is not finite")
-        lim = self.limiter
         self.correction = lim.out = k.out.tolist()
         lim.safe = bool(k.lim[14])
         return self.correction
 
     def _signal_path(self, k, pk, gravity_on: bool, dt: float, safe: bool) -> bool:
-        return pk.mod.signal_path(
-            gravity_on, k.y, self.gravity.gp, pk.ws, pk.Rs, pk.ps, pk.Ad, pk.comp, pk.tau_s, pk.axj, pk.axl,
-            pk.axp, pk.at_rest, pk.hj, pk.hl, pk.hp, pk.hs, pk.hg, pk.fm, pk.fC, pk.wl, pk.wp, pk.wst, pk.tl,
-            pk.tp, pk.tst, dt, pk.Ttcp, pk.Jp, pk.w0, pk.local, pk.delta, pk.wb, pk.dX, pk.dq, k.dq_deg, safe,
-            k.lim, k.out, k.ramp_rate)
+        if k.args[0] is not pk:                 # the arrays of this predictor, gathered once
+            k.args = (pk, (pk.ws, pk.Rs, pk.ps, pk.Ad, pk.comp, pk.tau_s, pk.axj, pk.axl, pk.axp, pk.at_rest, pk.hj,
+                           pk.hl, pk.hp, pk.hs, pk.hg, pk.fm, pk.fC, pk.wl, pk.wp, pk.wst, pk.tl, pk.tp, pk.tst),
+                      (pk.Ttcp, pk.Jp, pk.w0, pk.local, pk.delta, pk.wb, pk.dX, pk.dq, k.dq_deg))
+        _, before, after = k.args
+        return pk.mod.signal_path(gravity_on, k.y, self.gravity.gp, *before, dt, *after, safe, k.lim, k.out,
+                                  k.ramp_rate)
 
 
 class Cycle:

@@ -22,8 +22,9 @@ class CompiledSignal:
         self.sp, self.last, self.max_step = np.zeros(4), np.zeros(6), np.zeros(6)
         self.coef, self.z = np.zeros((1, 5)), np.zeros((1, 2, 6))
         self.lim, self.out, self.ramp_rate = np.zeros(15), np.zeros(6), np.zeros(6)
-        self.dq_deg = np.zeros(6)
+        self.dq_deg, self.deflection = np.zeros(6), np.zeros(6)
         self.bound: tuple = ()
+        self.args: tuple = (None,)             # the predictor's arrays for the signal path (Compensator)
         self._condition = condition
 
     def key(self, comp) -> tuple:
