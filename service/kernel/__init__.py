@@ -16,7 +16,14 @@ process or a Python-path test never loads numba.
 
 from __future__ import annotations
 
+import atexit
+import gc
+
 from .build import NotCompilable
 from .predictor import CompiledPredictor
+
+# numba leaves some hundred thousand objects behind; the interpreter's last collection at exit would walk
+# them all (half a second per process, and `make test` starts the service well over a hundred times)
+atexit.register(gc.freeze)
 
 __all__ = ["CompiledPredictor", "NotCompilable"]
