@@ -8,7 +8,8 @@ exceeded.
 Nothing in the cycle waits for memory or the collector: the cycle thread locks the process's pages
 (``mlockall``, where permitted, one warning where not, as for SCHED_FIFO), and once the start-up's
 objects are frozen (`gc.freeze`) the collector is off (`gc.disable`); a young-generation collection runs
-only after a cycle's work, when the young objects have piled up and more than half the period is left.
+only after a cycle's work, when the young objects have piled up and more than half the period is left
+(or they have piled up ten times over: memory must not grow without bound on an overloaded host).
 
 Stop is a request the cycle handles: `CyclicTask.request_stop` sets a flag the work function reads
 (``stop_requested``). A work function that handles stop itself (the service ramps the correction to
@@ -39,6 +40,7 @@ log = logging.getLogger("stiffcomp.task")
 MCL_CURRENT, MCL_FUTURE, MCL_ONFAULT = 1, 2, 4       # <sys/mman.h>
 GC_YOUNG = 20_000        # young objects that make the collection after a cycle's work worth its time
 GC_SLACK = 0.5           # ... when more than this share of the period is left before the next deadline
+GC_YOUNG_MAX = 200_000   # ... or at once beyond this: an overloaded host must not grow the memory without bound
 
 
 def lock_memory() -> str | None:
@@ -230,7 +232,8 @@ class CyclicTask:
                 prev_start = start
                 exceeded = info.last_exceeded = deadlines.advance(end)
                 info.exceed_count = deadlines.exceeded
-                if count()[0] > GC_YOUNG and deadlines.due - clock() > GC_SLACK * period:
+                young = count()[0]
+                if young > GC_YOUNG and (deadlines.due - clock() > GC_SLACK * period or young > GC_YOUNG_MAX):
                     collect(0)
         except BaseException as e:  # noqa: BLE001 - handed to the explicit policy below
             self.error = e

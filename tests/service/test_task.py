@@ -84,3 +84,34 @@ def test_history_is_a_ring_buffer():
         info.record(1e-5 * (k % 7), 1e-6)
     assert info.stats()["cycles"] == 2500
     assert info.stats()["exec_us"]["max"] == pytest.approx(60.0)
+
+
+def test_the_collector_is_off_in_the_cycle_and_collects_young_garbage_only_between_cycles():
+    """gc is disabled while the task runs (no collection at an allocation in the work), cyclic garbage the
+    work leaves is still collected (after a cycle's work, with slack left), and gc is on again after."""
+    import gc
+
+    from service.task import GC_YOUNG_MAX
+
+    seen: list[tuple[bool, int]] = []
+    done = threading.Event()
+
+    def work(t, exceeded):
+        for _ in range(2000):                   # cyclic garbage: only the collector frees it
+            a: list = []
+            a.append(a)
+        seen.append((gc.isenabled(), gc.get_count()[0]))
+        if len(seen) >= 200:
+            done.set()
+
+    was = gc.isenabled()
+    task = CyclicTask(0.002, work, TaskInfo(0.002, 1000), on_error=lambda e: None)
+    task.start()
+    try:
+        assert done.wait(30)
+    finally:
+        task.stop()
+    assert not any(enabled for enabled, _ in seen)
+    # without collections the young generation would hold 200 x 2000 lists by now
+    assert max(count for _, count in seen) < min(GC_YOUNG_MAX + 5000, 200 * 2000)
+    assert gc.isenabled() == was
