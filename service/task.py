@@ -43,6 +43,14 @@ GC_SLACK = 0.5           # ... when more than this share of the period is left b
 GC_YOUNG_MAX = 200_000   # ... or at once beyond this: an overloaded host must not grow the memory without bound
 
 
+def unlock_memory() -> None:
+    """munlockall: undo `lock_memory` (a task that ends in a process that goes on, e.g. a test's)."""
+    try:
+        ctypes.CDLL(None).munlockall()
+    except (OSError, AttributeError):
+        pass
+
+
 def lock_memory() -> str | None:
     """mlockall: the pages in use now and later stay in RAM (faulted in as they are touched, so the lock
     costs milliseconds, not a pass over the whole process). None, or why it was not permitted."""
@@ -155,6 +163,7 @@ class CyclicTask:
         self.cpu = cpu
         self.spin = float(spin_s)
         self.lock = lock_memory
+        self._locked = False
         self.prepare = prepare if lead_s > 0 else None
         self.lead = float(lead_s)
         self.clock = clock
@@ -187,6 +196,7 @@ class CyclicTask:
     def _set_priority(self) -> None:
         if self.lock:
             why = lock_memory()
+            self._locked = why is None
             if why:
                 log.warning("cannot lock the service's memory (mlockall: %s); pages may be swapped out under "
                             "memory pressure (CAP_IPC_LOCK or a higher RLIMIT_MEMLOCK permits it)", why)
@@ -239,6 +249,8 @@ class CyclicTask:
             self.error = e
             self.on_error(e)
         finally:
+            if self._locked:
+                unlock_memory()
             if was_enabled:
                 gc.enable()
             gc.unfreeze()
