@@ -12,6 +12,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m service.kernel.warm
 	touch $(STAMP)
 
 # BLAS one thread per process: the suite runs fits beside services on two cores, where OpenBLAS's threads
