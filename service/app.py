@@ -107,6 +107,12 @@ class Service:
             self._compiling = threading.Thread(target=self._compile, name="stiffcomp-compile", daemon=True)
             self._compiling.start()
 
+    def wait_compiled(self) -> None:
+        """Until the compiled signal path is ready (or the Python path stays): before the first cycle."""
+        if self._compiling is not None:
+            self._compiling.join()              # loaded from numba's cache in well under a second
+            self._compiling = None
+
     def _compile(self) -> None:
         """The compiled signal path (a thread of the start-up, beside the I/O process's start)."""
         t0 = time.perf_counter()
@@ -152,7 +158,7 @@ class Service:
         stamp = time.time_ns()
         self.image.publish(record, stamp)
         if self.trace is not None:
-            self.trace.put_cycle(t, stamp * 1e-9, record.cycle_count, q, sig, record.task_state)
+            self.trace.put_cycle(t, q, sig, record.task_state)
         return go_on
 
     def _begin_stop(self, t: float) -> None:
@@ -209,8 +215,7 @@ class Service:
             except BaseException:
                 self.stop()             # frees the image and the source (the I/O process cleaned up itself)
                 raise
-        if self._compiling is not None:
-            self._compiling.join()              # loaded from numba's cache in well under a second
+        self.wait_compiled()
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
                                lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
