@@ -37,7 +37,7 @@ from plc_interface.image import release
 from plc_interface.io_process import describe_exit, ignore_cycle_signals, spawn_child
 from plc_interface.log_format import configure_logging, current_format
 from stiffness.errors import StiffnessError
-from stiffness.trace import COLUMNS, DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
+from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
 
 from .errors import TraceError
 
