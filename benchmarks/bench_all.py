@@ -1,9 +1,13 @@
 """`make bench`: every benchmark of the project in one table (a script, not a test).
 
 Rows: the model's batch speed and fit times (bench_model.py), diagnose (bench_diagnose.py), the
-cycle's work with every library effect against the springs alone (bench_effects.py), the 1 ms
-cycle's work and exceed rate while the service runs as `make run` starts it, and round trips of
-PLC-style reads of the to_plc block over Modbus and, when pyads and an ADS server are there, ADS.
+cycle's work p50/p99 on the Python and the compiled path for the springs alone, every library effect and
+every effect with an identified preload, each against the C loop's work in the same run
+(bench_effects.py), the 1 ms cycle's work and exceed rate while the service runs as `make run` starts
+it, round trips of PLC-style reads of the to_plc block over Modbus and, when pyads and an ADS server are
+there, ADS, the latency from a CAN frame to the PLC's register (bench_latency.py, PLC cycle 1 ms) and the
+HIL circle's exceeded share, quiet and beside one busy process (bench_hil_deadlines.py; ``--no-hil``
+leaves the two out).
 Every figure is a median, a percentile, a rate or a ratio; nothing passes or fails on an absolute
 time, because the machine decides those.
 
@@ -29,6 +33,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import bench_diagnose
 import bench_effects
+import bench_hil_deadlines
+import bench_latency
 import bench_model
 import bench_trace
 
@@ -112,10 +118,16 @@ def model_rows() -> list[tuple[str, str, str]]:
     e = bench_effects.main(["--blocks", "10"])
     tr = bench_trace.main(["--blocks", "20"])
     verdict = d["result"]
-    return [
+    c = e.get("C reference", {"p50_us": float("nan")})
+    cycle = [(f"cycle work, {name}, {path}  [issue 25]",
+              f"p50 {e[name][f'{key}_p50_us']:.1f} µs, p99 {e[name][f'{key}_p99_us']:.0f} µs",
+              f"{e[name][f'{key}_x_c']:.1f} x the C loop's work (p50 {c['p50_us']:.1f} µs) in the same run")
+             for name in ("springs only", "every effect", "every effect, preload identified")
+             for path, key in (("Python path", "python"), ("compiled", "compiled"))]
+    return cycle + [
         ("cycle work, every library effect  [issue 11]", f"ratio {e['every effect']['ratio']:.2f} to springs only",
-         (f"{e['every effect']['median_us']:.0f} µs against {e['springs only']['median_us']:.0f} µs; a sample and "
-          "new joints every cycle")),
+         (f"{e['every effect']['python_us']:.0f} µs against {e['springs only']['python_us']:.0f} µs (Python path); "
+          f"compiled {e['every effect']['compiled_ratio']:.2f}; a sample and new joints every cycle")),
         ("cycle work with the trace on  [issue 29]", f"ratio {tr['ratio']:.3f} to off",
          (f"p50 {tr['p50_us_on']:.1f} against {tr['p50_us_off']:.1f} µs, {tr['blocks']} alternating blocks; "
           f"{tr['written']} of {tr['traced']} cycles written")),
@@ -132,6 +144,23 @@ def model_rows() -> list[tuple[str, str, str]]:
     ]
 
 
+def loop_rows() -> list[tuple[str, str, str]]:
+    """The latency from a CAN frame to the PLC's register, and the HIL circle's deadlines."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "lat.json"
+        bench_latency.main(["--seconds", "6", "--plc-period-ms", "1", "--json", str(out)])
+        lat = json.loads(out.read_text())
+        bench_hil_deadlines.main(["--json", str(out)])
+        hil = json.loads(out.read_text())
+    rows = [("CAN frame -> PLC register (PLC cycle 1 ms)  [issue 25]", f"p50 {lat['p50_ms']:.2f} ms, p99 {lat['p99_ms']:.2f} ms",
+             f"max {lat['max_ms']:.2f} ms, {lat['samples']} samples; target p99 <= 2.0 ms")]
+    for r in hil:
+        rows.append((f"HIL circle, {'one busy process' if r['busy'] else 'quiet'}  [issue 25]",
+                     f"{100 * r['share']:.2f} % of deadlines exceeded",
+                     f"{r['exceeded']} of {r['cycles']}; target <= {'5' if r['busy'] else '1'} %"))
+    return rows
+
+
 def table(rows: list[tuple[str, str, str]]) -> str:
     head = ("benchmark", "figure", "note")
     w = [max(len(r[k]) for r in [head, *rows]) for k in range(3)]
@@ -145,9 +174,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--service-s", type=float, default=5.0, help="how long the service runs, s")
     ap.add_argument("--reads", type=int, default=1000, help="round trips per protocol")
     ap.add_argument("--json", default=None, metavar="FILE", help="also write the rows as JSON")
+    ap.add_argument("--no-hil", action="store_true", help="leave out the latency and the HIL circle (3 minutes)")
     args = ap.parse_args(argv)
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    rows = service_rows(args.service_s, args.reads) + model_rows()
+    rows = service_rows(args.service_s, args.reads) + model_rows() + ([] if args.no_hil else loop_rows())
     print(table(rows))
     if args.json:
         Path(args.json).write_text(json.dumps([dict(zip(("benchmark", "figure", "note"), r)) for r in rows],

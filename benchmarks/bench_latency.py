@@ -27,6 +27,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario", default=str(DEFAULT_SCENARIO))
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--plc-period-ms", type=float, default=None, help="the PLC's cycle, 1-4 ms (default: scenario)")
+    ap.add_argument("--request-lead-us", type=float, default=None,
+                    help="source.can.request_lead_us of the service (default: config/hil/service.yaml's, "
+                         "400; 0: the request in the cycle, its answer read in the next)")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
     sc = load_scenario(args.scenario)
@@ -34,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
         sc.plc.period_ms = args.plc_period_ms
     model = sc.resolve(sc.model)
     robot = StiffnessModel.from_yaml(sc.resolve(sc.truth)).robot.source
-    res = measure(sc, model, robot, args.seconds)
+    res = measure(sc, model, robot, args.seconds, args.request_lead_us)
     print(f"CAN frame -> PLC register: p50 {res['p50_ms']:.2f} ms, p99 {res['p99_ms']:.2f} ms, "
           f"max {res['max_ms']:.2f} ms over {res['samples']} samples (PLC cycle {res['plc_period_ms']:g} ms, "
           f"service cycle {res['service_cycle_ms']:g} ms, {res['service_exceed_count']} of "

@@ -14,6 +14,7 @@ and the Modbus round trip.
 
 from __future__ import annotations
 
+import copy
 import multiprocessing
 import tempfile
 import time
@@ -26,6 +27,7 @@ from hil.testing import free_port
 from hil.virtual_sensor import VirtualAtiSensor
 from service.ati import AtiProtocol
 from service.config import load_config
+from stiffness.yamlio import deep_update
 
 from .plc_process import plc_main
 from .run import ServiceProcess, _end, _wait, free_udp_port, write_service_config
@@ -88,13 +90,17 @@ def latencies(sent_t: np.ndarray, read_t: np.ndarray, read_code: np.ndarray) -> 
     return np.array(out)
 
 
-def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: float = 5.0) -> dict:
-    """Run sensor, service and PLC for about ``seconds``; latency percentiles in ms."""
+def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: float = 5.0,
+            request_lead_us: float | None = None) -> dict:
+    """Run sensor, service and PLC for about ``seconds``; latency percentiles in ms. ``request_lead_us``:
+    the service's ``source.can.request_lead_us`` (None: the config's)."""
     with tempfile.TemporaryDirectory(prefix="stiffcomp-latency-") as tmp:
         folder = Path(tmp)
         group = f"239.74.{np.random.randint(1, 255)}.{np.random.randint(1, 255)}"
         can_port, port = free_udp_port(), free_port()
-        cfg_path = write_service_config(scenario, model_path, folder, group, can_port, port, TRANSPARENT)
+        over = TRANSPARENT if request_lead_us is None else deep_update(
+            copy.deepcopy(TRANSPARENT), {"source": {"can": {"request_lead_us": request_lead_us}}})
+        cfg_path = write_service_config(scenario, model_path, folder, group, can_port, port, over)
         cfg = load_config(cfg_path)
         sc = scenario.model_copy(deep=True)
         sc.circle.feed_mm_s = 2 * np.pi * sc.circle.radius_mm / max(seconds, 0.5)

@@ -41,21 +41,26 @@ WARM_UP_S = 1.0          # the service runs this long before the PLC's program s
 
 
 class FramesSource(FtSource):
-    """The service's F/T source fed by a sensor's answers in process: each poll returns the frames that
-    answered the previous cycle's request, then requests again (one cycle of latency, as on CAN)."""
+    """The service's F/T source fed by a sensor's answers in process, timed as the CAN source times them:
+    with a lead (``source.can.request_lead_us``) the request goes ``lead_s`` before the cycle and the cycle
+    reads its answer; without one, each poll returns the answer to the previous cycle's request."""
 
-    def __init__(self, sensor: HilSensor, **common):
+    def __init__(self, sensor: HilSensor, lead_s: float = 0.0, **common):
         super().__init__(**common)
         self.sensor = sensor
+        self.lead_s = float(lead_s)
         self.pending: list[tuple[int, bytes]] = []
         self.scenario_t = 0.0           # the scenario time of the cycle that polls next (set by the loop)
+
+    def request(self) -> None:
+        self.pending = self.sensor.answer_at(self.scenario_t - self.lead_s)
 
     @classmethod
     def from_config(cls, section, timeout_s, resolve):
         raise NotImplementedError("the lock-step HIL builds its source from its sensor, not from a config")
 
     def _frames(self, t: float):
-        out, self.pending = self.pending, self.sensor.answer_at(self.scenario_t)
+        out, self.pending = self.pending, ([] if self.lead_s else self.sensor.answer_at(self.scenario_t))
         return [(arb, data, False) for arb, data in out]
 
 
@@ -71,8 +76,11 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     sensor = HilSensor(bus, _protocol(cfg), world,
                        lambda: None, [scenario.sensor.noise_N] * 3 + [scenario.sensor.noise_Nm] * 3,
                        scenario.sensor.seed, None, scenario.sensor.rate_hz, scenario.sensor.lowpass_hz)
-    source = FramesSource(sensor, **FtSource.common_args(cfg.source, cfg.faults.sensor_timeout_ms / 1000.0))
+    bus_cfg = cfg.source.can
+    lead = bus_cfg.request_lead_us * 1e-6 if bus_cfg.request_each_cycle else 0.0
+    source = FramesSource(sensor, lead, **FtSource.common_args(cfg.source, cfg.faults.sensor_timeout_ms / 1000.0))
     service = Service(cfg, TraceOptions(Path(trace)) if trace is not None else None, source=source)
+    service.wait_compiled()
     out_file = TraceFile(trace) if trace is not None else None
     try:
         log = _loop(scenario, world, service, cfg, compensate, out_file)
@@ -109,6 +117,8 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
     for k in range(n):
         t = t_first + k * period
         service.source.scenario_t = t
+        if service.source.lead_s:
+            service.source.request()
         service.work(k * period, False)
         service.info.record(0.0, None)
         if out is not None and k % 1000 == 999:

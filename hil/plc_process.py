@@ -10,13 +10,16 @@ import numpy as np
 from hil.virtual_plc import PlcFaults, PlcLogic, VirtualPlc
 from plc_interface.register_map import RegisterMap
 
+from .priority import below_the_service
 from .world import World
 
 
 def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, out_file: str, go_value, ready,
              faults: PlcFaults | None = None, connect_timeout_s: float = 60.0) -> None:
     """Process entry: connect, report ready, wait for the start time in ``go_value``, run, save the log.
-    ``rmap`` is the service config's register map (`ServiceConfig.register_map`)."""
+    ``rmap`` is the service config's register map (`ServiceConfig.register_map`). Runs below the
+    service's priority (`hil.priority`)."""
+    below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)
     c = scenario.plc

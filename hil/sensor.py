@@ -21,11 +21,14 @@ from scipy import signal
 from hil.virtual_sensor import VirtualAtiSensor
 from service.ati import BLOCK, AtiProtocol
 
+from .priority import below_the_service
 from .world import World
 
 
 def serve_until(sensor: VirtualAtiSensor, ready, stop) -> None:
-    """A process entry's life: start the sensor, say ready, answer until ``stop`` is set, stop it."""
+    """A process entry's life: start the sensor, say ready, answer until ``stop`` is set, stop it (below
+    the service's priority, `hil.priority`)."""
+    below_the_service()
     sensor.start()
     ready.set()
     try:

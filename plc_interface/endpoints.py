@@ -78,6 +78,33 @@ _PLAIN = {
 }
 
 
+SHIPPED_CONFIG = Path(__file__).resolve().parent.parent / "config"   # the shipped config/ folder
+
+
+def resolve_path(config_path: Path, relative: str) -> Path:
+    """A path written in a service config: as written when absolute; else beside the config file, or, where
+    only the shipped config/ folder has the file, there (so a copy of config/default.yaml in a site folder
+    still finds the shipped model, map, DBC and replay; a file put beside the copy takes precedence). The
+    one rule the service (`service.config`) and the health probe share."""
+    p = Path(relative)
+    if p.is_absolute():
+        return p
+    beside = Path(config_path).parent / p
+    if beside.exists() or ".." in p.parts:
+        return beside
+    shipped = SHIPPED_CONFIG / p
+    return shipped if shipped.exists() else beside
+
+
+def load_register_map(config_path: Path, relative: str):
+    """The register map a service config at ``config_path`` names (``plc.register_map`` = ``relative``);
+    RegisterMapError on a bad map. The one place the config's map is read (the service's config and the
+    probe call it)."""
+    from .register_map import RegisterMap
+
+    return RegisterMap.from_yaml(resolve_path(config_path, relative))
+
+
 @dataclass(frozen=True)
 class Endpoints:
     """What `read_endpoints` found: the config file, and its ``monitoring`` and ``plc`` keys."""
@@ -86,10 +113,9 @@ class Endpoints:
     monitoring: MonitoringEndpoint
     plc: PlcEndpoint
 
-    def register_map(self) -> Path:
-        """``plc.register_map``, relative to the config file's folder."""
-        p = Path(self.plc.register_map)
-        return p if p.is_absolute() else self.path.parent / p
+    def register_map(self):
+        """The register map ``plc.register_map`` names (`load_register_map`)."""
+        return load_register_map(self.path, self.plc.register_map)
 
 
 def read_endpoints(path: str | Path) -> Endpoints:

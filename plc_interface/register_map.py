@@ -128,7 +128,10 @@ class BlockCodec:
     def _scaled(self, values) -> list:
         out = list(values)
         for k, scale, lo, hi in self._ints:
-            x = out[k] * scale
+            x = out[k]
+            if scale == 1 and x.__class__ is int and lo <= x <= hi:
+                continue                # a counter or a word in range, as the cycle publishes them: as it is
+            x = x * scale
             out[k] = min(max(round(x), lo), hi) if math.isfinite(x) else 0
         return out
 

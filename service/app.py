@@ -19,7 +19,10 @@ exits with code 1 when this one dies (`plc_interface.io_process`).
 
 Start-up validates everything before anything starts: the config, the model (and whether the
 real-time predictor supports all its effects), the register map against the contract and the F/T
-source. Then the I/O process starts, then the cycle.
+source. Then the I/O process starts, then the cycle. With ``cycle.compiled`` the signal path is compiled
+(`service.kernel`: numba loads it from its disk cache, or compiles it the first time) in a thread that
+runs while the I/O process starts, and the cycle starts when it is done: the first cycle never waits
+for a compiler. A model with no compiled form runs on the Python path, with one log line that says why.
 """
 
 from __future__ import annotations
@@ -98,6 +101,28 @@ class Service:
         if trace is not None:
             self.trace = TraceRing()
         self.record: ToPlc = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
+        self.compile_s: float | None = None     # how long the compiled path took to be ready (s)
+        self._compiling = None
+        if cfg.cycle.compiled:
+            self._compiling = threading.Thread(target=self._compile, name="stiffcomp-compile", daemon=True)
+            self._compiling.start()
+
+    def wait_compiled(self) -> None:
+        """Until the compiled signal path is ready (or the Python path stays): before the first cycle."""
+        if self._compiling is not None:
+            self._compiling.join()              # loaded from numba's cache in well under a second
+            self._compiling = None
+
+    def _compile(self) -> None:
+        """The compiled signal path (a thread of the start-up, beside the I/O process's start)."""
+        t0 = time.perf_counter()
+        try:
+            self.cycle.compensator.compile()
+        except Exception as e:  # noqa: BLE001 - any reason (no compiled form, no numba) leaves the Python path
+            log.warning("the cycle runs on the Python path: %s", e)
+            return
+        self.compile_s = time.perf_counter() - t0
+        log.info("compiled signal path ready in %.2f s", self.compile_s)
 
     def _task_values(self, state: TaskState) -> TaskValues:
         info = self.info
@@ -133,7 +158,7 @@ class Service:
         stamp = time.time_ns()
         self.image.publish(record, stamp)
         if self.trace is not None:
-            self.trace.put_cycle(t, stamp * 1e-9, record.cycle_count, q, sig, record.task_state)
+            self.trace.put_cycle(t, q, sig, record.task_state)
         return go_on
 
     def _begin_stop(self, t: float) -> None:
@@ -190,8 +215,11 @@ class Service:
             except BaseException:
                 self.stop()             # frees the image and the source (the I/O process cleaned up itself)
                 raise
+        self.wait_compiled()
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
-                               cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6)
+                               cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
+                               lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
+                               lead_s=self.source.lead_s)
         self.task.start()
         p = self.cfg.plc
         a = self.cfg.ads

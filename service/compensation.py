@@ -102,6 +102,8 @@ class FastPredictor:
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
         self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term
         self.history = terms.history
+        self.wrench_terms = terms.wrench_terms
+        self.twist_terms = terms.twist_terms
         self.frame_terms = terms.frame_terms
         self.slow_frame_terms = [b for b in self.frame_terms if not b.constant]
         self.R_in = terms.input_rotation
@@ -123,6 +125,24 @@ class FastPredictor:
         self.p_s = [0.0, 0.0, 0.0]
         self.T_tcp = np.eye(4)
         self.p_tcp = [0.0, 0.0, 0.0]
+        self.kernel = None                       # the compiled form (`compile`), None: the Python path
+
+    def compile(self) -> None:
+        """Run on the compiled path from now on (`service.kernel`; numba compiles or loads from its disk
+        cache here, never in a cycle). Raises `service.kernel.NotCompilable` when the model has no
+        compiled form; the predictor then stays on the Python path, unchanged."""
+        from .kernel import CompiledPredictor
+
+        k = CompiledPredictor(self)
+        q = np.zeros(6) if self._q is None else np.asarray(self._q, dtype=float)
+        k.kinematics(q)                          # the first call compiles or loads: not in a cycle
+        k.predict(0.0)
+        self.kernel = k
+        self.reset_history()                     # the warm-up call fed the history states
+        self.Ad, self.J, self.J_pinv, self.T_tcp = k.Ad, k.J, k.Jp, k.Ttcp
+        self.R_s, self.p_s, self.p_tcp, self.tau_s = k.Rs, k.ps, k.Ttcp[:3, 3], k.tau_s
+        self._q = q
+        self.kinematics(q)
 
     @classmethod
     def from_config(cls, section: ModelConfig, model: StiffnessModel) -> FastPredictor:
@@ -130,7 +150,12 @@ class FastPredictor:
 
     # -- per cycle ------------------------------------------------------------------------------
     def kinematics(self, q_rad: np.ndarray) -> None:
-        """Frames, adjoints and the TCP Jacobian at ``q_rad`` (one pinocchio pass)."""
+        """Frames, adjoints and the TCP Jacobian at ``q_rad`` (one pinocchio pass, or one compiled call)."""
+        if self.kernel is not None:
+            self._q = q_rad
+            self.kernel.kinematics(q_rad)
+            return
+        self._q = q_rad
         pm, pd = self.pm, self.pd
         pin.computeJointJacobians(pm, pd, q_rad)
         pin.updateFramePlacements(pm, pd)
@@ -149,7 +174,6 @@ class FastPredictor:
         self.T_tcp = oMf[self.tcp_id].homogeneous
         self.p_tcp = self.T_tcp[:3, 3].tolist()
         if self.statics is not None:
-            self._q = q_rad
             self._settle()
 
     def _settle(self) -> None:
@@ -162,6 +186,8 @@ class FastPredictor:
         sensor frame, gravity in base axes) in the static torque; takes effect at the next `kinematics`."""
         payload = PayloadConfig(mass_kg=payload_kg, cog_mm=[1000.0 * float(c) for c in cog_m])
         self.statics = statics_for(self.robot, payload, g_mps2, self.preloads)
+        if self.kernel is not None:
+            self.kernel.statics(self.statics)
         if self.statics is None:
             self.tau_s = [0.0] * 6
             self._axial_at_rest = [0.0] * len(self.axial)
@@ -174,7 +200,11 @@ class FastPredictor:
         if self.statics is None:
             return
         self.statics.carry(mass_kg, mc_kgm)
-        if self._q is not None:
+        if self.kernel is not None:
+            self.kernel.payload(self.statics)
+            if self._q is not None:
+                self.kernel.settle()
+        elif self._q is not None:
             self._settle()
 
     def wrench_base(self, w_sensor) -> list[float]:
@@ -184,15 +214,22 @@ class FastPredictor:
         return [a * fx + b * fy + c * fz, d * fx + e * fy + f * fz, g * fx + h * fy + i * fz,
                 a * mx + b * my + c * mz, d * mx + e * my + f * mz, g * mx + h * my + i * mz]
 
-    def deflection(self, w_base) -> np.ndarray:
+    def deflection(self, w_base, dt: float = 0.0) -> np.ndarray:
         """TCP deflection [dp (m), dr (rad)] in base axes for [F; M about the sensor origin] in base axes.
 
-        Call it once per cycle, in time order: it feeds this cycle's joint torques to the history
-        states (the same torque again leaves a hysteresis state as it is)."""
+        Call it once per cycle, in time order (``dt``: s since the last cycle): it feeds this cycle's
+        joint torques to the history states (the same torque again leaves a hysteresis state as it is)."""
+        if self.kernel is not None:
+            k = self.kernel
+            k.wb[:] = w_base
+            k.predict(dt)
+            return k.dX.copy()
         fx, fy, fz, mx, my, mz = w_base
         x, y, z = self.p_s
         w = self._w
         w[:] = (fx, fy, fz, mx + y * fz - z * fy, my + z * fx - x * fz, mz + x * fy - y * fx)
+        for wt in self.wrench_terms:
+            wt.law(wt.state, wt.params, w, dt)
         local = w @ self.Ad                              # row i: W_i = Ad_i^T w0
         delta = local * self.compliance
         tau_s, at_rest = self.tau_s, self._axial_at_rest
@@ -200,17 +237,20 @@ class FastPredictor:
             j = term.joint - 1
             delta[j, 5] += term.f(tau_s[j] + float(local[j, 5])) - at_rest[k]
         for h in self.history:
-            delta[h.joint - 1, 5] += h.gain * h.state.update(float(local[h.joint - 1, 5]))
+            delta[h.joint - 1, 5] += h.gain * h.update(float(local[h.joint - 1, 5]))
         for b in self.frame_terms:
             delta[b.frame] += b.C @ local[b.frame]
         vx, vy, vz, ox, oy, oz = (self.Ad @ delta[:, :, None]).sum(0)[:, 0].tolist()
         tx, ty, tz = self.p_tcp
-        return np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
+        dX = np.array([vx + oy * tz - oz * ty, vy + oz * tx - ox * tz, vz + ox * ty - oy * tx, ox, oy, oz])
+        for tt in self.twist_terms:
+            tt.law(tt.state, tt.params, dX, dt)
+        return dX
 
     def reset_history(self) -> None:
         """Restart every history term at its defined state."""
-        for h in self.history:
-            h.state.reset()
+        for h in (*self.history, *self.wrench_terms, *self.twist_terms):
+            h.reset()
 
     def correction(self, q_rad: np.ndarray, dX: np.ndarray) -> np.ndarray:
         """δq (rad) that moves the unloaded TCP by -dX (m, rad); `kinematics(q_rad)` must have run."""

@@ -24,6 +24,7 @@ from types import SimpleNamespace
 from pydantic import Field, ValidationError
 
 from plc_interface.ads.settings import AdsSettings
+from plc_interface.endpoints import SHIPPED_CONFIG, load_register_map, resolve_path
 from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
@@ -35,13 +36,13 @@ from .errors import ServiceConfigError
 from .filters import FilterConfig
 from .gravity import GravityConfig
 from .limits import LimitsConfig
-from .paths import CONFIG_DIR, DEFAULT_CONFIG
+from .paths import DEFAULT_CONFIG
 from .pipeline import TareConfig
 from .sources import SourceConfig
 from .supervision import FaultsConfig
 from .task import CycleConfig
 
-SHIPPED = CONFIG_DIR                    # the shipped config/ folder: where a relative path not beside the file goes
+SHIPPED = SHIPPED_CONFIG                # the shipped config/ folder: where a relative path not beside the file goes
 
 
 class ServiceConfig(Strict):
@@ -81,19 +82,12 @@ class ServiceConfig(Strict):
 
 
 def _resolve(config_path: Path, relative: str) -> Path:
-    p = Path(relative)
-    if p.is_absolute():
-        return p
-    beside = config_path.parent / p
-    if beside.exists() or ".." in p.parts:
-        return beside
-    shipped = SHIPPED / p
-    return shipped if shipped.exists() else beside
+    return resolve_path(config_path, relative)
 
 
 def _register_map(config_path: Path, relative: str) -> RegisterMap:
     try:
-        return RegisterMap.from_yaml(_resolve(config_path, relative))
+        return load_register_map(config_path, relative)
     except RegisterMapError as e:
         raise ServiceConfigError(f"{config_path}: plc.register_map = {quote(relative)}: {e}") from e
 

@@ -7,9 +7,11 @@ with no term stops the start (`ModelUnsupportedError`), so the service never sen
 a partial model. With W_k = Ad_k^T w0 the wrench at DH frame k (Eq. 4):
 
 JointCompliance   summed into the diagonal compliances: delta_k += C_k W_k (Eq. 1, 5), k = i - 1
-AxialTerm         delta_rz,k += f(tau_i)
-HistoryTerm       delta_rz,k += gain * state(tau_i), the state fed tau_i every cycle; it lives in the
-                  predictor and restarts at the first sample, after a tare and after a fault reset
+AxialTerm         delta_rz,k += law(tau_i, p)
+HistoryTerm       delta_rz,k += gain * law(state, p, tau_i), the state fed tau_i every cycle; it lives in
+                  the term and restarts at the first sample, after a tare and after a fault reset
+WrenchTerm        law(state, p, w0, dt): the external wrench, changed in place before the springs
+TwistTerm         law(state, p, dX, dt): the TCP deflection, changed in place before the correction
 FrameCompliance   delta_m += C W_m (6x6), formed again at each change of q when not constant
 InputTerm         every input effect together: `StiffnessModel.input_map()` must be one rotation R of
                   force and moment; it is folded into the sensor's rotation, R_s <- R_s R, so the wrench
@@ -31,6 +33,8 @@ from stiffness.effects.realtime import (
     Ignored,
     InputTerm,
     JointCompliance,
+    TwistTerm,
+    WrenchTerm,
 )
 from stiffness.model import StiffnessModel
 
@@ -46,6 +50,8 @@ class FastTerms:
     compliance: np.ndarray = field(default_factory=lambda: np.zeros((6, 6)))   # DH frame 0..5, [x .. rz]
     axial: list[AxialTerm] = field(default_factory=list)
     history: list[HistoryTerm] = field(default_factory=list)
+    wrench_terms: list[WrenchTerm] = field(default_factory=list)
+    twist_terms: list[TwistTerm] = field(default_factory=list)
     frame_terms: list[FrameCompliance] = field(default_factory=list)
     input_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     ignored: list[str] = field(default_factory=list)
@@ -79,6 +85,10 @@ def fast_terms(model: StiffnessModel) -> FastTerms:
                 terms.axial.append(t)
             elif isinstance(t, HistoryTerm):
                 terms.history.append(t)
+            elif isinstance(t, WrenchTerm):
+                terms.wrench_terms.append(t)
+            elif isinstance(t, TwistTerm):
+                terms.twist_terms.append(t)
             elif isinstance(t, FrameCompliance):
                 terms.frame_terms.append(t)
             elif isinstance(t, Ignored):

@@ -125,6 +125,7 @@ class GravityCompensator:
         self.g = np.asarray(g, dtype=float)
         self._g = self.g.tolist()
         self._offset = [0.0] * 6
+        self.gp = np.zeros(13)          # [m, m c, g, bias in use]: what the compiled cycle reads (service.kernel)
         self.carry(mass_kg, (float(mass_kg) * np.asarray(cog_m, dtype=float)).tolist(), bias)
 
     @classmethod
@@ -139,6 +140,11 @@ class GravityCompensator:
         self._mc = [float(v) for v in mc_kgm]
         self._set_bias = [float(v) for v in set_bias]
         self._bias = [b + o for b, o in zip(self._set_bias, self._offset)]
+        gp = self.gp
+        gp[0] = self.mass
+        gp[1:4] = self._mc
+        gp[4:7] = self._g
+        gp[7:13] = self._bias
 
     def payload_wrench(self, R_sensor) -> list[float]:
         """[F_g; T_g] in sensor axes for the sensor orientation ``R_sensor`` (3x3, base; array or lists)."""

@@ -26,6 +26,9 @@ from .compensation import FastPredictor
 class PredictorRamp:
     """Two predictors blended over ``cycles`` cycles; used in place of a `FastPredictor`.
 
+    The compensator runs its Python path while a ramp lasts (``kernel`` is None); each predictor runs its
+    own compiled form when it has one.
+
     Parameters
     ----------
     old, new : FastPredictor (or a PredictorRamp still ramping)
@@ -35,6 +38,8 @@ class PredictorRamp:
     on_done : callable () -> None
         Called in the ramp's last cycle: puts ``new`` in the ramp's place.
     """
+
+    kernel = None
 
     def __init__(self, old: FastPredictor, new: FastPredictor, cycles: int, on_done: Callable[[], None]):
         self.old, self.new = old, new
@@ -68,10 +73,10 @@ class PredictorRamp:
         self._w_sensor = w_sensor
         return self.new.wrench_base(w_sensor)
 
-    def deflection(self, w_base) -> np.ndarray:
+    def deflection(self, w_base, dt: float = 0.0) -> np.ndarray:
         """The blended deflection of one cycle (call once per cycle, after `wrench_base`)."""
-        d_new = self.new.deflection(w_base)
-        d_old = self.old.deflection(self.old.wrench_base(self._w_sensor))
+        d_new = self.new.deflection(w_base, dt)
+        d_old = self.old.deflection(self.old.wrench_base(self._w_sensor), dt)
         self.k = k = min(self.k + 1, self.cycles)
         if k == self.cycles:
             self.on_done()

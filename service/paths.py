@@ -3,8 +3,6 @@ probe) finds the default config without importing the service's schemas."""
 
 from __future__ import annotations
 
-from pathlib import Path
+from plc_interface.endpoints import SHIPPED_CONFIG
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
-DEFAULT_CONFIG = CONFIG_DIR / "default.yaml"
-SHIPPED_REGISTER_MAP = CONFIG_DIR / "registers.yaml"
+DEFAULT_CONFIG = SHIPPED_CONFIG / "default.yaml"

@@ -110,6 +110,25 @@ class Compensator:
         self._tare_pending = False            # a tare edge waits for the next sample
         self.tare_max = float(tare_max_force_N)
         self.tare_refused = False
+        self.kernel = None                      # the compiled signal path (`compile`), None: the Python path
+
+    def compile(self) -> None:
+        """Run the signal path compiled from the next cycle on (`service.kernel`): numba compiles, or loads
+        from its disk cache, here, before any cycle. Raises `service.kernel.NotCompilable` (the reason in
+        its message) when the model has no compiled form; the compensator then stays on the Python path."""
+        from .kernel.compensator import CompiledSignal
+
+        pred = self.predictor
+        pred.compile()
+        k = CompiledSignal()
+        k.bind(self)
+        k.condition([0.0] * 6)                  # compile or load now, then restore the state
+        pk = pred.kernel
+        self._signal_path(k, pk, False, 0.0, True)
+        k.bind(self)
+        pk.ws[:] = self.wrench_sensor
+        pred.reset_history()
+        self.kernel = k
 
     @classmethod
     def from_config(cls, model_section: ModelConfig, filter_section: FilterConfig, gravity: GravityConfig,
@@ -156,6 +175,12 @@ class Compensator:
         if self.t_first is None:
             self.t_first = t
         pred = self.predictor
+        k = self.kernel
+        if k is not None:
+            if pred.kernel is not None:
+                return self._cycle_compiled(k, pred, t, dt, reading, q_deg, tare, hold, reset, payload_index)
+            if k.bound:                         # a model reload's ramp: the Python path takes over
+                k.unbind(self)
         if q_deg is not None:
             self.q_rad = np.array(q_deg) * DEG_TO_RAD
             pred.kinematics(self.q_rad)
@@ -181,7 +206,7 @@ class Compensator:
         elif moved and self.have_sample:        # a switch's ramp goes on between samples too: no catch-up step
             self.wrench_sensor = self.gravity.compensate(self.filtered, pred.R_s)
         self.wrench_base = pred.wrench_base(self.wrench_sensor)
-        dX = pred.deflection(self.wrench_base)
+        dX = pred.deflection(self.wrench_base, dt)
         dq = pred.correction(self.q_rad, dX)
         self.deflection = (dX * _OUT_SCALE).tolist()
         self.dq_deg = dq_deg = (dq * RAD_TO_DEG).tolist()
@@ -191,6 +216,67 @@ class Compensator:
         safe = self.faults.word != 0 or hold or not self.have_sample
         self.correction = self.limiter.update(dt, dq_deg, safe)
         return self.correction
+
+
+    def _cycle_compiled(self, k, pred, t: float, dt: float, reading: Reading | None, q_deg: list[float] | None,
+                        tare: bool, hold: bool, reset: bool, payload_index: int) -> list[float]:
+        """`cycle` on the compiled path: the same steps, the arithmetic in two compiled calls (three when
+        the joints moved); the state of the stages lives in ``k`` (`service.kernel.compensator`)."""
+        if q_deg is not None:
+            self.q_rad = np.array(q_deg) * DEG_TO_RAD
+            pred.kinematics(self.q_rad)
+        if tare:
+            self._tare_pending = True
+        if reset:
+            pred.reset_history()
+            self.tare_refused = False
+        moved = self.payloads.update(dt, payload_index)
+        b, sp, f, lim = k.bound, self.spikes, self.filter, self.limiter
+        if (not b or sp is not b[0] or sp.max_step is not b[1] or sp.max_held is not b[2] or f is not b[3]
+                or lim is not b[4] or lim.max is not b[5] or lim.rate is not b[6] or lim.ramp_s is not b[7]):
+            k.rebind(self)                      # a reload replaced a stage or its parameters (k.key)
+        gravity_on = False
+        if reading is not None:
+            self.samples += 1
+            self.sample_t = t
+            if not self.have_sample:            # the first sample: the filter starts in its steady state
+                k.unbind(self)
+                x = self.spikes.update(reading.wrench)
+                self.filter.state = self.filter.steady_state(x)
+                self.have_sample = True
+                pred.reset_history()
+                filtered = self.filter.update(x)
+                k.bind(self)
+                k.y[:] = filtered
+            else:
+                filtered = self.filter.y = k.condition(reading.wrench)
+            self.filtered = filtered
+            if self._tare_pending:
+                self._tare_pending = False
+                self._tare(filtered)
+            gravity_on = True
+        elif moved and self.have_sample:        # a switch's ramp goes on between samples too
+            gravity_on = True
+        safe = self.faults.word != 0 or hold or not self.have_sample
+        finite = self._signal_path(k, pred.kernel, gravity_on, dt, safe)
+        pk = pred.kernel
+        self.wrench_sensor, self.wrench_base = pk.ws.tolist(), pk.wb.tolist()
+        self.deflection = np.multiply(pk.dX, _OUT_SCALE, out=k.deflection).tolist()
+        self.dq_deg = k.dq_deg.tolist()
+        if not finite:
+            self.faults.trip(Fault.VALUE_INVALID, "the predicted correction is not finite")
+        self.correction = lim.out = k.out.tolist()
+        lim.safe = bool(k.lim[14])
+        return self.correction
+
+    def _signal_path(self, k, pk, gravity_on: bool, dt: float, safe: bool) -> bool:
+        if k.args[0] is not pk:                 # the arrays of this predictor, gathered once
+            k.args = (pk, (pk.ws, pk.Rs, pk.ps, pk.Ad, pk.comp, pk.tau_s, pk.axj, pk.axl, pk.axp, pk.at_rest, pk.hj,
+                           pk.hl, pk.hp, pk.hs, pk.hg, pk.fm, pk.fC, pk.wl, pk.wp, pk.wst, pk.tl, pk.tp, pk.tst),
+                      (pk.Ttcp, pk.Jp, pk.w0, pk.local, pk.delta, pk.wb, pk.dX, pk.dq, k.dq_deg))
+        _, before, after = k.args
+        return pk.mod.signal_path(gravity_on, k.y, self.gravity.gp, *before, dt, *after, safe, k.lim, k.out,
+                                  k.ramp_rate)
 
 
 class Cycle:

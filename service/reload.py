@@ -219,6 +219,8 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
         pred.carry(g.mass, g.cog, g.g)           # the payload now; the swap takes the switch's blend of then
         q_prep = comp.q_rad
         pred.kinematics(q_prep)
+        if comp.kernel is not None:
+            pred.compile()                       # the same laws as the running model: loaded, not compiled
     ramp_cycles = round(new.limits.fault_ramp_s / period)
 
     def swap(cycle, source) -> None:

@@ -5,6 +5,12 @@ rule: a cycle that ends after the next deadline has exceeded, and the deadlines 
 exceeded too). The work function receives the time (s since start) and whether the previous cycle
 exceeded.
 
+Nothing in the cycle waits for memory or the collector: the cycle thread locks the process's pages
+(``mlockall``, where permitted, one warning where not, as for SCHED_FIFO), and once the start-up's
+objects are frozen (`gc.freeze`) the collector is off (`gc.disable`); a young-generation collection runs
+only after a cycle's work, when the young objects have piled up and more than half the period is left
+(or they have piled up ten times over: memory must not grow without bound on an overloaded host).
+
 Stop is a request the cycle handles: `CyclicTask.request_stop` sets a flag the work function reads
 (``stop_requested``). A work function that handles stop itself (the service ramps the correction to
 zero in its own cycles) returns True while it goes on and False when it is done; a plain work function
@@ -14,6 +20,8 @@ another thread.
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import gc
 import logging
 import os
@@ -29,6 +37,34 @@ from stiffness.yamlio import Strict
 
 log = logging.getLogger("stiffcomp.task")
 
+MCL_CURRENT, MCL_FUTURE, MCL_ONFAULT = 1, 2, 4       # <sys/mman.h>
+GC_YOUNG = 20_000        # young objects that make the collection after a cycle's work worth its time
+GC_SLACK = 0.5           # ... when more than this share of the period is left before the next deadline
+GC_YOUNG_MAX = 200_000   # ... or at once beyond this: an overloaded host must not grow the memory without bound
+
+
+def unlock_memory() -> None:
+    """munlockall: undo `lock_memory` (a task that ends in a process that goes on, e.g. a test's)."""
+    try:
+        ctypes.CDLL(None).munlockall()
+    except (OSError, AttributeError):
+        pass
+
+
+def lock_memory() -> str | None:
+    """mlockall: the pages in use now and later stay in RAM (faulted in as they are touched, so the lock
+    costs milliseconds, not a pass over the whole process). None, or why it was not permitted."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0:
+            return None
+        err = ctypes.get_errno()
+        if err == errno.EINVAL and libc.mlockall(MCL_CURRENT | MCL_FUTURE) == 0:     # a kernel before 4.4
+            return None
+        return os.strerror(ctypes.get_errno() or err)
+    except (OSError, AttributeError) as e:
+        return str(e)
+
 
 class CycleConfig(Strict):
     """``cycle``: the period, the statistics, and how the task is scheduled (priority, CPU, spin)."""
@@ -39,6 +75,8 @@ class CycleConfig(Strict):
     realtime_priority: int = Field(0, ge=0, le=99)
     cpu: int | None = Field(None, ge=0, le=1023)
     spin_us: float = Field(0.0, ge=0.0, le=1000.0)
+    compiled: bool = True
+    lock_memory: bool = True
 
 
 class TaskInfo:
@@ -106,11 +144,17 @@ class CyclicTask:
         Sleep until ``spin_s`` before the deadline, then poll the clock (yielding with sleep(0)). On
         virtual machines a core that never idles wakes with warm caches, at the price of that fraction
         of a core.
+    lock_memory : bool
+        mlockall before the first cycle (`lock_memory`; one warning where not permitted).
+    prepare : callable () -> None, optional
+        Called ``lead_s`` before each deadline, between two cycles (the sensor's request: its answer is
+        then read by the cycle at that deadline); right away when the last cycle ended later than that.
     """
 
     def __init__(self, period_s: float, work: Callable[[float, bool], bool | None], info: TaskInfo,
                  on_error: Callable[[BaseException], None], realtime_priority: int = 0,
-                 clock: Callable[[], float] = time.perf_counter, cpu: int | None = None, spin_s: float = 0.0):
+                 clock: Callable[[], float] = time.perf_counter, cpu: int | None = None, spin_s: float = 0.0,
+                 lock_memory: bool = False, prepare: Callable[[], None] | None = None, lead_s: float = 0.0):
         self.period = float(period_s)
         self.work = work
         self.info = info
@@ -118,6 +162,10 @@ class CyclicTask:
         self.priority = realtime_priority
         self.cpu = cpu
         self.spin = float(spin_s)
+        self.lock = lock_memory
+        self._locked = False
+        self.prepare = prepare if lead_s > 0 else None
+        self.lead = float(lead_s)
         self.clock = clock
         self.stop_requested = False
         self.stopped = threading.Event()
@@ -146,6 +194,12 @@ class CyclicTask:
         return self._thread.is_alive()
 
     def _set_priority(self) -> None:
+        if self.lock:
+            why = lock_memory()
+            self._locked = why is None
+            if why:
+                log.warning("cannot lock the service's memory (mlockall: %s); pages may be swapped out under "
+                            "memory pressure (CAP_IPC_LOCK or a higher RLIMIT_MEMLOCK permits it)", why)
         if self.cpu is not None:
             try:
                 os.sched_setaffinity(0, {self.cpu})
@@ -163,7 +217,11 @@ class CyclicTask:
         self._set_priority()
         gc.collect()
         gc.freeze()              # objects made at start-up never get scanned again
+        was_enabled = gc.isenabled()
+        gc.disable()             # no collection at an allocation in the cycle: only after the work (below)
         clock, info, work, spin = self.clock, self.info, self.work, self.spin
+        period, collect, count = self.period, gc.collect, gc.get_count
+        prepare, lead, sleep = self.prepare, self.lead, time.sleep
         deadlines = Deadlines(self.period, clock=clock)
         t0 = deadlines.due
         prev_start: float | None = None
@@ -171,6 +229,11 @@ class CyclicTask:
         try:
             go_on: bool | None = None
             while go_on is True or (go_on is None and not self.stop_requested):
+                if prepare is not None:
+                    ahead = deadlines.due - lead - clock()
+                    if ahead > 0:
+                        sleep(ahead)
+                    prepare()
                 deadlines.sleep_until(spin)
                 start = clock()
                 go_on = work(start - t0, exceeded)
@@ -179,9 +242,16 @@ class CyclicTask:
                 prev_start = start
                 exceeded = info.last_exceeded = deadlines.advance(end)
                 info.exceed_count = deadlines.exceeded
+                young = count()[0]
+                if young > GC_YOUNG and (deadlines.due - clock() > GC_SLACK * period or young > GC_YOUNG_MAX):
+                    collect(0)
         except BaseException as e:  # noqa: BLE001 - handed to the explicit policy below
             self.error = e
             self.on_error(e)
         finally:
+            if self._locked:
+                unlock_memory()
+            if was_enabled:
+                gc.enable()
             gc.unfreeze()
             self.stopped.set()

@@ -7,10 +7,14 @@
     └────────────────────────────┘              │ (CSV or Parquet, rotated at a size limit) │
                                                 └──────────────────────────────────────────┘
 
-The cycle never waits and never touches a file: `TraceRing.put` packs the row into slot
+The cycle never waits and never touches a file: `TraceRing.put_cycle` packs the row into slot
 ``count % rows`` and then raises the count (x86-64 keeps the two stores in order, as the process image
-relies on). The writer reads the slots between its own count and the cycle's, then checks the count
-again: a slot the cycle overwrote meanwhile (the writer fell more than a ring behind, 65 s at 1 ms) is
+relies on). The cycle packs only what it alone knows, 22 values in one struct call: its time (float64), the
+joints, wrench and correction (float32, the precision the PLC's registers carry: 0.3 um at 2 m for a joint)
+and the three words (uint16); the cycle count is the ring's own count, and the wall-clock time its start
+stamp plus the cycle's time. The ring is small (1.5 MB) and touched once at start-up, so the cycle never
+takes a page fault on it. The writer reads the slots between its own count and the cycle's, then checks the count
+again: a slot the cycle overwrote meanwhile (the writer fell more than a ring behind, 16 s at 1 ms) is
 not written but counted as lost, and the log and the service's statistics say how many. Nothing is
 dropped in silence. The writer watches its parent as the I/O process does, and drains the ring to the
 last row when the service stops.
@@ -22,6 +26,7 @@ import logging
 import multiprocessing
 import os
 import struct
+import time
 from dataclasses import dataclass
 from multiprocessing.shared_memory import SharedMemory
 from pathlib import Path
@@ -32,16 +37,18 @@ from plc_interface.image import release
 from plc_interface.io_process import describe_exit, ignore_cycle_signals, spawn_child
 from plc_interface.log_format import configure_logging, current_format
 from stiffness.errors import StiffnessError
-from stiffness.trace import COLUMNS, DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
+from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
 
 from .errors import TraceError
 
 log = logging.getLogger("stiffcomp.trace")
 
-ROWS = 1 << 16          # the ring: 65 s of cycles at 1 ms
+ROWS = 1 << 14          # the ring: 16 s of cycles at 1 ms (the writer drains it every DRAIN_S), 1.5 MB
 DRAIN_S = 0.1           # the writer's period
-_HEADER = 4             # int64: rows put by the cycle, rows taken by the writer, rows lost, rows written
-_ROW = struct.Struct(f"<{len(COLUMNS)}d")
+_HEADER = 8             # int64: rows put by the cycle, taken by the writer, lost, written, the start stamp (ns)
+_ROW = struct.Struct("<d18f3H10x")      # 96 bytes: time_s; the joints, wrench, correction; the three words
+ROW_DTYPE = np.dtype([("time", "<f8"), ("values", "<f4", (18,)), ("words", "<u2", (3,)), ("pad", "V10")])
+_START = 4              # the header's start stamp: wall-clock ns at the cycle's time 0
 
 
 @dataclass(frozen=True)
@@ -71,9 +78,10 @@ class TraceRing:
         self._owner = _name is None
         self.shm = SharedMemory(name=_name, create=self._owner, size=8 * _HEADER + _ROW.size * self.rows)
         self.h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
-        self.table = np.ndarray((self.rows, len(COLUMNS)), dtype=np.float64, buffer=self.shm.buf, offset=8 * _HEADER)
+        self.table = np.ndarray((self.rows,), dtype=ROW_DTYPE, buffer=self.shm.buf, offset=8 * _HEADER)
         if self._owner:
             self.h[:] = 0
+            self.table.view(np.uint8)[:] = 0     # every page faulted in now, at start-up, not by the cycle's first pass
         self._pack, self._buf = _ROW.pack_into, self.shm.buf
         self._put_count = self.shm.buf[:8].cast("q")     # the cycle's own store of its count (cheaper than NumPy's)
         self._n = int(self.h[0])
@@ -81,19 +89,14 @@ class TraceRing:
     def __reduce__(self):
         return (TraceRing, (self.rows, self.shm.name))
 
-    def put(self, values: tuple) -> None:
-        """The cycle's side: one row (`stiffness.trace.COLUMNS`) into the next slot; never waits."""
+    def put_cycle(self, t: float, q_deg, sig, task_state: int) -> None:
+        """The cycle's side: its row from its time, the joints the PLC reported and its `Signals`
+        (`service.pipeline`); never waits. The first row stamps the wall-clock time of the cycle's time 0."""
         n = self._n
-        self._pack(self._buf, 8 * _HEADER + _ROW.size * (n % self.rows), *values)
-        self._n = n = n + 1
-        self._put_count[0] = n
-
-    def put_cycle(self, t: float, unix_s: float, cycle: int, q_deg, sig, task_state: int) -> None:
-        """The cycle's side: its row from its time, the joints the PLC reported and its `Signals`, packed in one
-        struct call without an intermediate tuple (about 1 us)."""
-        n = self._n
-        self._pack(self._buf, 8 * _HEADER + _ROW.size * (n % self.rows), t, unix_s, cycle, *q_deg,
-                   *sig.wrench_base, *sig.deflection, *sig.correction, sig.status_word, sig.fault_word, task_state)
+        if not n:
+            self.h[_START] = time.time_ns() - int(t * 1e9)
+        self._pack(self._buf, 8 * _HEADER + 96 * (n % self.rows), t, *q_deg, *sig.wrench_base, *sig.correction,
+                   sig.status_word, sig.fault_word, task_state)
         self._n = n = n + 1
         self._put_count[0] = n
 
@@ -105,7 +108,11 @@ class TraceRing:
             h[2] += end - start - self.rows
             start = end - self.rows
         idx = np.arange(start, end) % self.rows
-        out = self.table[idx].copy()
+        rows = self.table[idx]
+        t = rows["time"][:, None]
+        cycle = np.arange(start + 1, end + 1, dtype=np.float64)[:, None]          # cycle k is the k-th row put
+        out = np.concatenate([t, t + int(self.h[_START]) * 1e-9, cycle, rows["values"].astype(np.float64),
+                              rows["words"].astype(np.float64)], axis=1)
         now = int(h[0])
         clobbered = max(0, now - self.rows - start)      # slots the cycle wrote again while we copied
         if clobbered:

@@ -84,7 +84,6 @@ class PartRows:
     nominal_mm: np.ndarray       # the error against the nominal contour, along n
     q_deg: np.ndarray            # (n, 6) at u
     wrench_base: np.ndarray      # (n, 6) the trace's wrench at u, smoothed (base axes, moment about the sensor origin)
-    predicted_mm: np.ndarray     # the service's predicted deflection at u, along n (the trace's)
     correction_mm: np.ndarray    # how far the service's correction moved the tool along n
     frame: np.ndarray            # (4, 4) base <- part used (the file's, or the best fit's)
     smooth_wrench: np.ndarray    # (N trace, 6) the trace's wrench, smoothed
@@ -247,8 +246,7 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
     shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
     e = (dist - r) * 1000.0
     return PartRows(part, trace, label, used, u, at(trace.time_s[:, None])[:, 0], p, c, n,
-                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench),
-                    np.einsum("na,na->n", n, at(trace.deflection[:, :3])), shift, frame, wrench, F[:, 7, :3, 3],
+                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, F[:, 7, :3, 3],
                     notes)
 
 

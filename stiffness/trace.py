@@ -9,7 +9,6 @@ q1_deg .. q6_deg                   the joint positions the PLC reported (what th
                                    commanded joints, correction included)
 fx_N .. mz_Nm                      the wrench the cycle used: filtered, gravity and bias removed, in
                                    base axes, moment about the sensor origin
-dx_mm .. rz_deg                    the TCP deflection the model predicted, base axes
 c1_deg .. c6_deg                   the joint correction the service sent (after limits)
 status_word, fault_word, task_state  the contract's words (`plc_interface.contract`)
 =================================  ===============================================================
@@ -45,10 +44,9 @@ log = logging.getLogger("stiffcomp.trace")
 
 Q = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
-DEFLECTION = ("dx_mm", "dy_mm", "dz_mm", "rx_deg", "ry_deg", "rz_deg")
 CORRECTION = tuple(f"c{i}_deg" for i in range(1, 7))
 WORDS = ("status_word", "fault_word", "task_state")
-COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *DEFLECTION, *CORRECTION, *WORDS)
+COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *CORRECTION, *WORDS)
 INTEGER = {"cycle", *WORDS}
 SUFFIXES = (".csv", ".parquet")
 DEFAULT_MAX_MB = 200.0
@@ -181,7 +179,6 @@ class Trace:
     cycle = property(lambda self: self.column("cycle").astype(np.int64))
     q_deg = property(lambda self: self.block(Q))
     wrench_base = property(lambda self: self.block(WRENCH))
-    deflection = property(lambda self: self.block(DEFLECTION))
     correction_deg = property(lambda self: self.block(CORRECTION))
     fault_word = property(lambda self: self.column("fault_word").astype(np.int64))
     status_word = property(lambda self: self.column("status_word").astype(np.int64))

@@ -29,7 +29,7 @@ import sys
 import time
 
 from plc_interface.endpoints import PROBES, Endpoints, read_endpoints, read_probe
-from service.paths import DEFAULT_CONFIG, SHIPPED_REGISTER_MAP
+from service.paths import DEFAULT_CONFIG
 from stiffness.errors import ConfigError
 
 TIMEOUT_S = 1.0
@@ -94,15 +94,11 @@ def check_modbus(ep: Endpoints, host: str, port: int, probe: str = "health",
     import logging
 
     from plc_interface.health import HealthMonitor
-    from plc_interface.register_map import RegisterMap
 
     from .block_reader import BlockReader
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the reason says it in one line
-    path = ep.register_map()
-    if not path.exists():           # a path inside the image, asked from the host: the shipped map
-        path = SHIPPED_REGISTER_MAP
-    reader = BlockReader(RegisterMap.from_yaml(path), host, port, timeout_s=TIMEOUT_S / 2)
+    reader = BlockReader(ep.register_map(), host, port, timeout_s=TIMEOUT_S / 2)
     # a count that rose between the two readings is live; one that did not has stalled for gap_s
     monitor = HealthMonitor(ep.monitoring.health_max_exceed_rate, stall_s=gap_s / 2)
     try:

@@ -66,6 +66,11 @@ class FtSource(ABC):
     def _frames(self, t: float) -> Iterable[Frame]:
         """CAN frames received by time ``t`` and not returned before."""
 
+    lead_s = 0.0        # > 0: the task calls `request` this long before each cycle's deadline
+
+    def request(self) -> None:
+        """Ask for the next sample ahead of the cycle that reads it (`lead_s`; a no-op by default)."""
+
     def request_bias(self) -> None:
         """Ask the sensor to bias itself (a no-op for sources that cannot talk back)."""
 

@@ -47,9 +47,16 @@ def torque_range(ctx: Context, joint: int) -> float:
 class AxialEffect(Effect):
     """An effect on joint i's axial twist of the form delta_rz = theta[0] * shape(tau_i; theta).
 
-    ``axial_twist`` is the effect's equation f, in one place: the model's basis and the service's
-    real-time path both call it, at the total torque (module docstring).
+    The equation is written once, as the module-level ``law(tau, p)`` of the effect's own file (a plain
+    numeric function, `stiffness.effects.realtime`), with ``p = law_params(theta)``; ``shape`` and the
+    service's real-time path (Python and compiled) all call it, at the total torque (module docstring).
     """
+
+    law = None          # law(tau, p) -> delta_rz (rad): a staticmethod of the subclass, or set per instance
+
+    def law_params(self, theta: np.ndarray) -> np.ndarray:
+        """The law's parameter array p for the effect's parameters ``theta`` (SI)."""
+        raise NotImplementedError
 
     evidence_plot = "axial"
     free_centres: np.ndarray | None = None     # (C,) tau_s per configuration found by the diagnosis, NaN: beyond
@@ -57,7 +64,9 @@ class AxialEffect(Effect):
 
     def shape(self, tau, theta: np.ndarray):
         """delta_rz per unit of the linear parameter theta[0], for torque tau (Nm, scalar or array)."""
-        raise NotImplementedError
+        p = self.law_params(theta).copy()
+        p[0] = 1.0
+        return self.law(tau, p)
 
     def axial_twist(self, tau, theta: np.ndarray | None = None):
         """delta_rz (rad) for joint torque tau (Nm, scalar or array)."""
@@ -93,9 +102,8 @@ class AxialEffect(Effect):
                 "preload identified (`stiffcomp model add MODEL EFFECT --joint J --preload identify`, docs/effects.md)")
 
     def realtime(self, robot) -> list[AxialTerm]:
-        """f = `axial_twist`, the parameters frozen; the service evaluates f(tau_s + tau) - f(tau_s)."""
-        theta = self.theta.copy()
-        return [AxialTerm(self.joint, lambda tau: float(self.axial_twist(tau, theta)))]
+        """The law with its parameters frozen; the service evaluates f(tau_s + tau) - f(tau_s)."""
+        return [AxialTerm(self.joint, law=self.law, params=self.law_params(self.theta))]
 
 
 def with_free_centres(model, ctx: Context, variants: list[AxialEffect]) -> list[AxialEffect]:

@@ -34,6 +34,11 @@ from .axial import AxialEffect, torque_range, with_free_centres
 from .base import Param, read_location, read_values
 
 
+def backlash_law(tau, p):
+    """delta_rz = (b / 2) tanh(tau / tau_w), p = [b (rad), tau_w (Nm)]; tau scalar or array (Nm)."""
+    return p[0] * 0.5 * np.tanh(tau / p[1])
+
+
 class Backlash(AxialEffect):
     name = "backlash"
     equation = "delta_rz,i = (b/2) tanh(tau_i / tau_w)"
@@ -67,8 +72,10 @@ class Backlash(AxialEffect):
     def width(self, theta: np.ndarray) -> float:
         return self.fixed_width if self.fixed_width is not None else float(theta[1])
 
-    def shape(self, tau, theta: np.ndarray):
-        return 0.5 * np.tanh(tau / self.width(theta))
+    law = staticmethod(backlash_law)
+
+    def law_params(self, theta: np.ndarray) -> np.ndarray:
+        return np.array([theta[0], self.width(theta)])
 
     @classmethod
     def candidates(cls, model, ctx) -> list[list[Backlash]]:

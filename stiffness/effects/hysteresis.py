@@ -28,8 +28,9 @@ Start:  z = 0 (the middle of the two branches: the history is unknown) with the 
        its load sequences in time order; the service starts it at start-up, after a tare and after a
        fault reset (docs/service.md).
 
-`LoadingState.update` is the one implementation of the law; the model's basis and the service's
-real-time term (a `HistoryTerm`: delta_rz = h z, the state fed tau_i every cycle) both call it.
+`loading_law` is the one implementation of the law; the model's basis (through `LoadingState`) and the
+service's real-time term (a `HistoryTerm`: delta_rz = h z, the state fed tau_i every cycle, on the
+Python and the compiled path) all run it.
 
 Diagnosis: tried at every joint that has none, with tau_t fixed at 0, 3 % and 10 % of the joint's
 largest torque in the campaign.
@@ -59,8 +60,34 @@ DEFAULT_THRESHOLD_NM = 10.0
 DEFAULT_TRANSITION_NM = 20.0
 
 
+def loading_law(s, p, tau):
+    """The loading state's law, one torque in time order: updates s in place and returns z.
+
+    s = [z, reference torque (Nm), direction (-1, 0, 1), started (0 or 1)], p = [threshold (Nm),
+    transition tau_t (Nm)]. The one implementation of the module's equation: `LoadingState`, the
+    model's basis and the service's `HistoryTerm` (Python and compiled) all run it.
+    """
+    if s[3] == 0.0:
+        s[1] = tau
+        s[3] = 1.0
+        return s[0]
+    delta = tau - s[1]
+    if delta * s[2] > 0.0 or abs(delta) > p[0]:
+        sign = 1.0 if delta > 0.0 else -1.0
+        if p[1] > 0.0:
+            s[0] = sign + (s[0] - sign) * math.exp(-abs(delta) / p[1])
+        else:
+            s[0] = sign
+        s[2] = sign
+        s[1] = tau
+    return s[0]
+
+
+START = (0.0, 0.0, 0.0, 0.0)       # z = 0, no reference yet
+
+
 class LoadingState:
-    """The loading state z of one joint, updated torque by torque (in time order).
+    """The loading state z of one joint, updated torque by torque (in time order), by `loading_law`.
 
     Parameters
     ----------
@@ -70,35 +97,28 @@ class LoadingState:
         Dahl's transition torque tau_t (0: the instant switch).
     """
 
-    __slots__ = ("direction", "ref", "threshold", "transition", "z")
+    __slots__ = ("p", "s")
 
     def __init__(self, threshold_Nm: float, transition_Nm: float):
-        self.threshold = float(threshold_Nm)
-        self.transition = float(transition_Nm)
-        self.reset()
+        self.p = [float(threshold_Nm), float(transition_Nm)]     # lists: Python floats are faster here
+        self.s = list(START)
 
     def reset(self) -> None:
         """The defined start: z = 0, the next torque becomes the reference."""
-        self.z = 0.0
-        self.ref: float | None = None
-        self.direction = 0.0
+        self.s[:] = START
 
     def update(self, tau: float) -> float:
         """Take the next torque (Nm); returns z."""
-        ref = self.ref
-        if ref is None:
-            self.ref = tau
-            return self.z
-        delta = tau - ref
-        if delta * self.direction > 0.0 or abs(delta) > self.threshold:
-            s = 1.0 if delta > 0.0 else -1.0
-            if self.transition > 0.0:
-                self.z = s + (self.z - s) * math.exp(-abs(delta) / self.transition)
-            else:
-                self.z = s
-            self.direction = s
-            self.ref = tau
-        return self.z
+        return float(loading_law(self.s, self.p, float(tau)))
+
+    @property
+    def z(self) -> float:
+        return float(self.s[0])
+
+    @property
+    def ref(self) -> float | None:
+        """The torque the last move is measured from (Nm); None before the first torque."""
+        return float(self.s[1]) if self.s[3] else None
 
 
 def loading_state(ctx: Context, tau: np.ndarray, threshold_Nm: float, transition_Nm: float) -> np.ndarray:
@@ -172,7 +192,8 @@ class Hysteresis(Effect):
         return axial_basis(ctx, self.joint, [self.loading(ctx, W, theta)])
 
     def realtime(self, robot) -> list[HistoryTerm]:
-        return [HistoryTerm(self.joint, float(self.theta[0]), self.state())]
+        return [HistoryTerm(loading_law, [self.threshold_Nm, self.transition(self.theta)], START,
+                            joint=self.joint, gain=float(self.theta[0]))]
 
     @classmethod
     def candidates(cls, model, ctx) -> list[list[Hysteresis]]:

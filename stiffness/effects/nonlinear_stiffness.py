@@ -35,6 +35,16 @@ from .joint_spring import axial_compliance
 FORMS = ("cubic", "two_slope")
 
 
+def cubic_law(tau, p):
+    """delta_rz = c3 tau (tau / tau_ref)^2, p = [c3 (rad/Nm), tau_ref (Nm)]; tau scalar or array (Nm)."""
+    return p[0] * tau * (tau / p[1]) ** 2
+
+
+def two_slope_law(tau, p):
+    """delta_rz = c_s tau_k tanh(tau / tau_k), p = [c_s (rad/Nm), tau_k (Nm)]; tau scalar or array (Nm)."""
+    return p[0] * p[1] * np.tanh(tau / p[1])
+
+
 class NonlinearStiffness(AxialEffect):
     name = "nonlinear_stiffness"
     equation = "delta_rz,i = c3 tau (tau/tau_ref)^2  |  c_s tau_k tanh(tau/tau_k)"
@@ -44,6 +54,7 @@ class NonlinearStiffness(AxialEffect):
     def __init__(self, joint: int, form: str = "cubic", theta: np.ndarray | None = None,
                  reference_torque_Nm: float = 1000.0, fit_knee: bool = True):
         self.form = form
+        self.law = cubic_law if form == "cubic" else two_slope_law
         self.reference_torque_Nm = reference_torque_Nm
         if form == "cubic":
             params = [Param("cubic_rad_per_Nm", "rad/Nm", 1e-7)]
@@ -82,11 +93,10 @@ class NonlinearStiffness(AxialEffect):
     def knee(self, theta: np.ndarray) -> float:
         return self.fixed_knee if self.fixed_knee is not None else float(theta[1])
 
-    def shape(self, tau, theta: np.ndarray):
+    def law_params(self, theta: np.ndarray) -> np.ndarray:
         if self.form == "cubic":
-            return tau * (tau / self.reference_torque_Nm) ** 2
-        k = self.knee(theta)
-        return k * np.tanh(tau / k)
+            return np.array([theta[0], self.reference_torque_Nm])
+        return np.array([theta[0], self.knee(theta)])
 
     @classmethod
     def candidates(cls, model, ctx) -> list[list[NonlinearStiffness]]:

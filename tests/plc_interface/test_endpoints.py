@@ -11,7 +11,13 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plc_interface.endpoints import MonitoringEndpoint, PlcEndpoint, endpoints_from, read_endpoints
+from plc_interface.endpoints import (
+    MonitoringEndpoint,
+    PlcEndpoint,
+    endpoints_from,
+    read_endpoints,
+    resolve_path,
+)
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from service.config import load_config
 from service.paths import DEFAULT_CONFIG
@@ -35,7 +41,8 @@ def test_the_shipped_config_reads_as_the_service_reads_it():
     for name in SECTIONS:
         got = asdict(getattr(ep, name))
         assert got == {k: getattr(getattr(cfg, name), k) for k in got}
-    assert ep.register_map() == cfg.resolve(cfg.plc.register_map)
+    assert resolve_path(ep.path, ep.plc.register_map) == cfg.resolve(cfg.plc.register_map)
+    assert ep.register_map().codecs["to_plc"].names == cfg.register_map().codecs["to_plc"].names
 
 
 values = st.one_of(st.integers(-5, 70_000), st.floats(allow_nan=True, allow_infinity=True), st.booleans(),

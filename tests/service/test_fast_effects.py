@@ -118,7 +118,7 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
     cfg = load_config(CONFIG / "default.yaml")
     cfg.tare.max_force_N = 2500.0           # this test tares under load on purpose (the history restarts)
     cycle = Cycle.from_config(cfg, model)
-    state = cycle.compensator.predictor.history[0].state
+    state = cycle.compensator.predictor.history[0].state      # [z, reference, direction, started]
     q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
     hb = 0
 
@@ -131,16 +131,16 @@ def test_hysteresis_state_restarts_on_tare_and_fault_reset():
     for fx in np.linspace(0.0, 900.0, 200):           # a load rising: z leaves 0
         t += 0.001
         step(t, fx)
-    assert abs(state.z) > 0.5
+    assert abs(state[0]) > 0.5
     step(t + 0.001, 900.0, int(Command.TARE))
     step(t + 0.002, 900.0)
-    assert state.z == 0.0 and state.ref is not None    # restarted at the tare, the new torque its reference
+    assert state[0] == 0.0 and state[3] == 1.0          # restarted at the tare, the new torque its reference
     for fx in np.linspace(900.0, 0.0, 200):
         t += 0.001
         step(t + 0.002, fx)
-    assert abs(state.z) > 0.5
+    assert abs(state[0]) > 0.5
     step(t + 0.003, 0.0, int(Command.RESET))
-    assert state.z == 0.0
+    assert state[0] == 0.0
 
 
 def test_bending_formed_per_kinematics_equals_the_constant_one():

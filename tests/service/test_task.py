@@ -84,3 +84,77 @@ def test_history_is_a_ring_buffer():
         info.record(1e-5 * (k % 7), 1e-6)
     assert info.stats()["cycles"] == 2500
     assert info.stats()["exec_us"]["max"] == pytest.approx(60.0)
+
+
+def test_the_collector_is_off_in_the_cycle_and_collects_young_garbage_only_between_cycles():
+    """gc is disabled while the task runs (no collection at an allocation in the work), cyclic garbage the
+    work leaves is still collected (after a cycle's work, with slack left), and gc is on again after."""
+    import gc
+
+    from service.task import GC_YOUNG_MAX
+
+    seen: list[tuple[bool, int]] = []
+    done = threading.Event()
+
+    def work(t, exceeded):
+        for _ in range(2000):                   # cyclic garbage: only the collector frees it
+            a: list = []
+            a.append(a)
+        seen.append((gc.isenabled(), gc.get_count()[0]))
+        if len(seen) >= 200:
+            done.set()
+
+    was = gc.isenabled()
+    task = CyclicTask(0.002, work, TaskInfo(0.002, 1000), on_error=lambda e: None)
+    task.start()
+    try:
+        assert done.wait(30)
+    finally:
+        task.stop()
+    assert not any(enabled for enabled, _ in seen)
+    # without collections the young generation would hold 200 x 2000 lists by now
+    assert max(count for _, count in seen) < min(GC_YOUNG_MAX + 5000, 200 * 2000)
+    assert gc.isenabled() == was
+
+
+def test_memory_not_lockable_is_one_warning_and_the_task_runs(monkeypatch, caplog):
+    """Where mlockall is not permitted (no CAP_IPC_LOCK, a low RLIMIT_MEMLOCK) the task says so once and runs."""
+    import logging
+
+    import service.task
+
+    monkeypatch.setattr(service.task, "lock_memory", lambda: "Operation not permitted")
+    ran = threading.Event()
+    task = CyclicTask(1e-3, lambda t, e: ran.set(), TaskInfo(1e-3, 1000), on_error=lambda e: None,
+                      lock_memory=True)
+    with caplog.at_level(logging.WARNING, "stiffcomp.task"):
+        task.start()
+        assert ran.wait(10)
+        task.stop()
+    lines = [r.getMessage() for r in caplog.records if "mlockall" in r.getMessage()]
+    assert len(lines) == 1 and "Operation not permitted" in lines[0]
+
+
+def test_a_task_locks_its_memory_where_permitted_and_unlocks_it_after():
+    """VmLck (/proc/self/status) is above zero while the task runs, where this process may lock memory."""
+    import service.task
+
+    def locked_kb() -> int:
+        with open("/proc/self/status") as f:
+            return next((int(line.split()[1]) for line in f if line.startswith("VmLck:")), 0)
+
+    if service.task.lock_memory() is not None:
+        pytest.skip("mlockall is not permitted here")
+    service.task.unlock_memory()
+    seen: list[int] = []
+    ran = threading.Event()
+
+    def work(t, exceeded):
+        seen.append(locked_kb())
+        ran.set()
+
+    task = CyclicTask(1e-3, work, TaskInfo(1e-3, 1000), on_error=lambda e: None, lock_memory=True)
+    task.start()
+    assert ran.wait(10)
+    task.stop()
+    assert seen[0] > 0 and locked_kb() == 0

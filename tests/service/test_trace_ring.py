@@ -15,6 +15,7 @@ from hil.testing import CONFIG
 from service.app import Service
 from service.config import load_config
 from service.errors import TraceError
+from service.pipeline import Signals
 from service.trace import TraceOptions, TraceRing
 from stiffness.trace import COLUMNS
 
@@ -30,13 +31,23 @@ def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
         for k, size in enumerate(batches):
             for _ in range(size):
                 n += 1
-                ring.put((float(n),) + (0.0,) * (len(COLUMNS) - 1))
+                q = [float(n), 0.0, 0.0, 0.0, 0.0, float(-n)]
+                zeros = [0.0] * 6
+                sig = Signals(n & 0xFFFF, 0, [0.5 * n] * 6, zeros, [float(n)] * 6, zeros, zeros, 0, n, 0.0, 0, 0)
+                ring.put_cycle(n * 0.001, q, sig, 1)
             if k % 2 == 0 or k == len(batches) - 1:
-                got.append(ring.take()[:, 0])
-        seen = np.concatenate(got) if got else np.zeros(0)
+                got.append(ring.take())
+        rows = np.concatenate(got) if got else np.zeros((0, len(COLUMNS)))
         c = ring.counts
-        assert c["cycles"] == n and len(seen) + c["lost"] == n
-        assert np.all(np.diff(seen) > 0) and (len(seen) == 0 or seen[-1] == n)
+        assert c["cycles"] == n and len(rows) + c["lost"] == n
+        cycle = rows[:, COLUMNS.index("cycle")]
+        assert np.all(np.diff(cycle) > 0) and (len(rows) == 0 or cycle[-1] == n)
+        # each row is its own cycle's, whole: its time, joints, wrench, correction and words agree
+        np.testing.assert_allclose(rows[:, COLUMNS.index("time_s")], cycle * 0.001)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("q1_deg")], cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("fz_N")], cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("c6_deg")], 0.5 * cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("status_word")], cycle % 65536)
     finally:
         ring.close()
 

@@ -48,14 +48,22 @@ def config_bomb(tmp_path):
     return path
 
 
+# What the load itself takes: Python's allocations during it (tracemalloc's peak) and the growth of the
+# resident set. Not ru_maxrss: on Linux a child keeps the peak its parent had at the fork across the exec,
+# so that figure would be the pytest process's, which grows with the suite.
 CHILD = textwrap.dedent("""
-    import json, resource, sys, time
+    import json, sys, time, tracemalloc
     kind, path = sys.argv[1], sys.argv[2]
     if kind == "model":
         from stiffness.model import StiffnessModel as M
         load = M.from_yaml
     else:
         from service.config import load_config as load
+    def rss_mb():
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * 4096 / 2**20
+    before = rss_mb()
+    tracemalloc.start()
     t0 = time.perf_counter()
     try:
         load(path)
@@ -63,8 +71,8 @@ CHILD = textwrap.dedent("""
     except Exception as e:
         msg = f"{type(e).__name__}: {e}"
     dt = time.perf_counter() - t0
-    print(json.dumps({"s": dt, "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                      "error": msg}))
+    peak = tracemalloc.get_traced_memory()[1] / 2**20
+    print(json.dumps({"s": dt, "rss_mb": max(rss_mb() - before, peak), "error": msg}))
 """)
 
 

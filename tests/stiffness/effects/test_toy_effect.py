@@ -2,7 +2,9 @@
 fitted, diagnosed, described and compensated in the service's cycle, with no other file touched.
 
 The toy: a constant turn c of joint i's axis whenever the arm is measured, delta_rz,i = c. It is
-registered for the test alone (`EFFECTS` is the one registry every part of the project reads).
+registered for the test alone (`EFFECTS` is the one registry every part of the project reads). Its law is
+a plain numeric function of this module (`offset_law`), which the service compiles into the cycle
+(issue 25): the cycle here runs compiled, and agrees with the model.
 """
 
 from __future__ import annotations
@@ -30,6 +32,11 @@ NOISE_MM, NOISE_DEG = 0.03, 0.002
 TRUE_OFFSET_DEG = 0.01
 
 
+def offset_law(tau, p):
+    """delta_rz = c, p = [c (rad)]: the toy's equation, for the Python and the compiled cycle."""
+    return p[0]
+
+
 class JointOffset(Effect):
     """A constant turn of joint i's axis: delta_rz,i = c (YAML: offset_deg, deg).
 
@@ -53,8 +60,7 @@ class JointOffset(Effect):
         return axial_basis(ctx, self.joint, [np.ones(len(W))])
 
     def realtime(self, robot):
-        c = float(self.theta[0])
-        return [AxialTerm(self.joint, lambda tau: c)]
+        return [AxialTerm(self.joint, law=offset_law, params=[self.theta[0]])]
 
     @classmethod
     def candidates(cls, model, ctx):
@@ -87,8 +93,11 @@ def test_the_toy_is_diagnosed_described_fitted_and_compensated(toy):
     # written and read back through the registry
     again = StiffnessModel.from_dict(fixed.model.to_dict(), "toy.yaml", robot=fixed.model.robot)
     np.testing.assert_allclose(again.theta, fixed.model.theta, rtol=1e-5)
-    # compensated in the cycle: the fast path equals the model's first-order prediction, toy included
+    # compensated in the compiled cycle: the fast path equals the model's first-order prediction, toy included
     fp = FastPredictor(fixed.model)
+    fp.compile()
+    compiled_laws = [getattr(v, "py_func", None) for v in vars(fp.kernel.mod).values()]
+    assert offset_law in compiled_laws                  # the toy's own law, compiled into the cycle
     without = FastPredictor(StiffnessModel(fixed.model.robot, [e for e in fixed.model.effects if e is not offset]))
     rows = np.arange(0, len(data), 97)
     sub = Dataset(data.time_s[rows], data.config[rows], data.q_deg[rows], data.wrench[rows], np.full(len(rows), 6),
@@ -112,7 +121,10 @@ def test_the_running_cycle_starts_with_the_toy_and_corrects_by_it(toy):
     q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
     out = []
     for model in (base, with_toy):
-        p = Cycle.from_config(cfg, model).compensator.predictor
+        comp = Cycle.from_config(cfg, model).compensator
+        comp.compile()                                      # the cycle as the service runs it: compiled
+        p = comp.predictor
+        assert p.kernel is not None
         p.kinematics(np.radians(q))
         out.append(p.correction(np.radians(q), p.deflection(p.wrench_base([300.0, 0, 200.0, 0, 0, 0]))))
     # the toy turns joint 2 by +c: the correction turns it back (other joints hold the TCP's pose)
