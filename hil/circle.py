@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import tempfile
 from dataclasses import dataclass
@@ -10,8 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from stiffness.model import StiffnessModel
+from stiffness.yamlio import deep_update
 
 from .cmm import CmmResult, measure
+from .dynamics import DynamicOptions, identify_from_pass, service_dynamics, structure_section
 from .lockstep import run_lockstep
 from .report import end_to_end_delay, errors, evaluate, plot, window_errors, windows_figure
 from .robot_stub import RobotStub
@@ -64,61 +67,85 @@ def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult)
 def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,
                compensation: bool = True, report: Path | None = None, workdir: Path | None = None,
                faults: Faults | None = None, service_overrides: dict | None = None,
-               trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False) -> CircleResult:
+               trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
+               dynamic: DynamicOptions | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
     one) writes the service's ``trace`` (`stiffcomp run --trace`) and the virtual CMM's points of the part
     it cut to ``cmm`` (`hil.cmm`); the summary's ``part_error_mm`` is that part's mean error. ``lockstep``:
-    each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time.
+    each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time. ``dynamic``: a
+    third pass with the dynamic compensation (`hil.dynamics`): the modes identified from the uncompensated
+    pass, the delay measured on the static one; the summary's figures are then the dynamic pass's, with the
+    static pass's as ``*_static`` twins.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
     StiffnessModel.from_yaml(model_path)               # a bad model fails here, before any process starts
+    if lockstep and faults is not None:
+        raise HilError("faults are injected in real time only: run without --lockstep")
+    found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
+    names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
+    passes: dict[str, PassResult] = {}
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
-        if lockstep:
-            if faults is not None:
-                raise HilError("faults are injected in real time only: run without --lockstep")
-            passes = {"uncompensated": run_lockstep(scenario, truth, model_path, False, base / "uncompensated",
-                                                    service_overrides, None if compensation else trace)}
-            if compensation:
-                passes["compensated"] = run_lockstep(scenario, truth, model_path, True, base / "compensated",
-                                                     service_overrides, trace)
-        else:
-            passes = {"uncompensated": run_pass(scenario, truth, model_path, False, base / "uncompensated",
-                                                service_overrides=service_overrides,
-                                                trace=None if compensation else trace)}
-            if compensation:
-                passes["compensated"] = run_pass(scenario, truth, model_path, True, base / "compensated", faults,
-                                                 service_overrides, trace)
+        overrides = dict(service_overrides or {})
+        for name in names:
+            last = name == names[-1]
+            if name == "dynamic":
+                delay = end_to_end_delay(World(scenario, truth.robot), passes["compensated"].log) or 0.0
+                overrides = deep_update(copy.deepcopy(overrides), service_dynamics(
+                    found, 1000.0 * delay, dynamic, scenario, World(scenario, truth.robot), base / "dynamic"))
+            if lockstep:
+                passes[name] = run_lockstep(scenario, truth, model_path, name != "uncompensated", base / name,
+                                            overrides, trace if last else None)
+            else:
+                passes[name] = run_pass(scenario, truth, model_path, name != "uncompensated", base / name,
+                                        faults if name == "compensated" else None, overrides,
+                                        trace if last else None)
     evals, parts = {}, {}
     world = None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
+    summary = summarise(world, passes, evals, parts, lockstep)
+    if found is not None:
+        summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
+                               "predictor": dynamic.predictor, "feedforward": dynamic.feedforward,
+                               "explained": round(found.explained, 5),
+                               "explained_static": round(found.explained_static, 5)}
+    if cmm is not None:
+        parts[names[-1]].write(cmm)
+    if report is not None:
+        write_report(Path(report), world, evals, passes, summary)
+    return CircleResult(summary, passes, evals, world, parts)
+
+
+def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool) -> dict:
+    """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
+    uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``."""
+    last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
-    mean_c, max_c = errors(evals["compensated"]) if compensation else (mean_u, max_u)
-    last = passes["compensated" if compensation else "uncompensated"].stats[-1]
+    mean_c, max_c = errors(evals[last])
+    stats = passes[last].stats[-1]
     summary = {"mean_error_mm": round(mean_c, 4), "max_error_mm": round(max_c, 4),
                "mean_error_mm_uncompensated": round(mean_u, 4), "max_error_mm_uncompensated": round(max_u, 4),
-               "cycles": int(last.get("cycles", 0)), "exceed_count": int(last.get("exceed_count", 0))}
-    last = "compensated" if compensation else "uncompensated"
-    for name, suffix in (("compensated", ""), ("uncompensated", "_uncompensated")):
-        if name in evals:
-            summary.update({k + suffix: round(v, 4) for k, v in window_errors(world, evals[name]).items()})
-    delay = end_to_end_delay(world, passes[last].log) if compensation else None
+               "cycles": int(stats.get("cycles", 0)), "exceed_count": int(stats.get("exceed_count", 0))}
+    twins = [(last, ""), ("uncompensated", "_uncompensated")]
+    if last == "dynamic":
+        twins.append(("compensated", "_static"))
+        mean_s, max_s = errors(evals["compensated"])
+        summary.update(mean_error_mm_static=round(mean_s, 4), max_error_mm_static=round(max_s, 4))
+    for name, suffix in twins:
+        summary.update({k + suffix: round(v, 4) for k, v in window_errors(world, evals[name]).items()})
+    delay = end_to_end_delay(world, passes["compensated"].log) if "compensated" in passes else None
     summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
     summary["part_error_mm"] = round(parts[last].part_error_mm, 4)
     summary["part_error_mm_uncompensated"] = round(parts["uncompensated"].part_error_mm, 4)
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
                          {"exceeded_share": 0.0, "trustworthy": True,
                           "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
-    if cmm is not None:
-        parts[last].write(cmm)
-    if report is not None:
-        write_report(Path(report), world, evals, passes, summary)
-    return CircleResult(summary, passes, evals, world, parts)
+    return summary
 
 
 @dataclass

@@ -105,7 +105,7 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
     rmap = cfg.register_map()
     c = scenario.plc
     logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s,
-                     delay_s=c.extra_delay_ms / 1000.0)
+                     delay_s=c.extra_delay_ms / 1000.0, plan=world.plan)
     out_codec, in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
     out_block, in_block = rmap.blocks["to_plc"], rmap.blocks["from_plc"]
     image = service.image

@@ -72,4 +72,8 @@ class MillingForce:
     def force(self, t: np.ndarray, tangent: np.ndarray, outward: np.ndarray, axis_out: np.ndarray) -> np.ndarray:
         """F(t) (N, base axes), (N, 3) for arrays of times and the path's unit vectors at those times."""
         s = (self.engagement(t) * self.modulation(t))[..., None]
-        return s * (-self.Ff * tangent + self.normal_sign * self.Fn * outward + self.Fa * axis_out)
+        return s * self.nominal(tangent, outward, axis_out)
+
+    def nominal(self, tangent: np.ndarray, outward: np.ndarray, axis_out: np.ndarray) -> np.ndarray:
+        """The bracket of F(t): the force at full engagement without the tooth passing (N)."""
+        return -self.Ff * tangent + self.normal_sign * self.Fn * outward + self.Fa * axis_out

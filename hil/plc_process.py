@@ -24,7 +24,7 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
     world = World(scenario, robot)
     c = scenario.plc
     logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s,
-                     faults, c.extra_delay_ms / 1000.0)
+                     faults, c.extra_delay_ms / 1000.0, world.plan)
     plc = VirtualPlc(logic, rmap, "127.0.0.1", port, c.period_ms / 1000.0)
     try:
         if not plc.connect(time.monotonic() + connect_timeout_s):

@@ -90,6 +90,16 @@ def end_to_end_delay(world: World, log: dict) -> float | None:
     return float(LAGS_S[k])
 
 
+STYLES = {"uncompensated": ("tab:red", "-"), "compensated": ("tab:blue", "-"), "dynamic": ("tab:green", "-")}
+
+
+def label(name: str, passes: dict) -> str:
+    """A pass's name in a legend: with a dynamic pass beside it, the compensated one is the static one."""
+    if "dynamic" in passes:
+        return {"compensated": "static compensation", "dynamic": "dynamic compensation"}.get(name, name)
+    return name
+
+
 def errors(ev: dict) -> tuple[float, float]:
     """(mean, max) absolute path error over the cut, mm."""
     e = np.abs(ev["err_mm"][ev["cut"]])
@@ -111,12 +121,12 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
     ax = fig.add_subplot(1, 2, 1, aspect="equal")
     th = np.linspace(0, 2 * np.pi, 721)
     ax.plot(r_mm * np.cos(th), r_mm * np.sin(th), "k-", lw=1.2, label="nominal")
-    styles = {"uncompensated": ("tab:red", "-"), "compensated": ("tab:blue", "-")}
+    styles = STYLES
     for name, ev in passes.items():
         c = ev["cut"]
         rr = r_mm + exaggerate * ev["err_mm"][c]
         ax.plot(rr * np.cos(ev["angle"][c]), rr * np.sin(ev["angle"][c]), color=styles[name][0], lw=0.9,
-                label=f"{name} (error x{exaggerate:g})")
+                label=f"{label(name, passes)} (error x{exaggerate:g})")
     ax.set_xlabel("x in the circle's plane, mm")
     ax.set_ylabel("y, mm")
     ax.set_title(f"a) milled circle, r = {r_mm:g} mm")
@@ -125,7 +135,7 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
         c = ev["cut"]
         mean = np.abs(ev["err_mm"][c]).mean()
         bx.plot(np.degrees(ev["angle"][c]), ev["err_mm"][c], color=styles[name][0], lw=0.8,
-                label=f"{name}: mean |e| {mean:.3f} mm")
+                label=f"{label(name, passes)}: mean |e| {mean:.3f} mm")
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_xlabel("angle along the circle, deg")
     bx.set_ylabel("point-to-point (radial) error, mm")
@@ -138,13 +148,13 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
 def windows_figure(world: World, passes: dict[str, dict]) -> Figure:
     """The path error in the entry and the exit windows (and 50 ms either side), each pass a line."""
     fig = Figure(figsize=(12, 4.4), layout="constrained")
-    styles = {"uncompensated": "tab:red", "compensated": "tab:blue"}
     axes = []
     for k, (name, (a, b)) in enumerate(windows(world).items()):
         ax = fig.add_subplot(1, 2, k + 1)
         for pname, ev in passes.items():
             m = (ev["t"] >= a - 0.05) & (ev["t"] <= b + 0.05)
-            ax.plot(1000 * (ev["t"][m] - a), ev["err_mm"][m], color=styles.get(pname), lw=0.9, label=pname)
+            ax.plot(1000 * (ev["t"][m] - a), ev["err_mm"][m], color=STYLES[pname][0], lw=0.9,
+                    label=label(pname, passes))
         ax.axvspan(0, 1000 * (b - a), color="0.9")
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_xlabel(f"ms after the {name} (shaded: the {name} window)")

@@ -30,25 +30,10 @@ import numpy as np
 from pydantic import Field, field_validator
 from scipy import signal
 
+from stiffness.dynamics.structure import ModeConfig, orthogonal
 from stiffness.yamlio import Strict
 
 GRID_S = 5e-4            # the structure's time step
-
-
-class ModeConfig(Strict):
-    """One mode: frequency (Hz, at the reference reach), damping ratio and direction (the arm's frame)."""
-
-    hz: float = Field(gt=0.0, le=500.0)
-    damping: float = Field(ge=1e-3, le=2.0)
-    direction: list[float] = Field(min_length=3, max_length=3)
-
-    @field_validator("direction")
-    @classmethod
-    def _unit(cls, v: list[float]) -> list[float]:
-        n = float(np.linalg.norm(v))
-        if n < 1e-9:
-            raise ValueError("must not be zero: the direction the mode moves the TCP, [x, y, z] in the arm's frame")
-        return [float(x) / n for x in v]
 
 
 def _default_modes() -> list[ModeConfig]:
@@ -66,13 +51,7 @@ class StructureConfig(Strict):
     reach_ref_m: float = Field(1.8, gt=0.1, le=10.0)
     reach_exponent: float = Field(1.0, ge=0.0, le=4.0)
 
-    @field_validator("modes")
-    @classmethod
-    def _orthogonal(cls, v: list[ModeConfig]) -> list[ModeConfig]:
-        d = np.array([m.direction for m in v]).reshape(-1, 3)
-        if len(d) and not np.allclose(d @ d.T, np.eye(len(d)), atol=1e-6):
-            raise ValueError("the modes' directions must be orthogonal (a modal basis in Cartesian space)")
-        return v
+    _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))
 
 
 class Structure:

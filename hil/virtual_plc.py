@@ -66,11 +66,14 @@ class PlcLogic:
     delay_s : float
         Extra delay (s): the PLC applies each correction it read this much later (a slower fieldbus, a
         PLC task that runs late; the HIL's ``plc.extra_delay_ms``).
+    plan : callable t -> (program time (s), engagement planned ahead), optional
+        What the program writes to ``plan_time_s`` and ``plan_engagement`` where the map has them (the
+        feedforward's plan, `service.dynamics`); without it: -1 (no program) and 0.
     """
 
     def __init__(self, rmap: RegisterMap, reference: Callable[[float], list[float]], compensate: bool = True,
                  service_timeout_s: float = 0.1, max_rate_deg_s: float = 2.0, faults: PlcFaults | None = None,
-                 delay_s: float = 0.0):
+                 delay_s: float = 0.0, plan: Callable[[float], tuple[float, float]] | None = None):
         self.out_names = rmap.codecs["to_plc"].names
         self.in_names = rmap.codecs["from_plc"].names
         self._corr = [self.out_names.index(f"correction_q{i}") for i in range(1, 7)]
@@ -93,6 +96,7 @@ class PlcLogic:
         self.link_ok = False
         self.payload_index = 0          # the payload set the program selects (gravity.payloads)
         self.delay = float(delay_s)
+        self.plan = plan
         self._late: deque[tuple[float, list[float]]] = deque()      # (t, target) waiting for their time
 
     def step(self, t: float, to_plc: list[float] | None) -> tuple[list[float], list[float]]:
@@ -125,7 +129,9 @@ class PlcLogic:
         if self.faults.heartbeat_stop_at is None or t < self.faults.heartbeat_stop_at:
             self.heartbeat = (self.heartbeat + 1) & 0xFFFF
         command = int((Command.ENABLE if self.compensate else 0) | (Command.RESET if self.reset_pulse else 0))
+        program_t, engagement = self.plan(t) if self.plan is not None else (-1.0, 0.0)
         values = {"command_word": command, "plc_heartbeat": self.heartbeat, "payload_index": self.payload_index,
+                  "plan_time_s": program_t, "plan_engagement": engagement,
                   **{f"q{i + 1}": v for i, v in enumerate(q_cmd)}}
         return [values[n] for n in self.in_names], q_cmd
 

@@ -50,6 +50,24 @@ class World:
         L = np.eye(6) if input_map is None else np.asarray(input_map, dtype=float)
         self.measured_from_true = np.linalg.inv(L)                 # L^-1
 
+    PLAN_LOOKAHEAD_S = 0.05         # the PLC's plan_engagement is the engagement this far ahead
+
+    def program_time(self, t: np.ndarray | float) -> np.ndarray | float:
+        """The PLC program's time (s) at scenario time ``t``: from the pass's first cycle (the plan's time)."""
+        return t - self.t_start
+
+    def plan(self, t: float) -> tuple[float, float]:
+        """What the virtual PLC writes for the feedforward at ``t``: the program's time and the engagement
+        planned `PLAN_LOOKAHEAD_S` ahead."""
+        return float(self.program_time(t)), float(self.milling.engagement(t + self.PLAN_LOOKAHEAD_S))
+
+    def planned_force(self, t: np.ndarray) -> np.ndarray:
+        """The force at full engagement without the tooth passing (N, base axes, (N, 3)): the process plan's."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        phi = self.path.angle(t)
+        return self.milling.nominal(self.path.tangent(phi), self.path.outward(phi),
+                                    np.broadcast_to(self.axis_out, (len(t), 3)))
+
     def force(self, t: np.ndarray) -> np.ndarray:
         """Process force on the cutter (N, base axes), (N, 3) for times ``t``."""
         t = np.atleast_1d(np.asarray(t, dtype=float))

@@ -176,6 +176,10 @@ FROM_PLC: tuple[Value, ...] = (
     Value("payload_index", "uint16", "", "the payload set to use (gravity.payloads index; 0 the gravity "
           "section's bodies; a map without it reads 0); an index with no set is the fault payload_invalid",
           required=False),
+    Value("plan_time_s", "float32", "s", "the PLC program's time in the process plan of the feedforward "
+          "(dynamics.feedforward, source file); negative: no program running", required=False),
+    Value("plan_engagement", "float32", "", "the engagement (0..1) the PLC program plans "
+          "dynamics.feedforward.lookahead_ms ahead (source plc)", required=False),
 )
 
 VALUES: dict[str, dict[str, Value]] = {"to_plc": {v.name: v for v in TO_PLC},

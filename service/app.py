@@ -42,6 +42,7 @@ from plc_interface.io_server import IoSettings
 
 from .compensation import load_model
 from .config import ServiceConfig
+from .errors import ServiceConfigError
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
@@ -75,6 +76,12 @@ class Service:
         self.model = load_model(cfg)
         self.cycle = Cycle.from_config(cfg, self.model)
         self.rmap = cfg.register_map()
+        dyn = self.cycle.compensator.dynamics
+        for name in (dyn.plc_values() if dyn is not None else []):
+            if name not in self.rmap.codecs["from_plc"].index:
+                raise ServiceConfigError(f"{cfg.path}: dynamics.feedforward reads {name} from the PLC, but "
+                                         f"plc.register_map = {cfg.plc.register_map} has no register {name} "
+                                         "(docs/register_map.md, \"The plan\")")
         self.period = cfg.cycle.period_ms / 1000.0
         self.info = TaskInfo(self.period, cfg.cycle.history)
         self.produce = Producer()
@@ -149,7 +156,7 @@ class Service:
             self._begin_stop(t)
         q = (inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6)
         cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat), list(q), exceeded,
-                 int(inp.payload_index))
+                 int(inp.payload_index), inp)
         sig = cyc.signals()
         self.record = record = self.produce(self._task_values(TaskState.RUN), sig)
         go_on = not (cyc.stopping and self._stop_done(t))

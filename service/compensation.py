@@ -92,8 +92,9 @@ class FastPredictor:
         Newton steps on the full kinematics after the first linear step.
     """
 
-    def __init__(self, model: StiffnessModel, damping: float = 1e-3, refinement_iterations: int = 0):
-        terms = fast_terms(model)
+    def __init__(self, model: StiffnessModel, damping: float = 1e-3, refinement_iterations: int = 0,
+                 dynamics: list | None = None):
+        terms = fast_terms(model, dynamics)
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
         self.statics = model.statics()
@@ -145,8 +146,10 @@ class FastPredictor:
         self.kinematics(q)
 
     @classmethod
-    def from_config(cls, section: ModelConfig, model: StiffnessModel) -> FastPredictor:
-        return cls(model, section.damping, section.refinement_iterations)
+    def from_config(cls, section: ModelConfig, model: StiffnessModel, dynamics=None) -> FastPredictor:
+        """``dynamics``: a `service.dynamics.Dynamics` whose parts add their terms (fresh ones) to the model's."""
+        return cls(model, section.damping, section.refinement_iterations,
+                   dynamics.terms() if dynamics is not None else None)
 
     # -- per cycle ------------------------------------------------------------------------------
     def kinematics(self, q_rad: np.ndarray) -> None:
@@ -237,7 +240,7 @@ class FastPredictor:
             j = term.joint - 1
             delta[j, 5] += term.f(tau_s[j] + float(local[j, 5])) - at_rest[k]
         for h in self.history:
-            delta[h.joint - 1, 5] += h.gain * h.update(float(local[h.joint - 1, 5]))
+            delta[h.joint - 1, 5] += h.gain * h.update(float(local[h.joint - 1, 5]), dt)
         for b in self.frame_terms:
             delta[b.frame] += b.C @ local[b.frame]
         vx, vy, vz, ox, oy, oz = (self.Ad @ delta[:, :, None]).sum(0)[:, 0].tolist()

@@ -32,6 +32,7 @@ from stiffness.errors import StiffnessError, quote
 from stiffness.yamlio import Strict, format_validation_error, read_yaml
 
 from .compensation import ModelConfig
+from .dynamics import DynamicsConfig
 from .errors import ServiceConfigError
 from .filters import FilterConfig
 from .gravity import GravityConfig
@@ -54,6 +55,7 @@ class ServiceConfig(Strict):
     limits: LimitsConfig = Field(default_factory=LimitsConfig)
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
     tare: TareConfig = Field(default_factory=TareConfig)
+    dynamics: DynamicsConfig = Field(default_factory=DynamicsConfig)
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
     monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)
@@ -72,6 +74,9 @@ class ServiceConfig(Strict):
                  "source.ati.dbc": self.source.ati.dbc}
         if self.source.type == "replay" and self.source.replay is not None:
             files["source.replay.file"] = self.source.replay.file
+        ff = self.dynamics.feedforward
+        if self.dynamics.enabled and ff is not None and ff.file is not None:
+            files["dynamics.feedforward.file"] = ff.file
         files |= {f"plc.tls.{k}": v for k, v in self.plc.tls.files().items()}
         return files
 

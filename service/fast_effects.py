@@ -8,7 +8,7 @@ a partial model. With W_k = Ad_k^T w0 the wrench at DH frame k (Eq. 4):
 
 JointCompliance   summed into the diagonal compliances: delta_k += C_k W_k (Eq. 1, 5), k = i - 1
 AxialTerm         delta_rz,k += law(tau_i, p)
-HistoryTerm       delta_rz,k += gain * law(state, p, tau_i), the state fed tau_i every cycle; it lives in
+HistoryTerm       delta_rz,k += gain * law(state, p, tau_i, dt), the state fed tau_i every cycle; it lives in
                   the term and restarts at the first sample, after a tare and after a fault reset
 WrenchTerm        law(state, p, w0, dt): the external wrench, changed in place before the springs
 TwistTerm         law(state, p, dX, dt): the TCP deflection, changed in place before the correction
@@ -68,14 +68,17 @@ def input_rotation(model: StiffnessModel) -> np.ndarray:
     return R
 
 
-def fast_terms(model: StiffnessModel) -> FastTerms:
-    """Every effect of ``model`` as fast-path terms; refuses a model with an effect that has none."""
+def fast_terms(model: StiffnessModel, extra: list | None = None) -> FastTerms:
+    """Every effect of ``model`` as fast-path terms, then the ``extra`` terms (the dynamic compensation's,
+    `service.dynamics`); refuses a model with an effect that has none."""
     terms = FastTerms()
-    for e in model.effects:
-        parts = e.realtime(model.robot)
+    sources = [(e.label, e.realtime(model.robot)) for e in model.effects]
+    if extra:
+        sources.append(("dynamics", list(extra)))
+    for label, parts in sources:
         if parts is None:
             raise ModelUnsupportedError(
-                f"{model.source}: effect {e.label} is not supported by the real-time predictor (it has no "
+                f"{model.source}: effect {label} is not supported by the real-time predictor (it has no "
                 "real-time term, `Effect.realtime`); the service refuses to start rather than send a "
                 "correction that leaves it out")
         for t in parts:
@@ -95,7 +98,7 @@ def fast_terms(model: StiffnessModel) -> FastTerms:
                 terms.ignored.append(t.label)
                 log.warning("%s: %s ignored by the service: %s", model.source, t.label, t.reason)
             elif not isinstance(t, InputTerm):
-                raise ModelUnsupportedError(f"{model.source}: effect {e.label} returned {type(t).__name__}, "
+                raise ModelUnsupportedError(f"{model.source}: effect {label} returned {type(t).__name__}, "
                                             "which is not a real-time term (stiffness.effects.realtime)")
     terms.input_rotation = input_rotation(model)
     return terms

@@ -25,6 +25,7 @@ from stiffness.yamlio import Strict
 
 from .ati import Reading
 from .compensation import FastPredictor, ModelConfig
+from .dynamics import Dynamics
 from .errors import SensorError
 from .faults import FaultMonitor
 from .filters import FilterConfig, SosLowPass, SpikeRejector
@@ -81,12 +82,18 @@ class Compensator:
     payloads : PayloadSelector, optional
         The payload table the PLC selects from (`service.payloads`; its `PayloadSelector.reload` takes a
         new ``gravity`` section at run time); by default only the payload ``gravity`` holds, as index 0.
+    dynamics : Dynamics, optional
+        The dynamic compensation (`service.dynamics`), whose terms ``predictor`` already runs; the cycle feeds
+        its parts the PLC's values they read (the feedforward's plan) before the prediction.
     """
 
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
                  gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
-                 tare_max_force_N: float = math.inf, payloads: PayloadSelector | None = None):
+                 tare_max_force_N: float = math.inf, payloads: PayloadSelector | None = None,
+                 dynamics: Dynamics | None = None):
         self.predictor = predictor
+        self.dynamics = dynamics
+        self.feeds = dynamics is not None and bool(dynamics.plc_values())
         predictor.carry(gravity.mass, gravity.cog, gravity.g)      # the payload in the static torque
         self.payloads = payloads or PayloadSelector.only(gravity, predictor, faults)
         self.filter = filter
@@ -133,14 +140,15 @@ class Compensator:
     @classmethod
     def from_config(cls, model_section: ModelConfig, filter_section: FilterConfig, gravity: GravityConfig,
                     limits: LimitsConfig, tare: TareConfig, period_s: float, model: StiffnessModel,
-                    faults: FaultMonitor) -> Compensator:
-        """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare``."""
-        predictor = FastPredictor.from_config(model_section, model)
+                    faults: FaultMonitor, dynamics: Dynamics | None = None) -> Compensator:
+        """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare`` (and the
+        dynamic compensation built from ``dynamics``)."""
+        predictor = FastPredictor.from_config(model_section, model, dynamics)
         compensator = GravityCompensator.from_config(gravity)
         return cls(predictor, SosLowPass.from_config(filter_section, period_s),
                    SpikeRejector.from_config(filter_section.spike), compensator,
                    CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N,
-                   PayloadSelector.from_config(gravity, compensator, predictor, faults))
+                   PayloadSelector.from_config(gravity, compensator, predictor, faults), dynamics)
 
     def _tare(self, filtered: list[float]) -> None:
         """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
@@ -159,12 +167,13 @@ class Compensator:
         log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
-              hold: bool, reset: bool = False, payload_index: int = 0) -> list[float]:
+              hold: bool, reset: bool = False, payload_index: int = 0, inputs=None) -> list[float]:
         """One cycle at ``t`` (s); returns the limited joint correction (deg, six floats).
 
         ``q_deg``: new joint positions (None: unchanged); ``tare``: a tare edge (applied to the next
         sample); ``hold``: the correction must ramp to zero (not enabled, or stopping); ``reset``: the
-        faults were reset this cycle; ``payload_index``: the PLC's selection (`service.payloads`).
+        faults were reset this cycle; ``payload_index``: the PLC's selection (`service.payloads`);
+        ``inputs``: the PLC's `FromPlc` record, for the dynamic compensation's parts that read a value of it.
 
         The model's history (hysteresis) restarts at its defined state at the first sample (what came
         before was no measurement), when a tare is applied (the wrench jumps by the bias, not by a
@@ -175,6 +184,8 @@ class Compensator:
         if self.t_first is None:
             self.t_first = t
         pred = self.predictor
+        if self.feeds and inputs is not None:
+            self.dynamics.feed(t, inputs, pred.p_tcp)
         k = self.kernel
         if k is not None:
             if pred.kernel is not None:
@@ -301,17 +312,23 @@ class Cycle:
     def from_config(cls, cfg, model: StiffnessModel) -> Cycle:
         """The cycle as the service config composes it: each part is handed its own section."""
         faults = FaultMonitor()
+        period = cfg.cycle.period_ms / 1000.0
+        dynamics = Dynamics(cfg.dynamics, period, cfg.resolve)
+        if dynamics.active:
+            log.info("%s", dynamics.describe())
         return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.plc.enable_on_start),
-                   Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare,
-                                           cfg.cycle.period_ms / 1000.0,
-                                           model, faults))
+                   Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare, period,
+                                           model, faults, dynamics if dynamics.active else None))
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
-             plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0) -> list[float]:
-        """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats)."""
+             plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0,
+             inputs=None) -> list[float]:
+        """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats). ``inputs``:
+        the PLC's whole `FromPlc` record (the dynamic compensation's feedforward reads its plan there)."""
         s = self.supervisor.update(t, command, plc_heartbeat, q_deg, overrun, errors)
         comp = self.compensator
-        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index)
+        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index,
+                         inputs)
         word = self.faults.word
         self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
                             | (_RAMPING if comp.limiter.ramping else 0)

@@ -47,8 +47,8 @@ from .supervision import Supervisor
 log = logging.getLogger("stiffcomp.service")
 
 # what only a restart applies: the sections of sockets, the cycle's timing and thread, the opened sensor
-# and the image laid out by the register map; the model's structure (its robot and effects)
-RESTART = ("cycle", "source", "plc", "ads", "monitoring")
+# and the image laid out by the register map; the dynamic compensation's states; the model's structure
+RESTART = ("cycle", "source", "plc", "ads", "monitoring", "dynamics")
 STRUCTURE = ("model.file:robot.", "model.file:effects")
 RESTART_KEYS = {"gravity.g_mps2"}         # gravity's direction: the arm's static torque too, not a payload switch
 LOWPASS = {"filter.type", "filter.order", "filter.cutoff_hz"}          # a new low-pass (the rest: parameters)
@@ -214,7 +214,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
     timeout_s, tare_max = new.faults.sensor_timeout_ms / 1000.0, new.tare.max_force_N
     pred = None
     if any(k.startswith("model.") for k in changes):
-        pred = FastPredictor.from_config(new.model, model)     # ModelUnsupportedError: refused
+        pred = FastPredictor.from_config(new.model, model, comp.dynamics)   # ModelUnsupportedError: refused
         g = comp.gravity
         pred.carry(g.mass, g.cog, g.g)           # the payload now; the swap takes the switch's blend of then
         q_prep = comp.q_rad

@@ -24,8 +24,6 @@ trace says the tool went only after scaling by 25.4 or 1000 is named as inches o
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +32,7 @@ import numpy as np
 import yaml
 from pydantic import Field
 
+from .csvtable import read_table
 from .errors import DataError, Problems, quote
 from .robot import PoseConfig
 from .yamlio import NoAliasLoader, Strict, format_validation_error
@@ -82,38 +81,20 @@ def read_part(path: str | Path) -> PartMeasurement:
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: part file not found")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as e:
-        raise DataError(f"{path}: cannot read: {e}") from e
-    lines = text.splitlines()
-    head = []
-    k = 0
-    while k < len(lines) and (lines[k].startswith("#") or not lines[k].strip()):
-        head.append(lines[k][1:] if lines[k].startswith("#") else "")
-        k += 1
-    header = _header(path, head)
-    if k >= len(lines):
-        raise DataError(f"{path}: no header row after the '#' lines; expected point,x_mm,y_mm,z_mm")
-    reader = csv.reader(io.StringIO("\n".join(lines[k:])))
-    cols = [c.strip() for c in next(reader)]
+    problems = Problems()
+    table = read_table(path, problems, "point,x_mm,y_mm,z_mm")
+    header = _header(path, table.head)
+    cols = table.cols
     missing = [c for c in POINT_COLS if c not in cols]
     if missing:
         unit = next((c for c in cols if c.lower() in ("x_in", "x_inch", "x_m")), None)
         hint = f" ({unit} is not millimetres: the format is mm)" if unit else ""
-        raise DataError(f"{path}: line {k + 1}: missing column(s) {', '.join(missing)}{hint}; "
+        raise DataError(f"{path}: line {table.header_line}: missing column(s) {', '.join(missing)}{hint}; "
                         f"the format needs {', '.join(POINT_COLS)} (docs/part_format.md)")
     idx = [cols.index(c) for c in POINT_COLS]
     label_col = cols.index("point") if "point" in cols else None
-    problems = Problems()
     pts, labels, where = [], [], []
-    for n, row in enumerate(reader):
-        line = k + 2 + n
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(cols):
-            problems.add(f"{path}: line {line}: {len(row)} fields, the header has {len(cols)}")
-            continue
+    for line, row in table.rows:
         try:
             p = [float(row[i]) for i in idx]
         except ValueError:

@@ -33,6 +33,19 @@ def register(sub) -> None:
                         "them (deterministic; no real time, no protocols' transport)")
     c.add_argument("--center-q", type=float, nargs=6, default=None, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
                    help="cut the circle here instead (joints at its centre, deg; the scenario's circle.center_q_deg)")
+    d = c.add_argument_group("dynamic compensation (docs/dynamics.md)")
+    d.add_argument("--dynamic-compensation", action="store_true",
+                   help="a third pass with the service's dynamic path on: the modes identified from the "
+                        "uncompensated pass (as `stiffcomp modes` would), the delay measured on the static pass")
+    d.add_argument("--mode-error", type=float, default=0.0, metavar="F",
+                   help="the service's mode frequencies scaled by 1 + F (a model that is off; e.g. 0.2, -0.2)")
+    d.add_argument("--added-damping", type=float, default=0.0, metavar="Z",
+                   help="dynamics.structure.added_damping: the robust modal filter (0: the modes as identified)")
+    d.add_argument("--feedforward", action="store_true",
+                   help="also the feedforward from the process plan (the PLC writes its program time)")
+    d.add_argument("--no-predictor", action="store_true", help="the dynamic pass without the wrench predictor")
+    d.add_argument("--modes-data", default=None, metavar="FILE.csv",
+                   help="write the commissioning record (force and path of the uncompensated pass) for `stiffcomp modes`")
     c.set_defaults(func=run)
 
 
@@ -48,20 +61,33 @@ def run(args) -> int:
         from service.trace import TraceOptions
 
         TraceOptions(Path(args.trace)).check()          # a bad name fails now, not after the first pass
+    dynamic = None
+    if args.dynamic_compensation:
+        from hil.dynamics import DynamicOptions
+
+        dynamic = DynamicOptions(args.mode_error, args.added_damping, args.feedforward,
+                                 record=Path(args.modes_data) if args.modes_data else None,
+                                 predictor=not args.no_predictor)
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
-                     lockstep=args.lockstep)
+                     lockstep=args.lockstep, dynamic=dynamic)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
     else:
         print(f"path error without compensation: mean {s['mean_error_mm_uncompensated']:.3f} mm, "
               f"max {s['max_error_mm_uncompensated']:.3f} mm")
+        if "mean_error_mm_static" in s:
+            print(f"path error, static compensation:  mean {s['mean_error_mm_static']:.3f} mm, "
+                  f"max {s['max_error_mm_static']:.3f} mm; entry/exit peaks {s['entry_peak_mm_static']:.3f} / "
+                  f"{s['exit_peak_mm_static']:.3f} mm")
         if not args.no_compensation:
             red = 100 * (1 - s["mean_error_mm"] / s["mean_error_mm_uncompensated"])
-            print(f"path error with compensation:    mean {s['mean_error_mm']:.3f} mm, "
-                  f"max {s['max_error_mm']:.3f} mm ({red:.0f} % less)")
+            what = "dynamic compensation:" if "mean_error_mm_static" in s else "with compensation:   "
+            print(f"path error, {what} mean {s['mean_error_mm']:.3f} mm, "
+                  f"max {s['max_error_mm']:.3f} mm ({red:.0f} % less); entry/exit peaks {s['entry_peak_mm']:.3f} / "
+                  f"{s['exit_peak_mm']:.3f} mm; end-to-end delay {s['delay_ms']} ms")
         print(f"part error (virtual CMM, mean |normal deviation|): {s['part_error_mm']:.3f} mm")
         print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded: {s['timing']['verdict']}")
         if args.trace:

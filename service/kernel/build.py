@@ -27,7 +27,7 @@ from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
 COMPILED_FILES = ("chain.py", "signal.py", "template.py", "build.py")     # what the generated module runs
-_HEAD = {"axial": "(tau, p)", "history": "(s, p, tau)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
+_HEAD = {"axial": "(tau, p)", "history": "(s, p, tau, dt)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}
 
 

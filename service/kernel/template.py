@@ -24,7 +24,7 @@ def axial_law(k, tau, p):
 
 
 @njit(cache=True)
-def history_law(k, s, p, tau):
+def history_law(k, s, p, tau, dt):
 {history}
     return 0.0
 
@@ -100,7 +100,7 @@ def predict(wb, ps, Ad, comp, tau_s, axj, axl, axp, at_rest, hj, hl, hp, hs, hg,
         delta[j, 5] += axial_law(axl[n], tau_s[j] + local[j, 5], axp[n]) - at_rest[n]
     for n in range(len(hj)):
         j = hj[n]
-        delta[j, 5] += hg[n] * history_law(hl[n], hs[n], hp[n], local[j, 5])
+        delta[j, 5] += hg[n] * history_law(hl[n], hs[n], hp[n], local[j, 5], dt)
     for n in range(len(fm)):
         m = fm[n]
         for r in range(6):

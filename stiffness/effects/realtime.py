@@ -8,7 +8,7 @@ With W_k = Ad_k^T w0 the external wrench at DH frame k (Eq. 4) and delta_k the t
 =================  =====================================================================================
 JointCompliance    delta_{i-1} += diag(c) W_{i-1}: the springs of joint i (Eq. 1, 5)
 AxialTerm          delta_{i-1}[rz] += law(tau_i, params), tau_i = W_{i-1}[rz]: a function of the joint's torque
-HistoryTerm        delta_{i-1}[rz] += gain * law(state, params, tau_i): a function of the torque's history;
+HistoryTerm        delta_{i-1}[rz] += gain * law(state, params, tau_i, dt): a function of the torque's history;
                    ``law`` updates ``state`` (a float array) in place; the state restarts at ``start`` at
                    the first sample, a tare and a fault reset
 WrenchTerm         law(state, params, w0, dt) changes w0 in place (the external wrench in base axes, about
@@ -91,14 +91,14 @@ class _StatefulTerm:
 
 @dataclass
 class HistoryTerm(_StatefulTerm):
-    """delta_rz += gain * law(state, params, tau): the joint torque's history."""
+    """delta_rz += gain * law(state, params, tau, dt): the joint torque's history (dt: s since the last cycle)."""
 
     joint: int = 0
     gain: float = 0.0                      # rad per unit of the law's value
 
-    def update(self, tau: float) -> float:
-        """Feed this cycle's torque (Nm); returns the law's value (before the gain)."""
-        return self.law(self.state, self.params, tau)
+    def update(self, tau: float, dt: float = 0.0) -> float:
+        """Feed this cycle's torque (Nm), ``dt`` s after the last; returns the law's value (before the gain)."""
+        return self.law(self.state, self.params, tau, dt)
 
 
 @dataclass

@@ -149,8 +149,8 @@ def test_an_effect_without_a_compiled_form_runs_on_the_python_path(caplog, monke
     cfg.plc.role, cfg.ads.enabled, cfg.monitoring.enabled = "none", False, False
     terms = service.compensation.fast_terms
 
-    def with_a_callable(m):
-        t = terms(m)
+    def with_a_callable(m, *dynamics):
+        t = terms(m, *dynamics)
         t.axial.append(AxialTerm(2, lambda tau: 1e-5))
         return t
 

@@ -1,0 +1,96 @@
+"""The dynamic compensation in the service: the ``dynamics`` section, its parts' terms and the plan's feed.
+
+Off by default. With ``enabled: true`` each part the section holds (`stiffness.dynamics.PARTS`: the
+predictor, the feedforward, the structure's modes; docs/dynamics.md) is built from its own sub-section and
+returns its per-cycle terms of the real-time kinds, which the predictor (`FastPredictor`) runs with the
+model's own: a `WrenchTerm` on the external wrench before the springs, a `TwistTerm` on the deflection
+before the correction, on the Python and the compiled path alike. The correction they change goes through
+the same limiter as the static one (its ramps and the fault ramp), and every state restarts at the first
+sample, after a tare and after a fault reset.
+
+``delay_ms`` is the end-to-end delay from the force at the tool to the correction at the joints (what
+`stiffcomp hil circle` reports as delay_ms, or a commissioning measurement); the predictor's horizon is
+that less the structure's own lag (`stiffness.dynamics.base.DynamicsContext`).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from pydantic import Field, create_model
+
+from stiffness.dynamics import PARTS, DynamicsContext, Part
+from stiffness.effects.realtime import Term
+from stiffness.errors import StiffnessError
+from stiffness.yamlio import Strict
+
+from .errors import ServiceConfigError
+
+log = logging.getLogger("stiffcomp.service")
+
+DynamicsConfig = create_model(
+    "DynamicsConfig", __base__=Strict, __doc__="``dynamics``: the dynamic compensation (module docstring).",
+    enabled=(bool, False),
+    delay_ms=(float, Field(8.0, ge=0.0, le=200.0)),
+    **{name: (cls.Config | None, None) for name, cls in PARTS.items()})
+
+
+class Dynamics:
+    """The parts of one ``dynamics`` section, and the terms they gave to the predictors that run them.
+
+    Parameters
+    ----------
+    section : DynamicsConfig
+    period_s : float
+        The cycle's period.
+    resolve : callable (str) -> Path
+        A path written in the config, found (the plan file).
+    """
+
+    def __init__(self, section, period_s: float, resolve=None):
+        self.section = section
+        self.period_s = float(period_s)
+        self.parts: list[Part] = []
+        self._resolve = resolve
+        if section.enabled:
+            self.parts = [self._part(name, cls, getattr(section, name)) for name, cls in PARTS.items()
+                          if getattr(section, name) is not None]
+
+    def _part(self, name: str, cls: type[Part], cfg) -> Part:
+        try:
+            return cls.from_config(cfg, self._resolve)
+        except StiffnessError as e:
+            raise ServiceConfigError(f"dynamics.{name}: {e}") from e
+
+    @property
+    def active(self) -> bool:
+        return bool(self.parts)
+
+    def terms(self) -> list[Term]:
+        """Fresh terms of every part (their states at the start), in the registry's order."""
+        lag = sum(p.lag_s() for p in self.parts)
+        ctx = DynamicsContext(self.period_s, self.section.delay_ms / 1000.0, lag)
+        out: list[Term] = []
+        for part in self.parts:
+            try:
+                out += part.terms(ctx)
+            except ValueError as e:
+                raise ServiceConfigError(f"dynamics.{part.name}: {e}") from e
+            ctx = part.context(ctx)
+        return out
+
+    def plc_values(self) -> list[str]:
+        """The contract values the parts read from the PLC every cycle (`feed`)."""
+        return [v for p in self.parts if (v := p.plc_value()) is not None]
+
+    def feed(self, t: float, inputs, p_tcp) -> None:
+        """This cycle's values from the PLC (``inputs``: the `FromPlc` record) into the parts that read one."""
+        for p in self.parts:
+            name = p.plc_value()
+            if name is not None:
+                p.feed(t, float(getattr(inputs, name)), p_tcp)
+
+    def describe(self) -> str:
+        if not self.parts:
+            return "dynamic compensation off"
+        return f"dynamic compensation (delay {self.section.delay_ms:g} ms): " + "; ".join(p.describe() for p in self.parts)

@@ -1,0 +1,57 @@
+"""A CSV a person or an instrument writes: '#' lines first (kept: they may hold a header), a row of column
+names, rows of fields. The one reader of its layout: rows with the wrong number of fields become problems
+that name the file and the line; what the fields mean is the caller's (a part file, a process plan, a
+force and path record).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import DataError, Problems
+
+
+@dataclass
+class Table:
+    """The '#' lines (without the '#'), the header's line (from 1), the column names and the data rows
+    (line, fields), each with as many fields as the header."""
+
+    head: list[str]
+    header_line: int
+    cols: list[str]
+    rows: list[tuple[int, list[str]]]
+
+
+def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
+    """``path``'s table; a row with the wrong number of fields is added to ``problems`` and left out.
+    DataError when the file is missing, unreadable or has no header row (``expected`` says which columns)."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: file not found")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: cannot read: {e}") from e
+    lines = text.splitlines()
+    head = []
+    k = 0
+    while k < len(lines) and (lines[k].startswith("#") or not lines[k].strip()):
+        head.append(lines[k][1:] if lines[k].startswith("#") else "")
+        k += 1
+    if k >= len(lines):
+        raise DataError(f"{path}: no header row after the '#' lines; expected {expected}")
+    reader = csv.reader(io.StringIO("\n".join(lines[k:])))
+    cols = [c.strip() for c in next(reader)]
+    rows = []
+    for n, row in enumerate(reader):
+        line = k + 2 + n
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(cols):
+            problems.add(f"{path}: line {line}: {len(row)} fields, the header has {len(cols)}")
+            continue
+        rows.append((line, row))
+    return Table(head, k + 1, cols, rows)

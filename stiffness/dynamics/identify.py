@@ -1,0 +1,203 @@
+"""Commissioning: the structure's modes identified from a recorded force and path (`stiffcomp modes DATA`).
+
+The record (CSV, `read_record`): the time t_s, the force at the tool fx_N, fy_N, fz_N (base axes: a
+dynamometer's, a tap test's hammer, or the HIL's process force) and the TCP's deflection from its path
+dx_mm, dy_mm, dz_mm (base axes: a laser tracker's, or the HIL's robot stub). The model is the structure's
+(`stiffness.dynamics.structure`) on a static compliance C (3 x 3, m/N) and an offset b, the force through
+the arm's own lag L (a critically damped low-pass, (1 + s L / 2)^-2: the joints do not follow the tooth
+passing; its delay at low frequency is L):
+
+    d(t) = R[ C F_L(t) ] + b,     R[x] = x + sum_k phi_k (H_k (phi_k . x) - phi_k . x)
+
+with each H_k the mode (f_k, zeta_k) as the service runs it. The fit:
+
+1. L, C and b of the static part alone (L on a grid, C and b by least squares for each);
+2. the modes' directions from the principal axes of what that leaves (band-passed), their frequencies from
+   the peaks of its spectrum along them;
+3. f_k, zeta_k, L and the directions' common rotation by nonlinear least squares (scipy.optimize), C and
+   b solved linearly inside it for each guess (variable projection), the biquads of `Structure.respond`
+   simulating the record.
+
+The result says how much of the deflection the identified structure explains, against the static fit
+alone, and `figure` plots the identified response over the measured one. ``to_config`` is the
+``dynamics.structure`` section for the service config.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import optimize, signal
+from scipy.spatial.transform import Rotation
+
+from ..errors import DataError
+from ..units import M_TO_MM, MM_TO_M
+from .records import read_columns
+from .structure import ModeConfig, Structure
+
+FORCE = ("fx_N", "fy_N", "fz_N")
+DEFLECTION = ("dx_mm", "dy_mm", "dz_mm")
+SLOW_HZ = 2.0            # the static fit's low-pass
+BAND_HZ = (3.0, 60.0)    # where modes are looked for
+
+
+@dataclass
+class Record:
+    """A force and a path on a uniform time grid: t (s), force (N, 3; N), deflection (N, 3; m)."""
+
+    t: np.ndarray
+    force: np.ndarray
+    deflection: np.ndarray
+    source: str = "<record>"
+
+    @property
+    def period(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+
+def read_record(path: str | Path) -> Record:
+    """The record CSV (module docstring); resampled to its median step when the steps vary by more than 1 %."""
+    cols = read_columns(path, ("t_s", *FORCE, *DEFLECTION), what="force and path record")
+    t = cols["t_s"]
+    force = np.column_stack([cols[c] for c in FORCE])
+    d = np.column_stack([cols[c] for c in DEFLECTION]) * MM_TO_M
+    return uniform(Record(t, force, d, str(path)))
+
+
+def uniform(rec: Record) -> Record:
+    """``rec`` on a uniform grid (linear interpolation at the median step, when the steps vary by > 1 %)."""
+    dt = np.diff(rec.t)
+    step = float(np.median(dt))
+    if len(rec.t) < 200:
+        raise DataError(f"{rec.source}: {len(rec.t)} samples; the identification needs at least 200")
+    if np.ptp(dt) <= 0.01 * step:
+        return rec
+    t = np.arange(rec.t[0], rec.t[-1], step)
+    f = np.column_stack([np.interp(t, rec.t, rec.force[:, k]) for k in range(3)])
+    d = np.column_stack([np.interp(t, rec.t, rec.deflection[:, k]) for k in range(3)])
+    return Record(t, f, d, rec.source)
+
+
+@dataclass
+class Identified:
+    """What the identification found: the structure (modes, lag), the static compliance and the fit."""
+
+    structure: Structure
+    compliance: np.ndarray                  # C (3, 3), m/N
+    offset: np.ndarray                      # b (3,), m
+    explained: float                        # share of the deflection's variance (about its mean) explained
+    explained_static: float                 # the same for the static fit alone (no modes, no lag)
+    rms_mm: float                           # the residual's RMS
+    model: np.ndarray = field(repr=False)   # the identified response (N, 3), m
+    static: np.ndarray = field(repr=False)  # the static fit alone (N, 3), m
+
+    def to_config(self) -> dict:
+        """The service config's ``dynamics.structure`` section."""
+        s = self.structure.cfg
+        return {"modes": [{"hz": round(m.hz, 3), "damping": round(m.damping, 4),
+                           "direction": [round(x, 5) for x in m.direction]} for m in s.modes],
+                "lag_ms": round(s.lag_ms, 2)}
+
+
+def _structure(hz, zeta, frame, n, lag_s) -> Structure:
+    modes = [ModeConfig(hz=float(hz[k]), damping=float(zeta[k]), direction=list(frame[:, k])) for k in range(n)]
+    return Structure(Structure.Config(modes=modes, lag_ms=1000.0 * lag_s))
+
+
+def _late(rec: Record, lag_s: float) -> np.ndarray:
+    """F_L (N, 3): the force through the critically damped low-pass of delay L, from its steady state."""
+    if lag_s <= 0.0:
+        return rec.force
+    w = 2.0 / lag_s
+    b, a = signal.bilinear([w * w], [1.0, 2.0 * w, w * w], 1.0 / rec.period)
+    return signal.lfilter(b, a, rec.force, axis=0, zi=signal.lfilter_zi(b, a)[:, None] * rec.force[:1])[0]
+
+
+def _solve(rec: Record, st: Structure, lag_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """C, b (least squares) and the model's response for the structure ``st`` and lag, by variable projection."""
+    late = _late(rec, lag_s)
+    n = len(rec.t)
+    cols = []
+    for i in range(3):                          # R[e_i F_j(t - L)]: the response to the compliance C_ij
+        for j in range(3):
+            x = np.zeros((n, 3))
+            x[:, i] = late[:, j]
+            cols.append(st.respond(x, rec.period).ravel())
+    for i in range(3):
+        e = np.zeros((n, 3))
+        e[:, i] = 1.0
+        cols.append(e.ravel())
+    A = np.column_stack(cols)
+    scale = np.abs(A).max(axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(A / scale, rec.deflection.ravel(), rcond=None)[0] / scale
+    return sol[:9].reshape(3, 3), sol[9:], (A @ sol).reshape(n, 3)
+
+
+def _zero_phase(x: np.ndarray, period: float, hz, btype: str) -> np.ndarray:
+    sos = signal.butter(2, hz, btype=btype, fs=1.0 / period, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+def _static(rec: Record, lag_s: float) -> np.ndarray:
+    """What the static part (C F_L + b, least squares) leaves of the deflection (N, 3)."""
+    X = np.column_stack([_late(rec, lag_s), np.ones(len(rec.t))])
+    return rec.deflection - X @ np.linalg.lstsq(X, rec.deflection, rcond=None)[0]
+
+
+def _start(rec: Record, n_modes: int, max_lag_ms: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The modes' frame (3, 3, orthonormal, det +1), frequencies (Hz) and the lag (s) to start from."""
+    lags = np.arange(0.0, max_lag_ms + 1e-9, 1.0) / 1000.0
+    lag = float(lags[np.argmin([np.sum(_static(rec, L) ** 2) for L in lags])])
+    resid = _static(rec, lag)
+    top = min(BAND_HZ[1], 0.45 / rec.period)
+    band = _zero_phase(resid, rec.period, (BAND_HZ[0], top), "bandpass")
+    frame = np.linalg.svd(band, full_matrices=False)[2].T
+    if np.linalg.det(frame) < 0:
+        frame[:, 2] *= -1.0
+    hz = []
+    for k in range(n_modes):
+        f, P = signal.welch(band @ frame[:, k], fs=1.0 / rec.period, nperseg=min(len(band), 2048))
+        inside = (f >= BAND_HZ[0]) & (f <= top)
+        hz.append(float(f[inside][np.argmax(P[inside])]))
+    return frame, np.array(hz), lag
+
+
+def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identified:
+    """The structure behind ``rec`` with ``n_modes`` modes (1 - 3; module docstring)."""
+    if not 1 <= n_modes <= 3:
+        raise ValueError(f"n_modes = {n_modes} must be 1, 2 or 3 (modes along orthogonal directions)")
+    if np.ptp(rec.force, axis=0).max() < 1e-6:
+        raise DataError(f"{rec.source}: the force does not change; nothing excites the structure")
+    frame0, hz0, lag0 = _start(rec, n_modes, max_lag_ms)
+    rot0 = Rotation.from_matrix(frame0)
+    norm = np.sqrt(np.mean((rec.deflection - rec.deflection.mean(0)) ** 2))
+
+    def unpack(x):
+        hz, zeta = np.exp(x[:n_modes]), np.exp(x[n_modes:2 * n_modes])
+        frame = (Rotation.from_rotvec(x[2 * n_modes:2 * n_modes + 3]) * rot0).as_matrix()
+        return hz, zeta, frame, x[-1] / 1000.0
+
+    def residual(x):
+        hz, zeta, frame, lag = unpack(x)
+        st = _structure(hz, zeta, frame, n_modes, max(lag, 0.0))
+        return ((_solve(rec, st, max(lag, 0.0))[2] - rec.deflection) / norm).ravel()
+
+    x0 = np.concatenate([np.log(hz0), np.log(np.full(n_modes, 0.05)), np.zeros(3), [1000.0 * lag0]])
+    lo = np.concatenate([np.log(np.full(n_modes, 0.5)), np.log(np.full(n_modes, 1e-3)), -np.full(3, np.pi), [0.0]])
+    hi = np.concatenate([np.log(np.full(n_modes, 0.45 / rec.period)), np.log(np.full(n_modes, 1.5)),
+                         np.full(3, np.pi), [max_lag_ms]])
+    fit = optimize.least_squares(residual, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale="jac", max_nfev=200)
+    hz, zeta, frame, lag = unpack(fit.x)
+    order = np.argsort(hz)
+    st = _structure(hz[order], zeta[order], frame[:, order], n_modes, lag)
+    C, b, model = _solve(rec, st, lag)
+    static = rec.force @ np.linalg.lstsq(np.column_stack([rec.force, np.ones(len(rec.t))]), rec.deflection,
+                                          rcond=None)[0][:3]
+    static = static + (rec.deflection - static).mean(axis=0)
+    var = np.sum((rec.deflection - rec.deflection.mean(0)) ** 2)
+    return Identified(st, C, b, 1.0 - np.sum((rec.deflection - model) ** 2) / var,
+                      1.0 - np.sum((rec.deflection - static) ** 2) / var,
+                      float(np.sqrt(np.mean(np.sum((rec.deflection - model) ** 2, axis=1)))) * M_TO_MM, model, static)
