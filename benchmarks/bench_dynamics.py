@@ -18,104 +18,74 @@ time (then repeat it: the figures vary with the host's load).
 from __future__ import annotations
 
 import argparse
-import copy
+import dataclasses
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from hil.circle import evaluate_pass
-from hil.dynamics import DynamicOptions, identify_from_pass, service_dynamics
+from hil.dynamics import DynamicOptions, compare
 from hil.lockstep import run_lockstep
-from hil.report import end_to_end_delay, errors, window_errors
 from hil.run import run_pass
 from hil.scenario import load_scenario
-from hil.world import World
 from stiffness.model import StiffnessModel
 
 
-def figures(world, ev) -> dict:
-    w = window_errors(world, ev)
-    mean, worst = errors(ev)
-    return {"entry_peak_mm": w["entry_peak_mm"], "exit_peak_mm": w["exit_peak_mm"],
-            "steady_mean_mm": w["steady_mean_mm"], "mean_error_mm": mean, "max_error_mm": worst}
+def realtime(sc, truth, model_path, compensate, folder, overrides=None):
+    return run_pass(sc, truth, model_path, compensate, folder, service_overrides=overrides)
 
 
-def one(args, sc, truth, model_path, folder: Path, compensate: bool, overrides=None):
-    """One pass (lock step, or real time with --realtime) and its evaluation."""
-    if args.realtime:
-        r = run_pass(sc, truth, model_path, compensate, folder, service_overrides=overrides)
-    else:
-        r = run_lockstep(sc, truth, model_path, compensate, folder, overrides)
-    return r, evaluate_pass(sc, truth, r)[1]
+def table(result: dict) -> None:
+    u = result["uncompensated"]
+    print(f"uncompensated: mean {u['mean_error_mm']:.3f} mm, entry {u['entry_peak_mm']:.3f}, exit "
+          f"{u['exit_peak_mm']:.3f} mm")
+    for case in result["cases"]:
+        s = case["static"]
+        print(f"\nextra delay {case['extra_delay_ms']:g} ms: measured end-to-end delay {case['delay_ms']:.2f} ms; "
+              f"static: entry {s['entry_peak_mm']:.4f}, exit {s['exit_peak_mm']:.4f}, steady mean "
+              f"{s['steady_mean_mm']:.4f}, mean {s['mean_error_mm']:.4f} mm")
+        print(f"{'mode error':>10} {'damping+':>8} {'ff':>3} | {'entry mm':>8} {'ratio':>6} | {'exit mm':>8} "
+              f"{'ratio':>6} | {'steady':>7} {'static':>7} | {'mean':>7}")
+        for row in case["dynamic"]:
+            o, f = row["options"], row["figures"]
+            print(f"{o.mode_error:>+10.2f} {o.added_damping:>8.2f} {'yes' if o.feedforward else 'no':>3} | "
+                  f"{f['entry_peak_mm']:8.4f} {row['entry_ratio']:6.0%} | {f['exit_peak_mm']:8.4f} "
+                  f"{row['exit_ratio']:6.0%} | {f['steady_mean_mm']:7.4f} {s['steady_mean_mm']:7.4f} | "
+                  f"{f['mean_error_mm']:7.4f}")
 
 
-def run(args) -> list[dict]:
-    truth = StiffnessModel.from_yaml(Path(args.truth))
-    model = Path(args.model) if args.model else None
-    rows = []
-    found = None
-    for extra in args.extra_delay_ms:
-        sc = load_scenario(args.scenario)
-        sc.plc.extra_delay_ms = extra
-        model_path = model or sc.resolve(sc.model)
-        world = World(sc, truth.robot)
-        with tempfile.TemporaryDirectory(prefix="bench-dynamics-") as tmp:
-            tmp = Path(tmp)
-
-            if found is None:
-                found = identify_from_pass(sc, truth, DynamicOptions())
-                print(f"identified: {found.to_config()} (explains {100 * found.explained:.2f} % of the "
-                      f"deflection; the static fit {100 * found.explained_static:.2f} %)", flush=True)
-            _, unc = one(args, sc, truth, model_path, tmp / "uncompensated", False)
-            static_pass, static = one(args, sc, truth, model_path, tmp / "static", True)
-            delay_ms = 1000.0 * (end_to_end_delay(world, static_pass.log) or 0.0)
-            base = {"extra_delay_ms": extra, "delay_ms": round(delay_ms, 2),
-                    "uncompensated": figures(world, unc), "static": figures(world, static)}
-            print(f"\nextra delay {extra:g} ms: measured end-to-end delay {delay_ms:.2f} ms; static: entry "
-                  f"{base['static']['entry_peak_mm']:.4f}, exit {base['static']['exit_peak_mm']:.4f}, steady mean "
-                  f"{base['static']['steady_mean_mm']:.4f} mm (uncompensated mean "
-                  f"{base['uncompensated']['mean_error_mm']:.3f} mm)", flush=True)
-            print(f"{'mode error':>10} {'damping+':>8} {'ff':>3} | {'entry mm':>8} {'ratio':>6} | {'exit mm':>8} "
-                  f"{'ratio':>6} | {'steady':>7} {'static':>7} | {'mean':>7}", flush=True)
-            for ff in ([False, True] if args.feedforward else [False]):
-                for zeta in args.added_damping:
-                    for err in args.mode_error:
-                        opts = DynamicOptions(err, zeta, ff)
-                        over = service_dynamics(found, delay_ms, opts, sc, world, tmp / "plan")
-                        _, dyn = one(args, sc, truth, model_path, tmp / "dynamic", True, copy.deepcopy(over))
-                        f = figures(world, dyn)
-                        s = base["static"]
-                        row = {**base, "mode_error": err, "added_damping": zeta, "feedforward": ff, "dynamic": f,
-                               "entry_ratio": f["entry_peak_mm"] / s["entry_peak_mm"],
-                               "exit_ratio": f["exit_peak_mm"] / s["exit_peak_mm"]}
-                        rows.append(row)
-                        print(f"{err:>+10.2f} {zeta:>8.2f} {'yes' if ff else 'no':>3} | {f['entry_peak_mm']:8.4f} "
-                              f"{row['entry_ratio']:6.0%} | {f['exit_peak_mm']:8.4f} {row['exit_ratio']:6.0%} | "
-                              f"{f['steady_mean_mm']:7.4f} {s['steady_mean_mm']:7.4f} | {f['mean_error_mm']:7.4f}",
-                              flush=True)
-    return rows
-
-
-def main(argv: list[str] | None = None) -> list[dict]:
+def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default=None)
     ap.add_argument("--truth", default=str(ROOT / "examples" / "truth_reference.yaml"))
     ap.add_argument("--model", default=None, help="the service's model (default: the scenario's)")
     ap.add_argument("--extra-delay-ms", type=float, nargs="+", default=[0.0, 8.0])
     ap.add_argument("--mode-error", type=float, nargs="+", default=[0.0, 0.2, -0.2])
-    ap.add_argument("--added-damping", type=float, nargs="+", default=[0.0, 0.3])
+    ap.add_argument("--added-damping", type=float, nargs="+", default=[0.0, 0.1])
     ap.add_argument("--feedforward", action="store_true", help="each variant also with the feedforward")
+    ap.add_argument("--commissioning", choices=("tap", "cut"), default="tap")
+    ap.add_argument("--predictor-hz", type=float, default=None, help="dynamics.predictor.bandwidth_hz")
     ap.add_argument("--realtime", action="store_true", help="the passes in real time, not in lock step")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
-    rows = run(args)
+    sc = load_scenario(args.scenario)
+    truth = StiffnessModel.from_yaml(Path(args.truth))
+    variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz)
+                for ff in ([False, True] if args.feedforward else [False])
+                for zeta in args.added_damping for err in args.mode_error]
+    result = compare(sc, truth, Path(args.model) if args.model else sc.resolve(sc.model),
+                     [(extra, variants) for extra in args.extra_delay_ms], run=realtime if args.realtime else run_lockstep,
+                     progress=lambda text: print(text, file=sys.stderr, flush=True))
+    print(f"identified ({args.commissioning}): {result['identified']}")
+    table(result)
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
-    return rows
+        for case in result["cases"]:
+            for row in case["dynamic"]:
+                row["options"] = dataclasses.asdict(row["options"])
+        Path(args.json).write_text(json.dumps(result, indent=2, default=str) + "\n")
+    return result
 
 
 if __name__ == "__main__":

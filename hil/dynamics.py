@@ -2,9 +2,11 @@
 
 What a commissioning engineer does, with the HIL's instruments:
 
-1. record a force and a path: the process force at the tool and the robot stub's deflection from its path
-   on the uncompensated pass, every millisecond (a dynamometer and a laser tracker on a test cut; written
-   with ``--modes-data`` in the format `stiffcomp modes` reads);
+1. record a force and a path, every millisecond, in the format `stiffcomp modes` reads (``--modes-data``):
+   a tap test at the circle's centre (``tap``, the default: an impulse hammer's force along x, y and z in
+   turn and the robot stub's deflection, as an accelerometer or a laser tracker records it, 1 µm noise), or
+   the uncompensated test cut itself (``cut``: the process force and the stub's deflection from its path);
+   a tap test moves the joints too little to cross their hysteresis or play, so it sees the structure alone;
 2. identify the structure's modes from it (`stiffness.dynamics.identify`, as `stiffcomp modes` does);
 3. measure the end-to-end delay with the static compensator (the run's static pass, `hil.report.end_to_end_delay`);
 4. give the service the modes (their frequencies scaled by 1 + ``mode_error``: a model that is off), the
@@ -26,12 +28,13 @@ from stiffness.model import StiffnessModel
 from stiffness.units import M_TO_MM
 from stiffness.yamlio import dump_yaml, read_yaml
 
-from .report import evaluate_uncompensated
+from .report import end_to_end_delay, errors, evaluate_uncompensated, window_errors
 from .robot_stub import RobotStub
 from .scenario import Scenario
 from .world import World
 
 RECORD_PERIOD_S = 0.001
+TAP_N, TAP_MS, TAP_EVERY_S, TAP_NOISE_M = 100.0, 3.0, 1.2, 1e-6     # the hammer: peak force, pulse, spacing
 PLAN_REGISTERS = ({"name": "plan_time_s", "address": 0x800F, "type": "float32", "unit": "s"},      # no gap: a PLC writes its block whole
                   {"name": "plan_engagement", "address": 0x8011, "type": "float32"})
 
@@ -45,7 +48,9 @@ class DynamicOptions:
     feedforward: bool = False        # the process plan too
     n_modes: int = 2
     record: Path | None = None       # write the commissioning record here (stiffcomp modes reads it)
+    commissioning: str = "tap"       # tap | cut: the record (module docstring)
     predictor: bool = True
+    predictor_hz: float | None = None    # dynamics.predictor.bandwidth_hz (None: its default)
 
 
 def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
@@ -56,6 +61,27 @@ def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
     q = np.array([world.path.q_ref_deg(x) for x in ev["t"]])
     nominal = truth.robot.frames(np.radians(q))[:, 7, :3, 3]
     return Record(ev["t"] - ev["t"][0], world.force(ev["t"]), ev["p"] - nominal, "the HIL's uncompensated pass")
+
+
+def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17) -> Record:
+    """A tap test at the circle's centre: a half-sine pulse of `TAP_N` over `TAP_MS` along x, y and z (base
+    axes) in turn, and the stub's TCP deflection, every ms, with `TAP_NOISE_M` of noise (1 sigma)."""
+    stub = RobotStub(truth, scenario.robot, scenario.payload)
+    t = np.arange(0.0, 3 * TAP_EVERY_S + 0.5, RECORD_PERIOD_S)
+
+    def force(tt):
+        tt = np.atleast_1d(tt)
+        out = np.zeros((len(tt), 3))
+        for k in range(3):
+            x = (tt - 0.3 - k * TAP_EVERY_S) / (TAP_MS / 1000.0)
+            out[:, k] = np.where((x >= 0) & (x <= 1), TAP_N * np.sin(np.pi * np.clip(x, 0, 1)), 0.0)
+        return out
+
+    q = np.tile(scenario.circle.center_q_deg, (len(t), 1))
+    p = stub.actual(t, q, force, t[0], t[-1])[0]
+    d = p - truth.robot.frames(np.radians(q[:1]))[0, 7, :3, 3]
+    d += np.random.default_rng(seed).normal(0.0, TAP_NOISE_M, d.shape)
+    return Record(t, force(t), d, "a tap test in the HIL")
 
 
 def write_record(rec: Record, path: Path) -> None:
@@ -94,7 +120,7 @@ def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, s
     measured delay and, with the feedforward, the plan and a register map that carries it."""
     section = {"enabled": True, "delay_ms": round(delay_ms, 2), "structure": structure_section(found, opts)}
     if opts.predictor:
-        section["predictor"] = {}
+        section["predictor"] = {} if opts.predictor_hz is None else {"bandwidth_hz": opts.predictor_hz}
     out = {"dynamics": section}
     if opts.feedforward:
         folder.mkdir(parents=True, exist_ok=True)
@@ -116,7 +142,65 @@ def structure_section(found: Identified, opts: DynamicOptions) -> dict:
 
 def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicOptions) -> Identified:
     """Steps 1 and 2: the record (written to ``opts.record`` when given) and the modes found in it."""
-    rec = commissioning_record(scenario, truth)
+    rec = tap_record(scenario, truth) if opts.commissioning == "tap" else commissioning_record(scenario, truth)
     if opts.record is not None:
         write_record(rec, Path(opts.record))
     return identify(rec, opts.n_modes)
+
+
+def figures(world: World, ev: dict) -> dict:
+    """The figures of the Done-when: the entry and exit windows' peaks, the steady mean, the mean and max (mm)."""
+    w = window_errors(world, ev)
+    mean, worst = errors(ev)
+    return {"entry_peak_mm": w["entry_peak_mm"], "exit_peak_mm": w["exit_peak_mm"],
+            "steady_mean_mm": w["steady_mean_mm"], "mean_error_mm": mean, "max_error_mm": worst}
+
+
+def compare(scenario: Scenario, truth: StiffnessModel, model_path: Path,
+            cases: list[tuple[float, list[DynamicOptions]]], folder: Path | None = None, run=None,
+            progress=None) -> dict:
+    """Static against dynamic compensation on one scenario: the modes identified once (the first variant's
+    commissioning), the uncompensated pass once; per case (an extra delay of the PLC and its variants) the
+    static pass (its end-to-end delay measured) and one dynamic pass per variant. ``run``: the pass runner (default lock step,
+    `hil.lockstep.run_lockstep`; `hil.run.run_pass` for real time); ``progress(text)`` is told each result.
+
+    Returns {"identified", "uncompensated", "cases": [{"extra_delay_ms", "delay_ms", "static",
+    "dynamic": [{"options", "figures", "entry_ratio", "exit_ratio"}]}]}."""
+    import copy
+    import tempfile
+
+    from .circle import evaluate_pass
+    from .lockstep import run_lockstep
+
+    run = run or run_lockstep
+    say = progress or (lambda text: None)
+    found = identify_from_pass(scenario, truth, cases[0][1][0])
+    say(f"identified: {found.to_config()}")
+    out = {"identified": found.to_config(), "cases": []}
+    with tempfile.TemporaryDirectory(prefix="stiffcomp-dynamics-") as tmp:
+        base = Path(folder or tmp)
+
+        def one(sc, name, compensate, overrides=None):
+            r = run(sc, truth, model_path, compensate, base / name, overrides)
+            return r, evaluate_pass(sc, truth, r)[1]
+
+        world = World(scenario, truth.robot)
+        out["uncompensated"] = figures(world, one(scenario, "uncompensated", False)[1])
+        for extra, variants in cases:
+            sc = scenario.model_copy(deep=True)
+            sc.path = scenario.path
+            sc.plc.extra_delay_ms = extra
+            static_pass, static = one(sc, f"static_{extra:g}", True)
+            delay_ms = 1000.0 * (end_to_end_delay(world, static_pass.log) or 0.0)
+            case = {"extra_delay_ms": extra, "delay_ms": delay_ms, "static": figures(world, static), "dynamic": []}
+            say(f"extra delay {extra:g} ms: end-to-end delay {delay_ms:.2f} ms, static {case['static']}")
+            for k, opts in enumerate(variants):
+                over = service_dynamics(found, delay_ms, opts, sc, world, base / f"plan_{extra:g}_{k}")
+                f = figures(world, one(sc, f"dynamic_{extra:g}_{k}", True, copy.deepcopy(over))[1])
+                row = {"options": opts, "figures": f,
+                       "entry_ratio": f["entry_peak_mm"] / case["static"]["entry_peak_mm"],
+                       "exit_ratio": f["exit_peak_mm"] / case["static"]["exit_peak_mm"]}
+                case["dynamic"].append(row)
+                say(f"  {opts}: {f}")
+            out["cases"].append(case)
+    return out

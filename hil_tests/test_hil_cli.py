@@ -20,8 +20,10 @@ from stiffness.part_rows import read_against
 from stiffness.trace import read_trace
 from tools.cli import main
 
+WINDOWS = {f"{w}_{k}_mm" for w in ("entry", "exit", "steady") for k in ("peak", "mean")}   # issue 26
 KEYS = {"mean_error_mm", "max_error_mm", "mean_error_mm_uncompensated", "max_error_mm_uncompensated", "cycles",
-        "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated"}
+        "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated", "delay_ms",
+        *WINDOWS, *(k + "_uncompensated" for k in WINDOWS)}
 
 
 def stiffcomp(*args: str) -> subprocess.CompletedProcess:

@@ -35,6 +35,7 @@ COMMANDS = {
     "model": "tools.model_cmd",
     "hil": "tools.hil_cmd",
     "part": "tools.part_cmd",
+    "modes": "tools.modes_cmd",
 }
 
 EXIT_USER_ERROR = 2

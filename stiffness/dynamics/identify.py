@@ -41,6 +41,7 @@ FORCE = ("fx_N", "fy_N", "fz_N")
 DEFLECTION = ("dx_mm", "dy_mm", "dz_mm")
 SLOW_HZ = 2.0            # the static fit's low-pass
 BAND_HZ = (3.0, 60.0)    # where modes are looked for
+MIN_SAMPLES = 200
 
 
 @dataclass
@@ -70,8 +71,6 @@ def uniform(rec: Record) -> Record:
     """``rec`` on a uniform grid (linear interpolation at the median step, when the steps vary by > 1 %)."""
     dt = np.diff(rec.t)
     step = float(np.median(dt))
-    if len(rec.t) < 200:
-        raise DataError(f"{rec.source}: {len(rec.t)} samples; the identification needs at least 200")
     if np.ptp(dt) <= 0.01 * step:
         return rec
     t = np.arange(rec.t[0], rec.t[-1], step)
@@ -169,6 +168,8 @@ def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identif
     """The structure behind ``rec`` with ``n_modes`` modes (1 - 3; module docstring)."""
     if not 1 <= n_modes <= 3:
         raise ValueError(f"n_modes = {n_modes} must be 1, 2 or 3 (modes along orthogonal directions)")
+    if len(rec.t) < MIN_SAMPLES:
+        raise DataError(f"{rec.source}: {len(rec.t)} samples; the identification needs at least {MIN_SAMPLES}")
     if np.ptp(rec.force, axis=0).max() < 1e-6:
         raise DataError(f"{rec.source}: the force does not change; nothing excites the structure")
     frame0, hz0, lag0 = _start(rec, n_modes, max_lag_ms)
@@ -201,3 +202,51 @@ def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identif
     return Identified(st, C, b, 1.0 - np.sum((rec.deflection - model) ** 2) / var,
                       1.0 - np.sum((rec.deflection - static) ** 2) / var,
                       float(np.sqrt(np.mean(np.sum((rec.deflection - model) ** 2, axis=1)))) * M_TO_MM, model, static)
+
+
+def figure(found: Identified, rec: Record, window_s: float = 1.0):
+    """The identified response over the measured one: per mode, the deflection along its direction
+    (measured, identified, the static fit alone) in the ``window_s`` with the most motion along it; and the
+    spectrum of the deflection against the identified model's (matplotlib Figure)."""
+    from matplotlib.figure import Figure
+
+    from ..plots import legend_below
+
+    modes = found.structure.cfg.modes
+    fig = Figure(figsize=(12, 3.2 * (len(modes) + 1)), layout="constrained")
+    axes = []
+    n = max(int(window_s / rec.period), 10)
+    for k, m in enumerate(modes):
+        phi = np.array(m.direction)
+        meas, mod, stat = (x @ phi * M_TO_MM for x in (rec.deflection, found.model, found.static))
+        band = _zero_phase(meas - meas.mean(), rec.period, (BAND_HZ[0], min(BAND_HZ[1], 0.45 / rec.period)),
+                           "bandpass")
+        start = int(np.argmax(np.convolve(band ** 2, np.ones(n), "valid"))) if len(band) > n else 0
+        sl = slice(start, start + n)
+        ax = fig.add_subplot(len(modes) + 1, 1, k + 1)
+        ax.plot(rec.t[sl], meas[sl], color="k", lw=1.0, label="measured")
+        ax.plot(rec.t[sl], mod[sl], color="tab:green", lw=1.0, ls="--", label="identified (modes and lag)")
+        ax.plot(rec.t[sl], stat[sl], color="tab:gray", lw=0.8, label="static fit alone")
+        ax.set_title(f"mode {k + 1}: {m.hz:.2f} Hz, {100 * m.damping:.1f} % damping, along "
+                     f"[{', '.join(f'{x:+.2f}' for x in m.direction)}]")
+        ax.set_xlabel("time, s")
+        ax.set_ylabel("deflection along it, mm")
+        ax.grid(alpha=0.3)
+        axes.append(ax)
+    ax = fig.add_subplot(len(modes) + 1, 1, len(modes) + 1)
+    top = 0.0
+    for x, color in ((rec.deflection, "k"), (found.model, "tab:green")):
+        f, P = signal.welch((x - x.mean(0)) * M_TO_MM, fs=1.0 / rec.period, nperseg=min(len(x), 2048), axis=0)
+        ax.semilogy(f, P.sum(axis=1), color=color, lw=1.0)
+        top = max(top, float(P.sum(axis=1).max()))
+    ax.set_ylim(top * 1e-6, top * 3)
+    for m in modes:
+        ax.axvline(m.hz, color="tab:green", lw=0.6, ls=":")
+    ax.set_xlim(0, min(60.0, 0.5 / rec.period))
+    ax.set_xlabel("frequency, Hz")
+    ax.set_ylabel("power of the deflection, mm²/Hz")
+    ax.set_title(f"spectrum: measured (black), identified (green); explains {100 * found.explained:.2f} % "
+                 f"(the static fit alone {100 * found.explained_static:.2f} %)")
+    ax.grid(alpha=0.3)
+    legend_below(fig, *axes, ncols=3)
+    return fig

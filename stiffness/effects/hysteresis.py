@@ -18,13 +18,14 @@ z_i    the loading state in [-1, 1]. After the torque turns at tau_r (the state 
        tau_t is the transition torque (YAML: transition_Nm, Nm, fitted by least squares, >= 0): z has
        moved 63 % of the way to the other branch tau_t beyond the breakaway; tau_t = 0 is the instant
        switch (a relay with the hysteresis width tau_b). Moves on in the same direction slip at once.
-Input:  the torque the joint's motion follows (YAML: bandwidth_hz, fixed, default 10 Hz): tau_i through a
-       critically damped low-pass at that frequency, (1 + s / w)^-2. A joint's friction slips only as
-       the joint moves, and the arm's inertia keeps it from following a faster ripple (the tooth passing,
-       the chip load's variation): that ripple is taken by the arm's mass and the contacts' elastic
-       presliding, not by slipping (docs/effects.md, "Hysteresis under a ripple"). Readings further apart
-       than a few periods (a campaign's load steps) pass unchanged: the low-pass acts in time, on the
-       readings' own time stamps (or the cycle's dt), and a reading with no time step passes as it is.
+Input:  the torque the joint's motion follows (YAML: bandwidth_hz, fixed, default 5 Hz): tau_i through a
+       critically damped low-pass at that frequency, (1 + s / w)^-2. A joint's friction slips only as the
+       joint moves, and the arm's inertia keeps it from following a ripple near or above its first mode
+       (about 10 Hz on a milling robot; the tooth passing, the chip load's variation): that ripple is
+       taken by the arm's mass and the contacts' elastic presliding, not by slipping (docs/effects.md,
+       "Hysteresis under a ripple"); the default is half that mode. Readings further apart than a few
+       periods (a campaign's load steps) pass unchanged: the low-pass acts in time, on the readings' own
+       time stamps (or the cycle's dt), and a reading with no time step passes as it is.
 Start:  z = 0 (the middle of the two branches: the history is unknown) with the first torque as the
        turning point. Offline the state starts at each configuration's first reading and carries across
        its load sequences in time order; the service starts it at start-up, after a tare and after a
@@ -64,7 +65,7 @@ from .realtime import HistoryTerm
 
 DEFAULT_THRESHOLD_NM = 10.0
 DEFAULT_TRANSITION_NM = 20.0
-DEFAULT_BANDWIDTH_HZ = 10.0
+DEFAULT_BANDWIDTH_HZ = 5.0       # half the first mode of a milling robot (about 10 Hz): below it the joint follows
 TWO_PI = 2.0 * math.pi
 
 

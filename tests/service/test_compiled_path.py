@@ -93,9 +93,10 @@ def test_the_compiled_predictor_agrees_with_the_python_one(name, k, robot):
                 assert close(a.state, b.state)          # the hysteresis state, cycle by cycle
 
 
-def drive(cycle: Cycle, n: int, seed: int = 1, t0: float = 0.0):
+def drive(cycle: Cycle, n: int, seed: int = 1, t0: float = 0.0, plan=None):
     """A moving robot under a milling load, with a tare at 1/3, a fault reset at 1/2, payload set 1 from 2/3
-    and every third sample missing; yields after each cycle."""
+    and every third sample missing; yields after each cycle. ``plan(t)``: the PLC's record at t (the
+    dynamic compensation's feedforward reads it)."""
     rng = np.random.default_rng(seed)
     enable, tare, reset = int(Command.ENABLE), int(Command.TARE), int(Command.RESET)
     for k in range(1, n + 1):
@@ -105,7 +106,9 @@ def drive(cycle: Cycle, n: int, seed: int = 1, t0: float = 0.0):
         q = [10 + 2 * np.sin(ph), -70 + np.cos(ph), 95.0, 15.0, 40 + np.sin(ph), -20.0]
         cmd = enable | (tare if k == n // 3 else 0) | (reset if k == n // 2 else 0)
         reading = Reading(w, 0, k, False) if k % 3 else None
-        cycle.step(t0 + 0.001 * k, reading, [], cmd, k, q, payload_index=1 if k > 2 * n // 3 else 0)
+        t = t0 + 0.001 * k
+        cycle.step(t, reading, [], cmd, k, q, payload_index=1 if k > 2 * n // 3 else 0,
+                   inputs=plan(t) if plan is not None else None)
         yield k
 
 
