@@ -25,7 +25,8 @@ ARG PIP_TRUSTED_HOST=
 # optional extras of the project, e.g. "parquet" (pyarrow, for .parquet measurement files)
 ARG EXTRAS=parquet
 
-ENV PYTHONDONTWRITEBYTECODE=1 VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
+ENV PYTHONDONTWRITEBYTECODE=1 VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH \
+    STIFFCOMP_KERNEL_CACHE=/opt/stiffcomp/.kernels
 WORKDIR /opt/stiffcomp
 
 # Site CA certificates (*.crt) for a TLS-inspecting proxy between the build and the index: `make image`
@@ -57,13 +58,19 @@ RUN python3 -m venv "$VIRTUAL_ENV" \
  && pip uninstall -y -q pip setuptools wheel \
  && rm -rf ./*.egg-info \
  && find "$VIRTUAL_ENV" -depth -type d -name tests -path "*/site-packages/*" -exec rm -rf {} + \
- && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil
+ && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil \
+ && python3 -m service.kernel.warm
+
+# The compiled cycle (numba) of every shipped model is compiled above into its disk cache: the generated
+# modules in $STIFFCOMP_KERNEL_CACHE, the kernel's own beside service/kernel/; both go into the runtime
+# stage as they are, so the service's first cycle never waits for a compiler (a model of the site's with
+# other laws compiles at its first start into a temporary folder, docs/deploy.md).
 
 # -- runtime ----------------------------------------------------------------------------------------
 FROM ${BASE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
-    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
+    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH STIFFCOMP_KERNEL_CACHE=/opt/stiffcomp/.kernels
 WORKDIR /opt/stiffcomp
 
 # pinocchio's wheels need OpenMP's runtime; python:3.11-slim lacks it (a Debian base made as in
@@ -84,8 +91,9 @@ write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, 
  && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
 USER stiffcomp
 
-# Modbus TCP, ADS (AMS/TCP), HTTP health + metrics
-EXPOSE 5020 48898 9020
+# Modbus TCP, ADS (AMS/TCP), HTTP health + metrics, Modbus/TCP Security (plc.tls, off until the site's
+# certificates are mounted; docs/security.md: as an unprivileged user 802 binds on a bridge network only)
+EXPOSE 5020 48898 9020 802
 VOLUME ["/etc/stiffcomp"]
 # Liveness: the cycle count rises and the I/O process answers (/health/live). Not /health, whose exceed
 # bound a busy host can cross for a while: a restart would lose the tare, the hysteresis state and the

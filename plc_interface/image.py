@@ -25,6 +25,7 @@ is refused (False) and changes nothing.
 
 from __future__ import annotations
 
+import struct
 import time
 from multiprocessing.shared_memory import SharedMemory
 
@@ -57,18 +58,21 @@ class ProcessImage:
         n_bytes = 8 * _HEADER + sum(2 * 2 * n for n in sizes.values()) + 8 + 8 * TIMING_RING
         self._owner = _name is None
         self.shm = SharedMemory(name=_name, create=self._owner, size=n_bytes)
-        self._h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
+        # the counters as plain int64 views: a NumPy scalar costs ~0.2 us per access, six each publish
+        self._h = self.shm.buf[: 8 * _HEADER].cast("q")
         self._buf, self._off, off = {}, {}, 8 * _HEADER
         for d in DIRECTIONS:
             self._buf[d] = np.ndarray((2, sizes[d]), dtype=np.uint16, buffer=self.shm.buf, offset=off)
             self._off[d] = (off, off + 2 * sizes[d])      # byte offsets of the two buffers
             off += 4 * sizes[d]
         # per-cycle timings: a count, then a ring of (last_exec_us, period_jitter_us) as float32 pairs
-        self._n_timing = np.ndarray((1,), dtype=np.int64, buffer=self.shm.buf, offset=off)
+        self._n_timing = self.shm.buf[off: off + 8].cast("q")
         self._timing = np.ndarray((TIMING_RING, 2), dtype=np.float32, buffer=self.shm.buf, offset=off + 8)
+        self._timing_at, self._pack_timing, self._mem = off + 8, struct.Struct("<2f").pack_into, self.shm.buf
         if self._owner:
             self._n_timing[0] = 0
-            self._h[:] = 0
+            for k in range(_HEADER):
+                self._h[k] = 0
             for d in DIRECTIONS:
                 self._buf[d][:] = 0
         self.writable = rmap.writable
@@ -116,20 +120,21 @@ class ProcessImage:
         packs the values straight into the free buffer (one struct call). ``stamp_ns``: the cycle's
         time (time.time_ns(), the default), for the FILETIME stamps of ADS notifications."""
         h = self._h
-        b = (int(h[0]) + 1) & 1
+        b = (h[0] + 1) & 1
         h[1 + b] += 1
         self._last_record = record
-        self.out_codec.pack_into(self.shm.buf, self._off["to_plc"][b], self.out_codec.pick(record))
+        self.out_codec.pack_into(self._mem, self._off["to_plc"][b], self.out_codec.pick(record))
         h[3 + b] = time.time_ns() if stamp_ns is None else stamp_ns
         h[1 + b] += 1
         h[0] += 1
-        n = int(self._n_timing[0])            # the previous cycle's timing, once per cycle, for the histograms
-        self._timing[n % TIMING_RING] = (record.last_exec_us, record.period_jitter_us)
+        n = self._n_timing[0]                 # the previous cycle's timing, once per cycle, for the histograms
+        self._pack_timing(self._mem, self._timing_at + 8 * (n % TIMING_RING), record.last_exec_us,
+                          record.period_jitter_us)
         self._n_timing[0] = n + 1
 
     def inputs(self) -> FromPlc:
         """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""
-        h, k, offs, unpack, buf = self._h, _H["from_plc"], self._off["from_plc"], self.in_codec.unpack_from, self.shm.buf
+        h, k, offs, unpack, buf = self._h, _H["from_plc"], self._off["from_plc"], self.in_codec.unpack_from, self._mem
         for _ in range(RETRIES):
             b = int(h[k]) & 1
             s = int(h[k + 1 + b])
@@ -240,7 +245,10 @@ class ProcessImage:
     # -- life cycle -----------------------------------------------------------------------------
     def close(self) -> None:
         """Detach; the creating process also frees the memory."""
-        self._h = self._n_timing = self._timing = None
+        for view in (self._h, self._n_timing):
+            if view is not None:
+                view.release()
+        self._h = self._n_timing = self._timing = self._mem = None
         self._buf = {}
         release(self.shm, self._owner)
 

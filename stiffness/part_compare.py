@@ -24,7 +24,8 @@ import numpy as np
 from .context import Context
 from .effects.axial import joint_torque
 from .model import StiffnessModel
-from .part_rows import PartRows, when_made
+from .part_rows import PartRows
+from .part_timing import when_made
 
 
 @dataclass

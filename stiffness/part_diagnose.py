@@ -27,7 +27,8 @@ from .measurements import Dataset
 from .model import StiffnessModel
 from .part_compare import at_points
 from .part_learn import _concat
-from .part_rows import PartRows, when_made
+from .part_rows import PartRows
+from .part_timing import when_made
 from .prior import Prior
 
 REVERSAL_FRACTION = 0.05     # a torque reversal counts once the torque moved back by this share of its range

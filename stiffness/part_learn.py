@@ -27,7 +27,8 @@ from .errors import ConfigError, StiffnessError
 from .identify import FitResult, fit, jacobian
 from .measurements import Dataset
 from .model import StiffnessModel
-from .part_rows import PartRows, plane_basis, when_made
+from .part_rows import PartRows, plane_basis
+from .part_timing import when_made
 from .prior import Prior, covariance_entry
 from .units import M_TO_MM
 

@@ -16,14 +16,14 @@ error against its nominal contour is the same with the nominal path c_nom(u) = F
 
 When the point was made. The commanded path passes abeam of a point at u, but the tool that made it was
 the deflected one, which passed there earlier or later by its deflection along the path over the feed:
-t* = u - (dX . t) / |dc/du|. `when_made` places each point at t* with a model's prediction of dX (the loads
+t* = u - (dX . t) / |dc/du|. `stiffness.part_timing.when_made` places each point at t* with a model's prediction of dX (the loads
 at t* are what deflected the arm then). On a curved wall the point then lies a little inside what n . dX
 says: the deflection along the path d_t carries the tool around the curve,
 
     e = n . dX(t*) - kappa_w d_t^2 / 2,      kappa_w = kappa / (1 + r kappa)
 
 kappa the commanded path's curvature, signed positive where the path bends away from the wall (a few um at
-0.5 mm along a 35 mm circle). `when_made` adds the term to the row's measured deviation.
+0.5 mm along a 35 mm circle), and adds the term to the row's measured deviation.
 
 The wrench is the trace's, smoothed without lag (a zero-phase low-pass at ``smooth_hz``, 10 Hz by
 default): the arm does not follow the tooth passing, and the joint torque's ripple and the sensor's noise
@@ -60,7 +60,6 @@ TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
                          # than an arm deflects under a cut (a few tenths of a mm to about 2 mm)
 HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
-CHORD_M = 0.002          # the path's curvature is taken over this length either side of a point
 PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
 UNITS = {"inches": 25.4, "metres": 1000.0}
@@ -89,7 +88,7 @@ class PartRows:
     smooth_wrench: np.ndarray    # (N trace, 6) the trace's wrench, smoothed
     trace_tool: np.ndarray       # (N trace, 3) the commanded tool centre of every trace row, m
     notes: list[str] = field(default_factory=list)
-    curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`when_made`); None: not placed yet
+    curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`part_timing.when_made`); None: not placed yet
 
     @property
     def measured_mm(self) -> np.ndarray:
@@ -248,61 +247,6 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
     return PartRows(part, trace, label, used, u, at(trace.time_s[:, None])[:, 0], p, c, n,
                     np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, F[:, 7, :3, 3],
                     notes)
-
-
-def when_made(rows: PartRows, model, iterations: int = 2) -> PartRows:
-    """``rows`` with each point's time, joints and wrench at the moment the deflected tool made it, and the
-    curve's term of its deviation (module docstring), from ``model``'s prediction of the deflection."""
-    tool = rows.trace_tool
-    step = np.gradient(tool, axis=0)                             # dc/du per trace row
-    u = rows.u
-    d_t = np.zeros(len(u))
-    for _ in range(iterations):
-        out = _at(rows, u, None)
-        data = out.dataset(model.robot, model.input_map(), history_step_s=None)
-        pred = model.predict(model.context(data))[:, :3]          # in the rows' axes (n, a x n, a)
-        dX = np.empty((len(u), 3))
-        dX[np.argsort(out.t, kind="stable")] = np.einsum("nji,nj->ni", data.axes, pred)   # base axes
-        d = _interp(step, rows.u)
-        speed = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
-        d_t = np.einsum("na,na->n", dX / 1000.0, d / speed[:, None])
-        u = np.clip(rows.u - d_t / speed, 0.0, len(rows.trace) - 1.0)
-    kappa = _curvature(tool, rows.u, rows.normal)
-    r = rows.part.tool_radius_mm / 1000.0
-    kappa_w = kappa / np.maximum(1.0 + r * kappa, 1e-3)
-    return _at(rows, u, kappa_w * d_t**2 / 2.0 * 1000.0)
-
-
-def _curvature(tool: np.ndarray, u: np.ndarray, n: np.ndarray, chord: float = CHORD_M) -> np.ndarray:
-    """The commanded path's curvature at fractional rows ``u`` (1/m), from the points ``chord`` before and
-    after along its length (a traced path is a staircase of the PLC's cycle: no derivative of it is smooth),
-    signed positive where it bends away from ``n``: kappa = -(A + C - 2 B) . n / chord^2."""
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tool, axis=0), axis=1))])
-    s_u = _interp(s, u)
-    keep = np.r_[True, np.diff(s) > 0]                 # arc length strictly rising: a stopped tool adds nothing
-    s_k, tool_k = s[keep], tool[keep]
-
-    def at(x):
-        return np.column_stack([np.interp(x, s_k, tool_k[:, k]) for k in range(3)])
-
-    A, B, C = at(s_u - chord), at(s_u), at(s_u + chord)
-    return -np.einsum("na,na->n", A + C - 2.0 * B, n) / chord**2
-
-
-def _interp(x: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Rows of ``x`` (per trace row) at fractional rows ``u``, linearly."""
-    k0 = np.clip(np.floor(u).astype(int), 0, len(x) - 2)
-    w = (u - k0).reshape((-1,) + (1,) * (x.ndim - 1))
-    return (1.0 - w) * x[k0] + w * x[k0 + 1]
-
-
-def _at(rows: PartRows, u: np.ndarray, curve_mm: np.ndarray | None) -> PartRows:
-    """``rows`` with time, joints and wrench taken at the fractional trace rows ``u``, and the curve's term."""
-    import dataclasses
-
-    tr = rows.trace
-    return dataclasses.replace(rows, t=_interp(tr.time_s, u), q_deg=_interp(tr.q_deg, u),
-                               wrench_base=_interp(rows.smooth_wrench, u), curve_mm=curve_mm)
 
 
 def _moving(t: np.ndarray, c: np.ndarray) -> np.ndarray:

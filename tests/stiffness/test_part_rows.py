@@ -13,7 +13,8 @@ from stiffcomp_testlib import ROOT
 from stiffness.errors import DataError
 from stiffness.model import StiffnessModel
 from stiffness.part import read_part, write_part
-from stiffness.part_rows import read_against, when_made
+from stiffness.part_rows import read_against
+from stiffness.part_timing import when_made
 from stiffness.robot import PoseConfig
 from stiffness.trace import read_trace
 
