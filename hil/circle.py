@@ -14,7 +14,13 @@ from stiffness.model import StiffnessModel
 from stiffness.yamlio import deep_update
 
 from .cmm import CmmResult, measure
-from .dynamics import DynamicOptions, identify_from_pass, service_dynamics, structure_section
+from .dynamics import (
+    DynamicOptions,
+    identify_from_pass,
+    service_delay_ms,
+    service_dynamics,
+    structure_section,
+)
 from .lockstep import run_lockstep
 from .report import end_to_end_delay, errors, evaluate, plot, window_errors, windows_figure
 from .robot_stub import RobotStub
@@ -93,9 +99,10 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         for name in names:
             last = name == names[-1]
             if name == "dynamic":
-                delay = end_to_end_delay(World(scenario, truth.robot), passes["compensated"].log) or 0.0
+                world = World(scenario, truth.robot)
+                delay_ms = service_delay_ms(dynamic, world, passes["compensated"].log)
                 overrides = deep_update(copy.deepcopy(overrides), service_dynamics(
-                    found, 1000.0 * delay, dynamic, scenario, World(scenario, truth.robot), base / "dynamic"))
+                    found, delay_ms, dynamic, scenario, world, base / "dynamic"))
             if lockstep:
                 passes[name] = run_lockstep(scenario, truth, model_path, name != "uncompensated", base / name,
                                             overrides, trace if last else None)

@@ -30,6 +30,7 @@ from stiffness.yamlio import dump_yaml, read_yaml
 
 from .report import end_to_end_delay, errors, evaluate_uncompensated, window_errors
 from .robot_stub import RobotStub
+from .run import HilError
 from .scenario import Scenario
 from .world import World
 
@@ -51,6 +52,21 @@ class DynamicOptions:
     commissioning: str = "tap"       # tap | cut: the record (module docstring)
     predictor: bool = True
     predictor_hz: float | None = None    # dynamics.predictor.bandwidth_hz (None: its default)
+    delay_ms: float | None = None        # dynamics.delay_ms (None: measured on the static pass, `service_delay_ms`)
+
+
+def service_delay_ms(opts: DynamicOptions, world: World, static_log: dict) -> float:
+    """The delay the service is given: ``opts.delay_ms``, else the end-to-end delay measured on the static
+    pass; HilError when it cannot be measured (`hil.report.end_to_end_delay` returned None)."""
+    if opts.delay_ms is not None:
+        return float(opts.delay_ms)
+    delay = end_to_end_delay(world, static_log)
+    if delay is None:
+        raise HilError("the end-to-end delay could not be measured on the static pass: no lag of 0-60 ms "
+                       "explains the correction as a linear function of the force (the truth holds an effect "
+                       "far from linear in it, e.g. a hysteresis); give it with --delay-ms MS (measured on a "
+                       "truth without it, or at commissioning)")
+    return 1000.0 * delay
 
 
 def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
@@ -191,7 +207,7 @@ def compare(scenario: Scenario, truth: StiffnessModel, model_path: Path,
             sc.path = scenario.path
             sc.plc.extra_delay_ms = extra
             static_pass, static = one(sc, f"static_{extra:g}", True)
-            delay_ms = 1000.0 * (end_to_end_delay(world, static_pass.log) or 0.0)
+            delay_ms = service_delay_ms(DynamicOptions(), world, static_pass.log)   # measured
             case = {"extra_delay_ms": extra, "delay_ms": delay_ms, "static": figures(world, static), "dynamic": []}
             say(f"extra delay {extra:g} ms: end-to-end delay {delay_ms:.2f} ms, static {case['static']}")
             for k, opts in enumerate(variants):

@@ -66,7 +66,9 @@ def window_errors(world: World, ev: dict) -> dict[str, float]:
 def end_to_end_delay(world: World, log: dict) -> float | None:
     """The delay (s) from the force at the tool to the correction the PLC applied: the lag at which the
     applied correction's TCP displacement, FK(q_cmd) - FK(q_ref), is best explained as a linear function of
-    the process force (least squares over `LAGS_S`, refined on a parabola); None without a correction."""
+    the process force (least squares over `LAGS_S`, refined on a parabola); None without a correction, and
+    None when the best lag is an end of `LAGS_S`: then no delay in the range explains it (a truth with an
+    effect far from linear in the force, e.g. a hysteresis that flips twice per circle, pulled the fit to 0)."""
     t = np.asarray(log["t"])
     use = (t >= 0.0) & (t <= world.t_end)
     if use.sum() < 50:
@@ -87,7 +89,7 @@ def end_to_end_delay(world: World, log: dict) -> float | None:
         c0, c1, c2 = cost[k - 1: k + 2]
         den = c0 - 2 * c1 + c2
         return float(LAGS_S[k] + (0.5 * (c0 - c2) / den if den > 0 else 0.0) * (LAGS_S[1] - LAGS_S[0]))
-    return float(LAGS_S[k])
+    return None
 
 
 STYLES = {"uncompensated": ("tab:red", "-"), "compensated": ("tab:blue", "-"), "dynamic": ("tab:green", "-")}

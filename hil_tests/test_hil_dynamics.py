@@ -10,8 +10,9 @@ On the paper's circle with the ringing robot stub (10 Hz and 16 Hz, 3 %): the mo
   (``added_damping`` 0.1) is what holds: its window peaks stay below the static compensator's and its steady
   mean no worse (docs/dynamics.md: 40 % is not reachable then; why);
 * with hysteresis at joint 1 (0.012 deg), the exact model leaves at most 10 % of the uncompensated mean error,
-  its largest error where joint 1's torque reverses is at most twice its largest elsewhere, static and dynamic,
-  and springs alone leave more.
+  static and dynamic; the static compensator's largest error where joint 1's torque reverses is at most twice
+  its largest elsewhere, the dynamic one's no larger than the static one's there (elsewhere the dynamic path
+  takes the ringing away, so its own ratio is no measure), and springs alone leave more.
 
 `benchmarks/bench_dynamics.py` prints the same figures for every variant, in lock step or in real time.
 """
@@ -68,17 +69,27 @@ def test_with_the_frequency_20_percent_off_the_robust_filter_still_gains_and_los
     assert row["figures"]["steady_mean_mm"] <= c["static"]["steady_mean_mm"], (row, c["static"])
 
 
-def reversal_ratio(ev: dict) -> float:
-    """max |error| within the reversal windows / max |error| elsewhere on the circle."""
+def reversal_split(ev: dict) -> tuple[np.ndarray, np.ndarray]:
+    """|error| (mm) within the reversal windows, and elsewhere on the circle."""
     c = ev["cut"]
     a, e = np.degrees(ev["angle"][c]), np.abs(ev["err_mm"][c])
     inside = np.zeros(len(a), dtype=bool)
     for lo, hi in REVERSALS_DEG:
         inside |= (a > lo) & (a < hi)
-    return float(e[inside].max() / e[~inside].max())
+    return e[inside], e[~inside]
 
 
-def test_hysteresis_at_joint_1_reversals_compensated(tmp_path):
+def reversal_max(ev: dict) -> float:
+    return float(reversal_split(ev)[0].max())
+
+
+def reversal_ratio(ev: dict) -> float:
+    """max |error| within the reversal windows / max |error| elsewhere on the circle."""
+    inside, elsewhere = reversal_split(ev)
+    return float(inside.max() / elsewhere.max())
+
+
+def test_hysteresis_at_joint_1_reversals_compensated(result, tmp_path):
     truth = StiffnessModel.from_yaml(TRUTH)
     d = truth.to_dict()
     d["effects"].append({"effect": "hysteresis", "joint": 1, "offset_deg": 0.012})
@@ -86,11 +97,20 @@ def test_hysteresis_at_joint_1_reversals_compensated(tmp_path):
     path = tmp_path / "truth.yaml"
     truth.to_yaml(path)
     sc = load_scenario()
-    res = run_circle(sc, path, path, lockstep=True, dynamic=DynamicOptions(), workdir=tmp_path / "runs")
+    # the hysteresis's flips are no linear function of the force: the delay is not measured on this truth
+    # (None, not a wrong figure) but given, as measured on the springs' truth of the same chain
+    delay_ms = result["cases"][0]["delay_ms"]
+    res = run_circle(sc, path, path, lockstep=True, dynamic=DynamicOptions(delay_ms=delay_ms), workdir=tmp_path / "runs")
+    assert res.summary["delay_ms"] is None
     unc = res.summary["mean_error_mm_uncompensated"]
+    inside = {}
     for name in ("compensated", "dynamic"):
         ev = res.evaluations[name]
         mean = float(np.abs(ev["err_mm"][ev["cut"]]).mean())
-        assert mean <= 0.10 * unc and reversal_ratio(ev) <= 2.0, (name, mean, unc, reversal_ratio(ev))
+        inside[name] = reversal_max(ev)
+        assert mean <= 0.10 * unc, (name, mean, unc)
+    static = res.evaluations["compensated"]
+    assert reversal_ratio(static) <= 2.0, reversal_ratio(static)
+    assert inside["dynamic"] <= inside["compensated"], inside     # the dynamic path adds no glitch of its own
     springs = evaluate_pass(sc, truth, run_lockstep(sc, truth, TRUTH, True, tmp_path / "springs"))[1]
     assert float(np.abs(springs["err_mm"][springs["cut"]]).mean()) > 3 * res.summary["mean_error_mm_static"]

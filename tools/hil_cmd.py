@@ -44,6 +44,8 @@ def register(sub) -> None:
     d.add_argument("--feedforward", action="store_true",
                    help="also the feedforward from the process plan (the PLC writes its program time)")
     d.add_argument("--no-predictor", action="store_true", help="the dynamic pass without the wrench predictor")
+    d.add_argument("--delay-ms", type=float, default=None, metavar="MS",
+                   help="the service's dynamics.delay_ms (default: the end-to-end delay measured on the static pass)")
     d.add_argument("--modes-data", default=None, metavar="FILE.csv",
                    help="write the commissioning record (force and path of the uncompensated pass) for `stiffcomp modes`")
     c.set_defaults(func=run)
@@ -67,7 +69,7 @@ def run(args) -> int:
 
         dynamic = DynamicOptions(args.mode_error, args.added_damping, args.feedforward,
                                  record=Path(args.modes_data) if args.modes_data else None,
-                                 predictor=not args.no_predictor)
+                                 predictor=not args.no_predictor, delay_ms=args.delay_ms)
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,

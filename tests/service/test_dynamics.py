@@ -178,7 +178,8 @@ def test_the_correction_ramps_and_the_faults_act_as_on_the_static_path(tmp_path,
     terms = [*comp.predictor.wrench_terms, *comp.predictor.twist_terms]
     q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
     modes_params(comp, np.nan)              # a mode's coefficient spoilt: the correction is not finite
-    for k in range(k + 1, k + 300):
+    start = k + 1
+    for k in range(start, start + 300):
         c.step(0.001 * k, Reading([300.0, -200.0, 150.0, 5.0, 2.0, 1.0], 0, k, False), [], int(Command.ENABLE), k,
                q, inputs=inputs(0.001 * k))
     assert c.faults.word & int(Fault.VALUE_INVALID) and not any(c.correction)

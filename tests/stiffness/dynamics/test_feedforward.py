@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stiffness.dynamics.base import DynamicsContext
 from stiffness.dynamics.feedforward import Feedforward, Plan, read_plan
@@ -90,3 +92,16 @@ def test_a_bad_plan_file_is_named_with_its_line(tmp_path, text, match):
         read_plan(path)
     if "problem" in match:
         assert any("line 3" in p for p in e.value.problems), e.value.problems
+
+
+@given(st.lists(st.floats(0.0, 2.0), min_size=1, max_size=40), st.lists(st.floats(-5.0, 50.0), min_size=1, max_size=30),
+       st.integers(0, 2**32 - 1))
+@settings(max_examples=60, deadline=None)
+def test_the_engagement_is_the_line_between_the_rows(engagements, taus, seed):
+    """Plan.engagement (read twice per cycle, without NumPy) is np.interp of the plan, held beyond its ends."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.001, 2.0, len(engagements)))
+    e = np.array(engagements)
+    p = Plan(np.column_stack([t, e])[:, 0], e, np.tile([1.0, 2.0, 3.0], (len(t), 1)))   # a strided column too
+    for tau in [*taus, *t]:
+        assert p.engagement(tau) == pytest.approx(float(np.interp(tau, t, e)), abs=1e-12)
