@@ -64,7 +64,7 @@ def service_delay_ms(opts: DynamicOptions, world: World, static_log: dict) -> fl
     if delay is None:
         raise HilError("the end-to-end delay could not be measured on the static pass: no lag of 0-60 ms "
                        "explains the correction as a linear function of the force (the truth holds an effect "
-                       "far from linear in it, e.g. a hysteresis); give it with --delay-ms MS (measured on a "
+                       "far from linear in it, one with a history); give it with --delay-ms MS (measured on a "
                        "truth without it, or at commissioning)")
     return 1000.0 * delay
 
