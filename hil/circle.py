@@ -81,8 +81,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     one) writes the service's ``trace`` (`stiffcomp run --trace`) and the virtual CMM's points of the part
     it cut to ``cmm`` (`hil.cmm`); the summary's ``part_error_mm`` is that part's mean error. ``lockstep``:
     each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time. ``dynamic``: a
-    third pass with the dynamic compensation (`hil.dynamics`): the modes identified from the uncompensated
-    pass, the delay measured on the static one; the summary's figures are then the dynamic pass's, with the
+    third pass with the dynamic compensation (`hil.dynamics`): the modes identified from a tap test the
+    stub answers, the delay measured on the static one (or ``dynamic.delay_ms``); the summary's figures are then the dynamic pass's, with the
     static pass's as ``*_static`` twins.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))

@@ -35,8 +35,8 @@ def register(sub) -> None:
                    help="cut the circle here instead (joints at its centre, deg; the scenario's circle.center_q_deg)")
     d = c.add_argument_group("dynamic compensation (docs/dynamics.md)")
     d.add_argument("--dynamic-compensation", action="store_true",
-                   help="a third pass with the service's dynamic path on: the modes identified from the "
-                        "uncompensated pass (as `stiffcomp modes` would), the delay measured on the static pass")
+                   help="a third pass with the service's dynamic path on: the modes identified from a tap test the "
+                        "robot stub answers (as `stiffcomp modes` would), the delay measured on the static pass")
     d.add_argument("--mode-error", type=float, default=0.0, metavar="F",
                    help="the service's mode frequencies scaled by 1 + F (a model that is off; e.g. 0.2, -0.2)")
     d.add_argument("--added-damping", type=float, default=0.0, metavar="Z",
@@ -47,7 +47,7 @@ def register(sub) -> None:
     d.add_argument("--delay-ms", type=float, default=None, metavar="MS",
                    help="the service's dynamics.delay_ms (default: the end-to-end delay measured on the static pass)")
     d.add_argument("--modes-data", default=None, metavar="FILE.csv",
-                   help="write the commissioning record (force and path of the uncompensated pass) for `stiffcomp modes`")
+                   help="write the commissioning record (the tap test's force and the stub's deflection) for `stiffcomp modes`")
     c.set_defaults(func=run)
 
 
