@@ -187,12 +187,10 @@ class Compensator:
         if self.feeds and inputs is not None:
             self.dynamics.feed(t, inputs, pred.p_tcp)
         k = self.kernel
-        if k is not None:
-            if pred.kernel is not None:
-                return self._cycle_compiled(k, pred, t, dt, reading, q_deg, tare, hold, reset, payload_index)
-            if k.bound:                         # a model reload's ramp: the Python path takes over
-                k.unbind(self)
-        if q_deg is not None:
+        compiled = k is not None and pred.kernel is not None
+        if k is not None and not compiled and k.bound:     # a model reload's ramp: the Python path takes over
+            k.unbind(self)
+        if q_deg is not None:                   # the steps both paths take first
             self.q_rad = np.array(q_deg) * DEG_TO_RAD
             pred.kinematics(self.q_rad)
         if tare:
@@ -201,6 +199,8 @@ class Compensator:
             pred.reset_history()
             self.tare_refused = False
         moved = self.payloads.update(dt, payload_index)
+        if compiled:
+            return self._cycle_compiled(k, pred, t, dt, reading, hold, moved)
         if reading is not None:
             self.samples += 1
             self.sample_t = t
@@ -229,19 +229,11 @@ class Compensator:
         return self.correction
 
 
-    def _cycle_compiled(self, k, pred, t: float, dt: float, reading: Reading | None, q_deg: list[float] | None,
-                        tare: bool, hold: bool, reset: bool, payload_index: int) -> list[float]:
-        """`cycle` on the compiled path: the same steps, the arithmetic in two compiled calls (three when
-        the joints moved); the state of the stages lives in ``k`` (`service.kernel.compensator`)."""
-        if q_deg is not None:
-            self.q_rad = np.array(q_deg) * DEG_TO_RAD
-            pred.kinematics(self.q_rad)
-        if tare:
-            self._tare_pending = True
-        if reset:
-            pred.reset_history()
-            self.tare_refused = False
-        moved = self.payloads.update(dt, payload_index)
+    def _cycle_compiled(self, k, pred, t: float, dt: float, reading: Reading | None, hold: bool,
+                        moved: bool) -> list[float]:
+        """`cycle` on the compiled path after the steps both paths take first (``moved``: the payload's
+        switch moved): the arithmetic in two compiled calls (three when the joints moved); the state of the
+        stages lives in ``k`` (`service.kernel.compensator`)."""
         b, sp, f, lim = k.bound, self.spikes, self.filter, self.limiter
         if (not b or sp is not b[0] or sp.max_step is not b[1] or sp.max_held is not b[2] or f is not b[3]
                 or lim is not b[4] or lim.max is not b[5] or lim.rate is not b[6] or lim.ramp_s is not b[7]):
