@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DataError, Problems, quote
+from .parquet import read_parquet
 from .robot import BODIES, Robot
 
 Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
@@ -195,14 +196,7 @@ def _csv_rows(path: Path, reader) -> Iterator[tuple[int, list[str]]]:
 
 
 def _parquet_rows(path: Path) -> tuple[list[str], Iterator[tuple[int, list[str]]]]:
-    try:
-        import pyarrow.parquet as pq
-    except ImportError as e:
-        raise DataError(f"{path}: reading Parquet needs pyarrow (pip install 'stiffcomp[parquet]')") from e
-    try:
-        table = pq.read_table(path)
-    except Exception as e:  # pyarrow raises several unrelated types for corrupt files
-        raise DataError(f"{path}: cannot read Parquet: {e}") from e
+    table = read_parquet(path)
     header = list(table.column_names)
     cols = [table.column(c).to_pylist() for c in header]
     rows = (["" if v is None else str(v) for v in r] for r in zip(*cols))

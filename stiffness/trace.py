@@ -39,6 +39,7 @@ from typing import Self
 import numpy as np
 
 from .errors import DataError, OutputError
+from .parquet import read_parquet
 
 log = logging.getLogger("stiffcomp.trace")
 
@@ -190,14 +191,7 @@ def read_trace(path: str | Path) -> Trace:
     if not path.exists():
         raise DataError(f"{path}: trace file not found")
     if path.suffix.lower() == ".parquet":
-        try:
-            import pyarrow.parquet as pq
-        except ImportError as e:
-            raise DataError(f"{path}: reading Parquet needs pyarrow (pip install 'stiffcomp[parquet]')") from e
-        try:
-            t = pq.read_table(path)
-        except Exception as e:  # pyarrow raises several unrelated types for corrupt files
-            raise DataError(f"{path}: cannot read Parquet: {e}") from e
+        t = read_parquet(path)
         missing = [c for c in COLUMNS if c not in t.column_names]
         if missing:
             raise DataError(f"{path}: not a stiffcomp trace: column(s) {', '.join(missing)} missing")
