@@ -4,8 +4,8 @@ A probe that an orchestrator runs every few seconds must cost milliseconds, so t
 the standard library, pyyaml (through `stiffness.yamlread`) and nothing else: no pydantic, no NumPy,
 no model code. It owns
 
-* the defaults of the keys a probe reads, `MonitoringEndpoint` and `PlcEndpoint` (the schemas in
-  `plc_interface.settings` take their defaults from these classes, so each default is written once);
+* the reading of the keys a probe reads, whose defaults `MonitoringEndpoint` and `PlcEndpoint` hold
+  (`plc_interface.defaults`; the schemas in `plc_interface.settings` take theirs from there too);
 * the probes of the I/O process's HTTP endpoint, `PROBES` (served by `plc_interface.monitoring`);
 * `read_endpoints`, the light reader of those keys, and `read_probe`, the HTTP client.
 
@@ -30,8 +30,7 @@ from typing import Any
 from stiffness.errors import ConfigError, quote
 from stiffness.yamlread import read_yaml
 
-PORT_MIN, PORT_MAX = 1, 65535
-PLC_ROLES = ("server", "client", "none")
+from .defaults import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
 
 # probe -> (HTTP path, the verdict's key in its JSON); `plc_interface.health` explains each verdict
 PROBES: dict[str, tuple[str, str]] = {
@@ -39,27 +38,6 @@ PROBES: dict[str, tuple[str, str]] = {
     "live": ("/health/live", "live"),
     "ready": ("/health/ready", "ready"),
 }
-
-
-@dataclass(frozen=True)
-class MonitoringEndpoint:
-    """The ``monitoring`` keys a probe reads, with their defaults (the schema: `MonitoringSettings`)."""
-
-    enabled: bool = True
-    host: str = "127.0.0.1"
-    port: int = 9020
-    health_max_exceed_rate: float = 0.05
-
-
-@dataclass(frozen=True)
-class PlcEndpoint:
-    """The ``plc`` keys a probe reads, with their defaults (the schema: `PlcSettings`)."""
-
-    role: str = "server"
-    host: str = "127.0.0.1"
-    port: int = 5020
-    register_map: str = "registers.yaml"
-
 
 
 def _number(v: Any) -> bool:

@@ -13,7 +13,7 @@ from pydantic import Field, field_validator, model_validator
 
 from stiffness.yamlio import Strict
 
-from .endpoints import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
+from .defaults import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
 
 IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
 Access = Literal["none", "read", "write"]

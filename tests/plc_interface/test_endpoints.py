@@ -11,13 +11,8 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plc_interface.endpoints import (
-    MonitoringEndpoint,
-    PlcEndpoint,
-    endpoints_from,
-    read_endpoints,
-    resolve_path,
-)
+from plc_interface.defaults import MonitoringEndpoint, PlcEndpoint
+from plc_interface.endpoints import endpoints_from, read_endpoints, resolve_path
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from service.config import load_config
 from service.paths import DEFAULT_CONFIG

@@ -130,7 +130,7 @@ def test_without_http_it_reads_the_modbus_block_and_says_where(tmp_path, capsys)
 # modules on ALLOWED, nothing else: so moving a schema or a helper cannot quietly pull pydantic, NumPy,
 # scipy, pinocchio or the model code into the probe. The fallback may add pymodbus and the register map,
 # never NumPy, scipy, pinocchio or the service.
-ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "plc_interface", "plc_interface.endpoints", "service",
+ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "plc_interface", "plc_interface.defaults", "plc_interface.endpoints", "service",
            "service.paths", "stiffness", "stiffness.errors", "stiffness.yamlread"}
 OURS = ("tools", "hil", "service", "plc_interface", "stiffness")
 def pyyaml(top: str) -> bool:
