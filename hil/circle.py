@@ -22,8 +22,7 @@ from .dynamics import (
     structure_section,
 )
 from .lockstep import run_lockstep
-from .report import end_to_end_delay, errors, evaluate, plot, window_errors, windows_figure
-from .robot_stub import RobotStub
+from .report import end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
 from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
 from .world import World
@@ -63,11 +62,6 @@ def timing_verdict(cycles: int, exceeded: int) -> dict:
                        "was stale for much of the pass, so the compensated error is an upper bound, not what the "
                        "service does; run again on a quiet machine (or with cycle.realtime_priority and a "
                        "cycle.cpu of its own) before trusting these figures"}
-
-
-def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, dict]:
-    world = World(scenario, truth.robot)
-    return world, evaluate(world, RobotStub(truth, scenario.robot, scenario.payload), result.log)
 
 
 def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: Path | None = None,

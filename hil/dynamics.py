@@ -28,7 +28,7 @@ from stiffness.model import StiffnessModel
 from stiffness.units import M_TO_MM
 from stiffness.yamlio import dump_yaml, read_yaml
 
-from .report import end_to_end_delay, errors, evaluate_uncompensated, window_errors
+from .report import end_to_end_delay, errors, evaluate_pass, evaluate_uncompensated, window_errors
 from .robot_stub import RobotStub
 from .run import HilError
 from .scenario import Scenario
@@ -185,7 +185,6 @@ def compare(scenario: Scenario, truth: StiffnessModel, model_path: Path,
     import copy
     import tempfile
 
-    from .circle import evaluate_pass
     from .lockstep import run_lockstep
 
     run = run or run_lockstep

@@ -21,8 +21,7 @@ from pathlib import Path
 from stiffness.effects.backlash import Backlash
 from stiffness.model import StiffnessModel
 
-from .circle import evaluate_pass
-from .report import errors, evaluate_uncompensated
+from .report import errors, evaluate_pass, evaluate_uncompensated
 from .robot_stub import RobotStub
 from .run import run_pass
 from .scenario import Scenario, load_scenario

@@ -9,6 +9,7 @@ cycles of the cut (0 <= t <= one circle) count.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -18,6 +19,11 @@ from stiffness.plots import legend_below
 from .robot_stub import RobotStub
 from .world import World
 
+if TYPE_CHECKING:
+    from stiffness.model import StiffnessModel
+
+    from .scenario import Scenario
+
 
 def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
     """Actual TCP, path angle and radial error (mm) of every cycle of a pass; ``cut`` marks the cut."""
@@ -26,6 +32,13 @@ def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
     angle, err = world.path.radial_error(p)
     cut = (t >= 0.0) & (t <= world.path.duration)
     return {"t": t, "p": p, "angle": angle, "err_mm": err * 1000.0, "cut": cut, "force": F_t}
+
+
+def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result) -> tuple[World, dict]:
+    """The world of ``scenario`` and `evaluate` of a pass's ``result`` (a `hil.run.PassResult`, real time or
+    lock step: its ``log``) on the robot stub of ``truth``."""
+    world = World(scenario, truth.robot)
+    return world, evaluate(world, RobotStub(truth, scenario.robot, scenario.payload), result.log)
 
 
 def evaluate_uncompensated(world: World, stub: RobotStub, period_s: float) -> dict[str, np.ndarray]:

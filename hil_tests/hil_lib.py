@@ -6,8 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hil.circle import evaluate_pass
-from hil.report import errors
+from hil.report import errors, evaluate_pass
 from hil.run import Faults, PassResult, run_pass
 from hil.scenario import ROOT, Scenario, load_scenario
 from plc_interface.register_map import RegisterMap

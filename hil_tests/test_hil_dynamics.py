@@ -23,9 +23,10 @@ import numpy as np
 import pytest
 from hil_lib import ROOT
 
-from hil.circle import evaluate_pass, run_circle
+from hil.circle import run_circle
 from hil.dynamics import DynamicOptions, compare
 from hil.lockstep import run_lockstep
+from hil.report import evaluate_pass
 from hil.scenario import load_scenario
 from stiffness.model import StiffnessModel
 

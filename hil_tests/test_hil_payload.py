@@ -19,9 +19,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from hil.circle import evaluate_pass
 from hil.lockstep import run_lockstep
 from hil.payload import TruePayload
+from hil.report import evaluate_pass
 from hil.world import World
 from service.gravity import PAYLOAD_BODIES, GravityCompensator, GravityConfig
 from stiffness.model import StiffnessModel
