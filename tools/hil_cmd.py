@@ -51,14 +51,57 @@ def register(sub) -> None:
     c.set_defaults(func=run)
 
 
+def _validated(section, name: str, key: str, value, option: str):
+    """``section`` (a scenario's pydantic section) with ``key`` = ``value``, validated as the scenario file's
+    value is; ConfigError names the option, the key and the bound."""
+    from pydantic import ValidationError
+
+    from stiffness.errors import ConfigError
+    from stiffness.yamlio import format_validation_error
+
+    try:
+        return type(section).model_validate({**section.model_dump(), key: value})
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(option, e, prefix=name)) from e
+
+
+# the options of the dynamic pass, and whether each was given
+_DYNAMIC = {"--mode-error": lambda a: a.mode_error != 0.0, "--added-damping": lambda a: a.added_damping != 0.0,
+            "--feedforward": lambda a: a.feedforward, "--no-predictor": lambda a: a.no_predictor,
+            "--delay-ms": lambda a: a.delay_ms is not None, "--modes-data": lambda a: a.modes_data is not None}
+
+
+def _check_dynamic_options(args) -> None:
+    """An option of the dynamic pass without it, or the dynamic pass without the static one it builds on, is
+    refused (it would be ignored); --delay-ms is checked against the service's dynamics.delay_ms."""
+    from stiffness.errors import ConfigError
+
+    given = [o for o, is_given in _DYNAMIC.items() if is_given(args)]
+    if given and not args.dynamic_compensation:
+        raise ConfigError(f"{', '.join(given)}: only with --dynamic-compensation")
+    if args.dynamic_compensation and args.no_compensation:
+        raise ConfigError("--dynamic-compensation builds on the compensated pass (its delay): drop --no-compensation")
+    if args.delay_ms is not None:
+        from pydantic import ValidationError
+
+        from service.dynamics import DynamicsConfig
+        from stiffness.yamlio import format_validation_error
+
+        try:
+            DynamicsConfig.model_validate({"delay_ms": args.delay_ms})
+        except ValidationError as e:
+            raise ConfigError(format_validation_error("--delay-ms", e, prefix="dynamics")) from e
+
+
 def run(args) -> int:
     from hil.circle import run_circle
 
     scenario = load_scenario(args.scenario)
     if args.center_q is not None:
-        scenario.circle.center_q_deg = list(args.center_q)
+        scenario.circle = _validated(scenario.circle, "circle", "center_q_deg", list(args.center_q), "--center-q")
     if args.extra_delay_ms is not None:
-        scenario.plc.extra_delay_ms = args.extra_delay_ms
+        scenario.plc = _validated(scenario.plc, "plc", "extra_delay_ms", args.extra_delay_ms, "--extra-delay-ms")
+    _check_dynamic_options(args)
     if args.trace is not None:
         from service.trace import TraceOptions
 
