@@ -117,3 +117,49 @@ def test_steady_cycles_publish_what_the_glue_publishes(services):
                  "payload_invalid", "overrun"):
         assert word[kind] >= 1, kind             # each event happened
     assert steady.cycle.compensator.tares == 1 and not math.isnan(steady.record.correction_q1)
+
+
+def test_steady_cycles_allocate_nothing_that_stays(tmp_path):
+    """sys.getallocatedblocks does not grow from one window of 1,500 steady cycles (`Service.work`, the trace
+    on) to the next, and the steady call ran them."""
+    import gc
+    import sys
+
+    k = np.arange(8000)[:, None]
+    write_log(tmp_path / "ft.blf", np.hstack([300 * np.cos(0.01 * k), 300 * np.sin(0.01 * k), 150 + 0 * k,
+                                              20 * np.sin(0.01 * k), 20 * np.cos(0.01 * k), 1 + 0 * k]), rate_hz=700.0)
+    cfg = load_config(write_config(tmp_path, {
+        "source": {"replay": {"file": str(tmp_path / "ft.blf"), "loop": False}},
+        "plc": {"role": "none"}, "ads": {"enabled": False}, "monitoring": {"enabled": False},
+        "faults": {"plc_heartbeat_timeout_ms": 0}}))
+    s = Service(cfg, TraceOptions(tmp_path / "trace.csv"))
+    try:
+        s.wait_compiled()
+        runs = []
+        run = s._steady.run
+        s._steady.run = lambda t, reading: runs.append(run(t, reading)) or runs[-1]
+        s.image.set_inputs({**plc(100), "plc_heartbeat": 0})
+        k = 0
+
+        def cycles(n: int) -> None:
+            nonlocal k
+            for _ in range(n):
+                assert s.work(0.001 * k, False)
+                k += 1
+
+        cycles(1000)
+        gc.collect()
+        gc.disable()
+        grown = []
+        try:
+            cycles(500)
+            for _window in range(2):
+                before = sys.getallocatedblocks()
+                cycles(1500)
+                grown.append(sys.getallocatedblocks() - before)
+        finally:
+            gc.enable()
+        assert sum(runs[-3000:]) == 3000            # every cycle of the windows was a steady one
+        assert max(grown) <= 10, f"blocks that stayed per window of 1,500 cycles: {grown}"
+    finally:
+        s.stop()
