@@ -301,6 +301,19 @@ class Producer:
     def __call__(self, task: TaskValues, signals: Any) -> ToPlc:
         return self._make(self._values(task, signals))
 
+    def indices(self, slots: dict[str, int]) -> list[int]:
+        """Where each `TO_PLC` value lies (in `TO_PLC` order) in a cycle's values kept as one vector, ``slots``
+        naming each place as a source path (``task.heartbeat``, ``signals.correction[0]``): the compiled
+        service's record. ContractError names a value whose source has no place."""
+        out = []
+        for v, s in zip(TO_PLC, self._sources):
+            key = f"{s.root}.{s.name}" + ("" if s.index is None else f"[{s.index}]")
+            if key not in slots:
+                raise ContractError(f"contract value {v.name!r}: source {v.source!r} has no place in the cycle's "
+                                    "values")
+            out.append(slots[key])
+        return out
+
 
 def to_plc(**values: float) -> ToPlc:
     """A `ToPlc` record: zero but for ``values`` (tests, tools, a service before its first cycle)."""

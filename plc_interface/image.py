@@ -69,6 +69,7 @@ class ProcessImage:
         self._n_timing = self.shm.buf[off: off + 8].cast("q")
         self._timing = np.ndarray((TIMING_RING, 2), dtype=np.float32, buffer=self.shm.buf, offset=off + 8)
         self._timing_at, self._pack_timing, self._mem = off + 8, struct.Struct("<2f").pack_into, self.shm.buf
+        self.bytes = np.ndarray((n_bytes,), dtype=np.uint8, buffer=self.shm.buf)     # for `publish_with`
         if self._owner:
             self._n_timing[0] = 0
             for k in range(_HEADER):
@@ -79,6 +80,11 @@ class ProcessImage:
         self.inner = {a for r in rmap.registers if r.direction == "from_plc"
                       for a in range(r.address + 1, r.address + r.count)}
         self._read_inputs = self.in_codec.record_reader(FromPlc, frozenset(FromPlc._fields) - set(REQUIRED["from_plc"]))
+        self._off_in, self._unpack_in = self._off["from_plc"], self.in_codec.unpacker()
+        self._off_out = self._off["to_plc"]
+        self.in_copy = np.zeros(2 * self.in_codec.words, dtype=np.uint8)       # `copy_inputs`
+        self._in_copy, self._in_scratch = memoryview(self.in_copy), bytearray(2 * self.in_codec.words)
+        assert _H["from_plc"] == 5              # (`inputs` names the counters' places)
         self._last_inputs: FromPlc | None = None
         self.stale_reads = 0            # cycle side: inputs kept from a previous copy
         self.refused_writes = 0         # I/O side: writes refused by the Modbus rules
@@ -122,28 +128,85 @@ class ProcessImage:
         h = self._h
         b = (h[0] + 1) & 1
         h[1 + b] += 1
+        try:
+            self.out_codec.pack_into(self._mem, self._off["to_plc"][b], self.out_codec.pick(record))
+        except BaseException:
+            h[1 + b] += 1                     # even again, the buffer not published: readers go on as before
+            raise
         self._last_record = record
-        self.out_codec.pack_into(self._mem, self._off["to_plc"][b], self.out_codec.pick(record))
-        h[3 + b] = time.time_ns() if stamp_ns is None else stamp_ns
+        self._published(b, time.time_ns() if stamp_ns is None else stamp_ns, record.last_exec_us,
+                        record.period_jitter_us)
+
+    def publish_with(self, write, stamp_ns: int, exec_us: float, jitter_us: float) -> bool:
+        """Publish one cycle's block as ``write(memory, offset)`` packs it into the free buffer (the compiled
+        cycle's packer, `service.kernel.pack`: ``memory`` the image's bytes as a uint8 array, ``offset`` where
+        the block starts) and returns True; never waits. False from ``write`` (nothing written) publishes
+        nothing. ``exec_us``, ``jitter_us``: the cycle's timing, for the histograms."""
+        b, offset = self.begin_publish()
+        if not write(self.bytes, offset):
+            self.abandon_publish(b)
+            return False
+        self._published(b, stamp_ns, exec_us, jitter_us)
+        return True
+
+    # the same in three steps, for a compiled cycle that packs the block itself (`service.steady`)
+    def begin_publish(self) -> tuple[int, int]:
+        """Open the free to_plc buffer for writing: (its number, the byte offset of the block in `bytes`)."""
+        h = self._h
+        b = (h[0] + 1) & 1
+        h[1 + b] += 1
+        return b, self._off_out[b]
+
+    def abandon_publish(self, b: int) -> None:
+        """Close buffer ``b`` unpublished (nothing was written into it)."""
+        self._h[1 + b] += 1
+
+    def end_publish(self, b: int, exec_us: float, jitter_us: float) -> None:
+        """Publish buffer ``b``, written, stamped now; ``exec_us``, ``jitter_us``: the cycle's timing."""
+        self._published(b, time.time_ns(), exec_us, jitter_us)
+
+    def copy_inputs(self) -> bool:
+        """Copy the PLC's newest complete block into `in_copy` (the cycle's own copy, which a compiled cycle
+        decodes); False when the I/O side kept writing and the last good copy stays (``stale_reads``)."""
+        h, offs, mem, scratch, n = self._h, self._off_in, self._mem, self._in_scratch, 2 * self.in_codec.words
+        for _ in range(RETRIES):
+            b = h[5] & 1
+            s = h[6 + b]
+            if s & 1:
+                continue
+            o = offs[b]
+            scratch[:] = mem[o:o + n]
+            if h[6 + b] == s:
+                self._in_copy[:] = scratch
+                return True
+        if self._last_inputs is None:          # before the first cycle only: a copy must exist
+            self.inputs()
+            return self.copy_inputs()
+        self.stale_reads += 1
+        return False
+
+    def _published(self, b: int, stamp_ns: int, exec_us: float, jitter_us: float) -> None:
+        """The to_plc buffer ``b`` is written: stamp it, make it the newest, and keep the cycle's timing."""
+        h = self._h
+        h[3 + b] = stamp_ns
         h[1 + b] += 1
         h[0] += 1
         n = self._n_timing[0]                 # the previous cycle's timing, once per cycle, for the histograms
-        self._pack_timing(self._mem, self._timing_at + 8 * (n % TIMING_RING), record.last_exec_us,
-                          record.period_jitter_us)
+        self._pack_timing(self._mem, self._timing_at + 8 * (n % TIMING_RING), exec_us, jitter_us)
         self._n_timing[0] = n + 1
 
     def inputs(self) -> FromPlc:
         """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""
-        h, k, offs, unpack, buf = self._h, _H["from_plc"], self._off["from_plc"], self.in_codec.unpack_from, self._mem
+        h, offs, unpack, buf = self._h, self._off_in, self._unpack_in, self._mem
         for _ in range(RETRIES):
-            b = int(h[k]) & 1
-            s = int(h[k + 1 + b])
+            b = h[5] & 1                    # the from_plc counters: version, then the two buffers' sequences
+            s = h[6 + b]
             if s & 1:
                 continue
             values = unpack(buf, offs[b])
-            if int(h[k + 1 + b]) == s:
-                self._last_inputs = self._read_inputs(values)
-                return self._last_inputs
+            if h[6 + b] == s:
+                self._last_inputs = r = self._read_inputs(values)
+                return r
         if self._last_inputs is None:          # before the first cycle only: a copy must exist
             got = None
             while got is None:
@@ -248,7 +311,7 @@ class ProcessImage:
         for view in (self._h, self._n_timing):
             if view is not None:
                 view.release()
-        self._h = self._n_timing = self._timing = self._mem = None
+        self._h = self._n_timing = self._timing = self._mem = self.bytes = None
         self._buf = {}
         release(self.shm, self._owner)
 

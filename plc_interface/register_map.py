@@ -13,9 +13,12 @@ defaults to the contract's type; an integer type with a ``scale`` may carry a fl
 
 from __future__ import annotations
 
+import functools
 import math
 import operator
+import re
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -99,8 +102,15 @@ class BlockCodec:
         self._struct = struct.Struct(fmt)
         self._words = struct.Struct("<" + "H" * self.words)
         self._scales = [r.scale for r in registers]
+        self._unscaled = all(s == 1.0 for s in self._scales)
         self.pick = operator.attrgetter(*self.names) if len(self.names) > 1 else (
             lambda rec: (getattr(rec, self.names[0]),))
+
+    def fields(self) -> list[tuple[str, int, float]]:
+        """(struct code, byte offset from the block's start, scale) of each register, in ``names`` order: the
+        layout `pack_into` writes (a compiled packer reads it, `service.kernel.pack`)."""
+        return [(code, offset, scale) for (code, offset), scale in zip(struct_fields(self._struct.format),
+                                                                        self._scales)]
 
     def encode_record(self, record) -> list[int]:
         """Words for a contract record (`ToPlc`, `FromPlc`): each register takes its value by name."""
@@ -117,6 +127,8 @@ class BlockCodec:
         zero = len(self.names)                  # the index of the 0 appended for the fields left out
         order = [self.index.get(f, zero) for f in record_type._fields]
         make = record_type._make
+        if order == list(range(zero)):          # the map's order is the record's: the values as they are
+            return functools.partial(tuple.__new__, record_type)     # (_make, without its Python frame)
         if all(k < zero for k in order):
             return lambda values: make(map(values.__getitem__, order))
         return lambda values: make(map([*values, 0.0].__getitem__, order))
@@ -140,15 +152,36 @@ class BlockCodec:
         ``offset`` (the process image's memory: one struct call, no intermediate list of words)."""
         self._struct.pack_into(buffer, offset, *self._scaled(values))
 
-    def unpack_from(self, buffer, offset: int) -> list[float]:
+    def unpack_from(self, buffer, offset: int) -> Sequence[float]:
         """Values in ``names`` order from the block's words in ``buffer`` at byte ``offset``."""
         raw = self._struct.unpack_from(buffer, offset)
+        if self._unscaled:
+            return raw
         return [v if s == 1.0 else v / s for v, s in zip(raw, self._scales)]
+
+    def unpacker(self):
+        """`unpack_from` itself, or where no register is scaled, the struct's own (one C call, a tuple)."""
+        return self._struct.unpack_from if self._unscaled else self.unpack_from
 
     def decode(self, words: list[int]) -> list[float]:
         """Values in ``names`` order from the block's words (integers divided by their scale)."""
         raw = self._struct.unpack(self._words.pack(*words[: self.words]))
         return [v if s == 1.0 else v / s for v, s in zip(raw, self._scales)]
+
+
+def struct_fields(fmt: str) -> list[tuple[str, int]]:
+    """(code, byte offset) of each field of a little-endian `struct` format without alignment ("<": codes with
+    optional counts, "x" pads), e.g. ``"<d2fxxH"`` -> [("d", 0), ("f", 8), ("f", 12), ("H", 18)]."""
+    if not fmt.startswith("<"):
+        raise ValueError(f"struct format {fmt!r}: only '<' (little-endian, no alignment) is read")
+    out, offset = [], 0
+    for count, code in re.findall(r"(\d*)([a-zA-Z?])", fmt[1:]):
+        size = struct.calcsize("<" + code)
+        for _ in range(int(count or 1)):
+            if code != "x":
+                out.append((code, offset))
+            offset += size
+    return out
 
 
 class RegisterMap:

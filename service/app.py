@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plc_interface.contract import Fault, Producer, TaskState, TaskValues, ToPlc, stopped
+from plc_interface.contract import Fault, FromPlc, Producer, TaskState, TaskValues, ToPlc, stopped
 from plc_interface.errors import PlcError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings
@@ -47,8 +47,11 @@ from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
 from .trace import TraceOptions, TraceRing, TraceWriter
+from .values import Values
 
 log = logging.getLogger("stiffcomp.service")
+
+_RUN = int(TaskState.RUN)
 
 
 class Service:
@@ -74,8 +77,10 @@ class Service:
         self.trace_writer: TraceWriter | None = None
         self.trace_counts: dict[str, int] | None = None
         self.model = load_model(cfg)
-        self.cycle = Cycle.from_config(cfg, self.model)
         self.rmap = cfg.register_map()
+        # the cycle's values as one vector (`service.values`): the compiled service packs its record from it
+        self.values = Values(len(FromPlc._fields) + len(self.rmap.codecs["to_plc"].names))
+        self.cycle = Cycle.from_config(cfg, self.model, self.values.signals)
         dyn = self.cycle.compensator.dynamics
         for name in (dyn.plc_values() if dyn is not None else []):
             if name not in self.rmap.codecs["from_plc"].index:
@@ -86,6 +91,9 @@ class Service:
         self.info = TaskInfo(self.period, cfg.cycle.history)
         self.produce = Producer()
         self.produce.check(self._task_values(TaskState.INIT), self.cycle.signals())
+        self._to_plc = self.produce.indices(self.values.slots)     # TO_PLC's values in the vector
+        self._packers = None            # (image, trace) packers of the compiled service (`_compile`), None: records
+        self._steady = None             # its steady cycle (`service.steady`)
         self.io = None
         self.task: CyclicTask | None = None
         self.failed = threading.Event()
@@ -107,7 +115,7 @@ class Service:
             raise
         if trace is not None:
             self.trace = TraceRing()
-        self.record: ToPlc = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
+        self.record = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
         self.compile_s: float | None = None     # how long the compiled path took to be ready (s)
         self._compiling = None
         if cfg.cycle.compiled:
@@ -128,20 +136,37 @@ class Service:
         except Exception as e:  # noqa: BLE001 - any reason (no compiled form, no numba) leaves the Python path
             log.warning("the cycle runs on the Python path: %s", e)
             return
+        self._packers, self._steady = self.values.compiled(self, self._to_plc)
         self.compile_s = time.perf_counter() - t0
         log.info("compiled signal path ready in %.2f s", self.compile_s)
 
-    def _task_values(self, state: TaskState) -> TaskValues:
+    def _task_tuple(self, state: int) -> tuple:
+        """The task's counters of the cycle now, in `TaskValues`' order."""
         info = self.info
-        n = info.cycle_count + (state == TaskState.RUN)
-        return TaskValues(n & 0xFFFF, int(state), n, info.exceed_count, info.last_exec_s * 1e6, self.period * 1e6,
-                          info.last_jitter_s * 1e6, int(info.last_exceeded))
+        n = info.cycle_count + (state == _RUN)
+        return (n & 0xFFFF, state, n, info.exceed_count, info.last_exec_s * 1e6, self.period * 1e6,
+                info.last_jitter_s * 1e6, int(info.last_exceeded))
+
+    def _task_values(self, state: TaskState) -> TaskValues:
+        return TaskValues._make(self._task_tuple(int(state)))
+
+    @property
+    def record(self) -> ToPlc:
+        """The last cycle's `ToPlc` record (the compiled service builds it when asked, from `values`)."""
+        if self._record is None:
+            self._record = ToPlc._make(self.values.V[self._to_plc].tolist())
+        return self._record
+
+    @record.setter
+    def record(self, record: ToPlc) -> None:
+        self._record = record
 
     # -- the cycle ------------------------------------------------------------------------------
     def work(self, t: float, exceeded: bool) -> bool:
         """One cycle: inputs from the image and the source, the cycle, the record to the image.
 
         Returns False when a requested stop has ramped the correction to zero (the task then ends)."""
+        steady = self._steady
         if self.pending:                # a reload, between two cycles: references and a few floats
             try:
                 swap = self.pending.pop()
@@ -149,24 +174,48 @@ class Service:
                 swap = None
             if swap is not None:
                 swap(self.cycle, self.source)
+        elif (steady is not None and steady.call is not None and not exceeded and not self.cycle.supervisor.held
+              and not (self.task is not None and self.task.stop_requested)):
+            self.image.copy_inputs()    # the steady cycle (`service.steady`): one compiled call, when it is
+            reading, errors = self.source.poll(t)
+            if not errors and steady.run(t, reading):
+                if self.trace is not None:
+                    self.trace.put_with(self._packers[1], t)
+                return True
+            return self._glue(t, exceeded, reading, errors)
+        return self._glue(t, exceeded, *self.source.poll(t))
+
+    def _glue(self, t: float, exceeded: bool, reading, errors) -> bool:
+        """A cycle of the Python glue (`Cycle.advance`) with this cycle's sample and the source's problems."""
         inp = self.image.inputs()
-        reading, errors = self.source.poll(t)
         cyc = self.cycle
         if self.task is not None and self.task.stop_requested and not cyc.stopping:
             self._begin_stop(t)
-        q = (inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6)
-        cyc.step(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat), list(q), exceeded,
-                 int(inp.payload_index), inp)
-        sig = cyc.signals()
-        self.record = record = self.produce(self._task_values(TaskState.RUN), sig)
+        q = [inp.q1, inp.q2, inp.q3, inp.q4, inp.q5, inp.q6]
+        cyc.advance(t, reading, errors, int(inp.command_word), int(inp.plc_heartbeat), q, exceeded,
+                    int(inp.payload_index), inp)
         go_on = not (cyc.stopping and self._stop_done(t))
-        if not go_on:
-            self.record = record = stopped(record)
-        stamp = time.time_ns()
-        self.image.publish(record, stamp)
-        if self.trace is not None:
-            self.trace.put_cycle(t, q, sig, record.task_state)
-        return go_on
+        packers = self._packers
+        if packers is None or not go_on:
+            sig = cyc.signals()
+            self.record = record = self.produce(self._task_values(TaskState.RUN), sig)
+            if not go_on:
+                self.record = record = stopped(record)
+            self.image.publish(record, time.time_ns())
+            if self.trace is not None:
+                self.trace.put_cycle(t, q, sig, record.task_state)
+            return go_on
+        # the compiled service: the values into the vector, then one compiled call packs the PLC's block
+        v = self.values.task
+        v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7] = task = self._task_tuple(_RUN)
+        self._record = None
+        if not self.image.publish_with(packers[0], time.time_ns(), task[4], task[6]):
+            self.image.publish(self.record, time.time_ns())     # a value beyond float32: struct says which
+        if packers[1] is not None:
+            self.values.put_t_q(t, q)
+            self.trace.put_with(packers[1], t)
+        self._steady.export()
+        return True
 
     def _begin_stop(self, t: float) -> None:
         """Ramp to zero (it never jumps, even on stop), bounded in cycles and loosely in time: the ramp ends

@@ -179,6 +179,11 @@ class FastPredictor:
         if self.statics is not None:
             self._settle()
 
+    def moved_to(self, q_rad: np.ndarray) -> None:
+        """The joints (rad) whose kinematics the compiled cycle's next call forms (`service.kernel`: one call
+        for the cycle, the kinematics in it); compiled only."""
+        self._q = q_rad
+
     def _settle(self) -> None:
         """tau_s and f(tau_s) of every axial term at the last `kinematics`' joints."""
         self.tau_s = tau_s = self.statics.total_at(self._q).tolist()

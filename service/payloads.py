@@ -114,6 +114,12 @@ class PayloadSelector:
         return True
 
     @property
+    def quiet(self) -> bool:
+        """Nothing under way: no switch ramping, no refused index, no new table waiting (`update` then changes
+        nothing while the PLC's index stays `requested`)."""
+        return self._pending is None and self._refused is None and self.target is None
+
+    @property
     def destination(self) -> PayloadSet:
         """The set the payload is at or moving to."""
         return self.target if self.target is not None else self.active

@@ -42,6 +42,7 @@ _RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN, _TARE_REFUSED = (i
     Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN,
     Status.TARE_REFUSED))
 _SENSOR_FAULTS = int(SENSOR_FAULTS)
+_MOVED, _FRESH, _GRAVITY, _SAFE = 1, 2, 4, 8      # the compiled cycle's flags (`service.kernel.template.cycle`)
 
 
 class Signals(NamedTuple):
@@ -59,6 +60,31 @@ class Signals(NamedTuple):
     sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
     payload_active: int             # the payload set in use (service.payloads)
     reload_count: int               # accepted reloads of the config (service.reload)
+
+
+# Signals as one float vector, field by field in their order (a list takes six places): what the compiled
+# cycle writes and the service packs for the PLC and the trace (`Cycle.vector`); name -> (offset, length)
+_VECTORS = ("correction", "dq_deg", "wrench_base", "wrench_sensor", "deflection")
+SIGNAL_SLOTS: dict[str, tuple[int, int]] = {}
+for _name in Signals._fields:
+    SIGNAL_SLOTS[_name] = (sum(n for _, n in SIGNAL_SLOTS.values()), 6 if _name in _VECTORS else 1)
+SIGNAL_SIZE = sum(n for _, n in SIGNAL_SLOTS.values())
+_V = SIGNAL_SLOTS[_VECTORS[0]][0]         # the five vectors follow one another from here (`Compensator.vector`)
+assert [SIGNAL_SLOTS[n][0] for n in _VECTORS] == list(range(_V, _V + 30, 6))
+_SCALARS = [SIGNAL_SLOTS[n][0] for n in ("status_word", "fault_word", "tare_count", "sensor_samples",
+                                          "sample_age_ms", "payload_active", "reload_count")]
+
+
+def _six(k: int, doc: str) -> property:
+    """A list of six floats kept in the compensator's ``vector`` from place ``k``."""
+
+    def get(self) -> list[float]:
+        return self.vector[k:k + 6].tolist()
+
+    def put(self, values) -> None:
+        self.vector[k:k + 6] = values
+
+    return property(get, put, doc=doc)
 
 
 class TareConfig(Strict):
@@ -103,12 +129,9 @@ class Compensator:
         self.faults = faults
         self.t_prev: float | None = None
         self.have_sample = False
-        self.wrench_sensor = [0.0] * 6
+        self.vector = np.zeros(30)              # the cycle's outputs, in Signals' order (the properties below)
         self.filtered = [0.0] * 6               # the last sample, filtered (sensor axes)
-        self.wrench_base = [0.0] * 6
-        self.deflection = [0.0] * 6
-        self.dq_deg = [0.0] * 6
-        self.correction = [0.0] * 6
+        self.ramping = False                    # the limiter ramps the correction to zero
         self.q_rad = np.zeros(6)
         self.tares = 0
         self.samples = 0
@@ -118,6 +141,18 @@ class Compensator:
         self.tare_max = float(tare_max_force_N)
         self.tare_refused = False
         self.kernel = None                      # the compiled signal path (`compile`), None: the Python path
+        self._pk = None                         # the compiled predictor of the last compiled cycle
+
+    correction = _six(0, "δq after limits, deg (the cycle's output)")
+    dq_deg = _six(6, "δq before limits, deg")
+    wrench_base = _six(12, "the filtered, compensated wrench in base axes (N, Nm about the sensor origin)")
+    wrench_sensor = _six(18, "the same in sensor axes")
+    deflection = _six(24, "the predicted TCP deflection, mm and deg, base axes")
+
+    def attach(self, vector: np.ndarray) -> None:
+        """Keep the outputs in ``vector`` (30 floats, a view of `Cycle.vector`) from now on."""
+        vector[:] = self.vector
+        self.vector = vector
 
     def compile(self) -> None:
         """Run the signal path compiled from the next cycle on (`service.kernel`): numba compiles, or loads
@@ -131,7 +166,7 @@ class Compensator:
         k.bind(self)
         k.condition([0.0] * 6)                  # compile or load now, then restore the state
         pk = pred.kernel
-        self._signal_path(k, pk, False, 0.0, True)
+        pk.cycle(k.S, np.zeros(30), _FRESH | _SAFE, 0.0)
         k.bind(self)
         pk.ws[:] = self.wrench_sensor
         pred.reset_history()
@@ -167,8 +202,9 @@ class Compensator:
         log.info("tare: bias is now %s", np.array2string(self.gravity.bias, precision=2))
 
     def cycle(self, t: float, reading: Reading | None, q_deg: list[float] | None, tare: bool,
-              hold: bool, reset: bool = False, payload_index: int = 0, inputs=None) -> list[float]:
-        """One cycle at ``t`` (s); returns the limited joint correction (deg, six floats).
+              hold: bool, reset: bool = False, payload_index: int = 0, inputs=None) -> None:
+        """One cycle at ``t`` (s); the limited joint correction is then `correction` (deg, six floats), and every
+        output of the cycle is in `vector`.
 
         ``q_deg``: new joint positions (None: unchanged); ``tare``: a tare edge (applied to the next
         sample); ``hold``: the correction must ramp to zero (not enabled, or stopping); ``reset``: the
@@ -187,23 +223,70 @@ class Compensator:
         if self.feeds and inputs is not None:
             self.dynamics.feed(t, inputs, pred.p_tcp)
         k = self.kernel
-        compiled = k is not None and pred.kernel is not None
-        if k is not None and not compiled and k.bound:     # a model reload's ramp: the Python path takes over
+        pk = None if k is None else pred.kernel
+        if k is not None and pk is None and k.bound:    # a model reload's ramp: the Python path takes over
             k.unbind(self)
-        if q_deg is not None:                   # the steps both paths take first
+        moved = q_deg is not None               # the steps both paths take first
+        if moved:
             self.q_rad = np.array(q_deg) * DEG_TO_RAD
-            pred.kinematics(self.q_rad)
+            if pk is None:
+                pred.kinematics(self.q_rad)
+            else:                               # the compiled call forms the kinematics, after the payload's update
+                k.q[:] = self.q_rad
+                pred.moved_to(self.q_rad)
         if tare:
             self._tare_pending = True
         if reset:
             pred.reset_history()
             self.tare_refused = False
-        moved = self.payloads.update(dt, payload_index)
-        if compiled:
-            return self._cycle_compiled(k, pred, t, dt, reading, hold, moved)
+        payload_moved = self.payloads.update(dt, payload_index)
         if reading is not None:
             self.samples += 1
             self.sample_t = t
+        if pk is None:
+            self._cycle_python(pred, dt, t, reading, hold, payload_moved)
+        else:
+            self._cycle_compiled(k, pk, pred, dt, t, reading, hold, moved, payload_moved)
+
+    def _cycle_compiled(self, k, pk, pred, dt: float, t: float, reading: Reading | None, hold: bool, moved: bool,
+                        payload_moved: bool) -> None:
+        """`cycle` on the compiled path after the steps both paths take first: the arithmetic in one compiled
+        call (the kinematics in it when the joints moved); the state of the stages lives in k
+        (`service.kernel.compensator`)."""
+        b, lim = k.bound, self.limiter
+        # a reload's swap releases the stages before it replaces them or their parameters (`release_stages`),
+        # and a stage replaced otherwise is seen here: they are bound (again) for this cycle
+        if not b or lim is not b[2] or self.filter is not b[1] or self.spikes is not b[0]:
+            k.rebind(self)
+        if pk is not self._pk:                  # another predictor (a reload's): the wrench goes on from here
+            pk.ws[:] = self.vector[18:24]
+            self._pk = pk
+        fresh = gravity_on = False
+        if reading is not None:
+            if self.have_sample and not self._tare_pending:
+                x = k.x_in
+                x[0], x[1], x[2], x[3], x[4], x[5] = reading.wrench
+                fresh = True
+            else:                               # the first sample, or a tare: in steps, as the Python path
+                if moved:
+                    pred.kinematics(self.q_rad)
+                    moved = False
+                self._sample_in_steps(k, pred, reading.wrench)
+            gravity_on = True
+        elif payload_moved and self.have_sample:    # a switch's ramp goes on between samples too
+            gravity_on = True
+        flags = ((_MOVED if moved else 0) | (_FRESH if fresh else 0) | (_GRAVITY if gravity_on else 0)
+                 | (_SAFE if self.faults.word != 0 or hold or not self.have_sample else 0))
+        bits = pk._cycle(pk.F, pk.I, k.S, self.vector, flags, dt)
+        if not bits & 1:
+            self.trip_not_finite()
+        lim.safe = bits & 2 != 0
+        self.ramping = bits & 4 != 0
+
+    def _cycle_python(self, pred, dt: float, t: float, reading: Reading | None, hold: bool, moved: bool) -> None:
+        """`cycle` on the Python path (the reference), after the steps both paths take first (``moved``: the
+        payload's switch moved)."""
+        if reading is not None:
             x = self.spikes.update(reading.wrench)
             if not self.have_sample:
                 self.filter.state = self.filter.steady_state(x)
@@ -213,73 +296,51 @@ class Compensator:
             if self._tare_pending:
                 self._tare_pending = False
                 self._tare(filtered)
-            self.wrench_sensor = self.gravity.compensate(filtered, pred.R_s)
+            ws = self.gravity.compensate(filtered, pred.R_s)
         elif moved and self.have_sample:        # a switch's ramp goes on between samples too: no catch-up step
-            self.wrench_sensor = self.gravity.compensate(self.filtered, pred.R_s)
-        self.wrench_base = pred.wrench_base(self.wrench_sensor)
-        dX = pred.deflection(self.wrench_base, dt)
+            ws = self.gravity.compensate(self.filtered, pred.R_s)
+        else:
+            ws = self.wrench_sensor
+        wb = pred.wrench_base(ws)
+        dX = pred.deflection(wb, dt)
         dq = pred.correction(self.q_rad, dX)
-        self.deflection = (dX * _OUT_SCALE).tolist()
-        self.dq_deg = dq_deg = (dq * RAD_TO_DEG).tolist()
+        dq_deg = (dq * RAD_TO_DEG).tolist()
+        target = dq_deg
         if not math.isfinite(sum(dq_deg)):          # NaN and inf propagate through the sum
-            self.faults.trip(Fault.VALUE_INVALID, "the predicted correction is not finite")
-            dq_deg = [0.0] * 6
+            self.trip_not_finite()
+            target = [0.0] * 6
         safe = self.faults.word != 0 or hold or not self.have_sample
-        self.correction = self.limiter.update(dt, dq_deg, safe)
-        return self.correction
+        self.vector[:] = self.limiter.update(dt, target, safe) + dq_deg + wb + ws + (dX * _OUT_SCALE).tolist()
+        self.ramping = self.limiter.ramping
 
+    def _sample_in_steps(self, k, pred, wrench: list[float]) -> None:
+        """The first sample (the filter starts in its steady state) or a tare's: conditioned apart, the tare
+        applied; the compiled call then goes on from the filtered sample (k.y)."""
+        if not self.have_sample:
+            k.unbind(self)
+            x = self.spikes.update(wrench)
+            self.filter.state = self.filter.steady_state(x)
+            self.have_sample = True
+            pred.reset_history()
+            self.filter.update(x)
+            k.bind(self)                        # the filtered sample too (filter.y)
+        else:
+            self.filter.y = k.condition(wrench)
+        self.filtered = self.filter.y
+        if self._tare_pending:
+            self._tare_pending = False
+            self._tare(self.filtered)
 
-    def _cycle_compiled(self, k, pred, t: float, dt: float, reading: Reading | None, hold: bool,
-                        moved: bool) -> list[float]:
-        """`cycle` on the compiled path after the steps both paths take first (``moved``: the payload's
-        switch moved): the arithmetic in two compiled calls (three when the joints moved); the state of the
-        stages lives in ``k`` (`service.kernel.compensator`)."""
-        b, sp, f, lim = k.bound, self.spikes, self.filter, self.limiter
-        if (not b or sp is not b[0] or sp.max_step is not b[1] or sp.max_held is not b[2] or f is not b[3]
-                or lim is not b[4] or lim.max is not b[5] or lim.rate is not b[6] or lim.ramp_s is not b[7]):
-            k.rebind(self)                      # a reload replaced a stage or its parameters (k.key)
-        gravity_on = False
-        if reading is not None:
-            self.samples += 1
-            self.sample_t = t
-            if not self.have_sample:            # the first sample: the filter starts in its steady state
-                k.unbind(self)
-                x = self.spikes.update(reading.wrench)
-                self.filter.state = self.filter.steady_state(x)
-                self.have_sample = True
-                pred.reset_history()
-                filtered = self.filter.update(x)
-                k.bind(self)
-                k.y[:] = filtered
-            else:
-                filtered = self.filter.y = k.condition(reading.wrench)
-            self.filtered = filtered
-            if self._tare_pending:
-                self._tare_pending = False
-                self._tare(filtered)
-            gravity_on = True
-        elif moved and self.have_sample:        # a switch's ramp goes on between samples too
-            gravity_on = True
-        safe = self.faults.word != 0 or hold or not self.have_sample
-        finite = self._signal_path(k, pred.kernel, gravity_on, dt, safe)
-        pk = pred.kernel
-        self.wrench_sensor, self.wrench_base = pk.ws.tolist(), pk.wb.tolist()
-        self.deflection = np.multiply(pk.dX, _OUT_SCALE, out=k.deflection).tolist()
-        self.dq_deg = k.dq_deg.tolist()
-        if not finite:
-            self.faults.trip(Fault.VALUE_INVALID, "the predicted correction is not finite")
-        self.correction = lim.out = k.out.tolist()
-        lim.safe = bool(k.lim[14])
-        return self.correction
+    def trip_not_finite(self) -> None:
+        """The fault of a cycle whose correction is not finite (it then ramps to zero as in any fault)."""
+        self.faults.trip(Fault.VALUE_INVALID, "the predicted correction is not finite")
 
-    def _signal_path(self, k, pk, gravity_on: bool, dt: float, safe: bool) -> bool:
-        if k.args[0] is not pk:                 # the arrays of this predictor, gathered once
-            k.args = (pk, (pk.ws, pk.Rs, pk.ps, pk.Ad, pk.comp, pk.tau_s, pk.axj, pk.axl, pk.axp, pk.at_rest, pk.hj,
-                           pk.hl, pk.hp, pk.hs, pk.hg, pk.fm, pk.fC, pk.wl, pk.wp, pk.wst, pk.tl, pk.tp, pk.tst),
-                      (pk.Ttcp, pk.Jp, pk.w0, pk.local, pk.delta, pk.wb, pk.dX, pk.dq, k.dq_deg))
-        _, before, after = k.args
-        return pk.mod.signal_path(gravity_on, k.y, self.gravity.gp, *before, dt, *after, safe, k.lim, k.out,
-                                  k.ramp_rate)
+    def release_stages(self) -> None:
+        """The compiled path's state back into the stage objects, which a reload reads and may replace (their
+        parameters too); the next compiled cycle binds them again. Whatever changes a stage's parameters
+        calls this first."""
+        if self.kernel is not None and self.kernel.bound:
+            self.kernel.unbind(self)
 
 
 class Cycle:
@@ -290,18 +351,25 @@ class Cycle:
     supervisor : Supervisor
     compensator : Compensator
         Both share one `FaultMonitor`.
+
+    vector : (SIGNAL_SIZE,) float array, optional
+        Where the cycle keeps its `Signals` (`vector`); by default an array of its own.
     """
 
-    def __init__(self, supervisor: Supervisor, compensator: Compensator):
+    def __init__(self, supervisor: Supervisor, compensator: Compensator, vector: np.ndarray | None = None):
         self.supervisor = supervisor
         self.compensator = compensator
         self.faults = compensator.faults
         self.stopping = False           # the stop request: ramp to zero, then the task ends
         self.reloads = 0                # accepted reloads, counted by the reload's swap (service.reload)
-        self.status_word = 0
+        # the last cycle's Signals as one vector (SIGNAL_SLOTS), filled by every cycle on either path; the
+        # compiled service packs the PLC's registers and the trace from it
+        self.vector = np.zeros(SIGNAL_SIZE) if vector is None else vector
+        compensator.attach(self.vector[_V:_V + 30])
+        self._scalars = memoryview(self.vector).cast("B").cast("d")
 
     @classmethod
-    def from_config(cls, cfg, model: StiffnessModel) -> Cycle:
+    def from_config(cls, cfg, model: StiffnessModel, vector: np.ndarray | None = None) -> Cycle:
         """The cycle as the service config composes it: each part is handed its own section."""
         faults = FaultMonitor()
         period = cfg.cycle.period_ms / 1000.0
@@ -310,24 +378,33 @@ class Cycle:
             log.info("%s", dynamics.describe())
         return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.plc.enable_on_start),
                    Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare, period,
-                                           model, faults, dynamics if dynamics.active else None))
+                                           model, faults, dynamics if dynamics.active else None), vector)
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
              plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0,
              inputs=None) -> list[float]:
         """Run one cycle at time ``t`` (s); returns the limited joint correction (deg, six floats). ``inputs``:
         the PLC's whole `FromPlc` record (the dynamic compensation's feedforward reads its plan there)."""
+        self.advance(t, reading, errors, command, plc_heartbeat, q_deg, overrun, payload_index, inputs)
+        return self.compensator.correction
+
+    def advance(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
+                plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0,
+                inputs=None) -> None:
+        """`step` without its return (the service's cycle reads `vector`)."""
         s = self.supervisor.update(t, command, plc_heartbeat, q_deg, overrun, errors)
         comp = self.compensator
-        out = comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index,
-                         inputs)
+        comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index, inputs)
         word = self.faults.word
-        self.status_word = (_RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
-                            | (_RAMPING if comp.limiter.ramping else 0)
-                            | (_SENSOR_OK if comp.have_sample and not word & _SENSOR_FAULTS else 0)
-                            | (_PLC_SEEN if self.supervisor.plc_seen else 0)
-                            | (_TARE_REFUSED if comp.tare_refused else 0))
-        return out
+        status = (
+            _RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
+            | (_RAMPING if comp.ramping else 0) | (_SENSOR_OK if comp.have_sample and not word & _SENSOR_FAULTS else 0)
+            | (_PLC_SEEN if self.supervisor.plc_seen else 0) | (_TARE_REFUSED if comp.tare_refused else 0))
+        since = comp.sample_t if comp.sample_t is not None else comp.t_first
+        v, (a, b, c, d, e, f, g) = self._scalars, _SCALARS
+        v[a], v[b], v[c], v[d], v[e], v[f], v[g] = (status, word, comp.tares, comp.samples,
+                                                    (comp.t_prev - since) * 1000.0, comp.payloads.active.index,
+                                                    self.reloads & 0xFFFF)
 
     def signals(self) -> Signals:
         """The record of the last cycle."""
@@ -337,6 +414,11 @@ class Cycle:
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
                        c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms, c.payloads.active.index,
                        self.reloads & 0xFFFF)
+
+    @property
+    def status_word(self) -> int:
+        """The last cycle's status word (`Status` bits)."""
+        return int(self.vector[_SCALARS[0]])
 
     # what a test or a log reads of the last cycle (the signal path's values)
     correction = property(lambda self: self.compensator.correction)

@@ -225,6 +225,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
 
     def swap(cycle, source) -> None:
         c = cycle.compensator
+        c.release_stages()                      # the compiled path's state into the stages read and replaced here
         if filt is not None:
             filt.continue_from(c.filter)
             c.filter = filt

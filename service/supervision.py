@@ -34,6 +34,7 @@ from .faults import FaultMonitor
 
 # the command bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
 _ENABLE, _TARE, _RESET = int(Command.ENABLE), int(Command.TARE), int(Command.RESET)
+_UNDEFINED = ~COMMAND_BITS
 
 
 class FaultsConfig(Strict):
@@ -53,6 +54,9 @@ class Supervision(NamedTuple):
     tare: bool                      # rising edge of the tare bit
     reset: bool                     # rising edge of the reset bit
     q_deg: list[float] | None       # new, valid joint positions (None: unchanged or refused)
+
+
+_QUIET = (Supervision(False, False, False, None), Supervision(True, False, False, None))
 
 
 class Supervisor:
@@ -97,12 +101,12 @@ class Supervisor:
                errors: list[SensorError]) -> Supervision:
         """One cycle at ``t`` (s)."""
         faults = self.faults
-        undefined = command & ~COMMAND_BITS
+        undefined = command & _UNDEFINED
         rising = 0 if undefined else command & ~self.prev_command
         self.prev_command = command
         if undefined:
             command = 0
-        reset = bool(rising & _RESET)
+        reset = rising & _RESET != 0
         if reset:
             faults.reset()
             self.overruns = 0
@@ -115,15 +119,22 @@ class Supervisor:
             faults.trip(fault, message)
         for e in errors:
             faults.trip_error(e)
-        self._heartbeat(t, plc_heartbeat, bool(rising & _ENABLE), bool(command & _ENABLE))
-        self.overruns = self.overruns + 1 if overrun else 0
-        if self.overruns >= self.overrun_trip:
-            faults.trip(Fault.OVERRUN, f"{self.overruns} consecutive cycles overran their period")
-        q_new = None
+        if plc_heartbeat != self.prev_hb or rising & _ENABLE or (self.hb_timeout > 0 and command & _ENABLE):
+            self._heartbeat(t, plc_heartbeat, rising & _ENABLE != 0, command & _ENABLE != 0)
+        if overrun:
+            self.overruns += 1
+            if self.overruns >= self.overrun_trip:
+                faults.trip(Fault.OVERRUN, f"{self.overruns} consecutive cycles overran their period")
+        else:
+            self.overruns = 0
+        enabled = command & _ENABLE != 0 or self.enable_on_start
         if q_deg != self._q_last and self._check_q(q_deg):
             # exact comparison: a cache that never approximates
-            q_new = self._q_last = list(q_deg)
-        return Supervision(bool(command & _ENABLE) or self.enable_on_start, bool(rising & _TARE), reset, q_new)
+            self._q_last = list(q_deg)
+            return Supervision(enabled, rising & _TARE != 0, reset, self._q_last)
+        if rising & _TARE or reset:
+            return Supervision(enabled, rising & _TARE != 0, reset, None)
+        return _QUIET[enabled]          # most cycles: nothing new (one of two records, not a new one)
 
     def _check_q(self, q_deg: list[float]) -> bool:
         for j, v in enumerate(q_deg):
@@ -136,12 +147,17 @@ class Supervisor:
                 return False
         return True
 
-    def _heartbeat(self, t: float, hb: int, enable_rose: bool, enabled_by_plc: bool) -> None:
+    def heartbeat_seen(self, t: float, hb: int) -> None:
+        """The PLC's heartbeat ``hb`` at ``t`` (s): a change restarts its timeout, and the first change says the
+        PLC is there."""
         if self.prev_hb is None or hb != self.prev_hb:
             if self.prev_hb is not None:
                 self.plc_seen = True
             self.prev_hb = hb
             self.hb_change_t = t
+
+    def _heartbeat(self, t: float, hb: int, enable_rose: bool, enabled_by_plc: bool) -> None:
+        self.heartbeat_seen(t, hb)
         if enable_rose:
             self.hb_change_t = t          # supervision starts when the PLC enables
         if self.hb_timeout > 0 and enabled_by_plc and t - self.hb_change_t > self.hb_timeout:

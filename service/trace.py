@@ -49,6 +49,11 @@ _HEADER = 8             # int64: rows put by the cycle, taken by the writer, los
 _ROW = struct.Struct("<d18f3H10x")      # 96 bytes: time_s; the joints, wrench, correction; the three words
 ROW_DTYPE = np.dtype([("time", "<f8"), ("values", "<f4", (18,)), ("words", "<u2", (3,)), ("pad", "V10")])
 _START = 4              # the header's start stamp: wall-clock ns at the cycle's time 0
+# what each field of a row holds, in `_ROW`'s order (the names of the compiled service's values, `service.app`):
+# the compiled cycle packs its row by this table, `put_cycle` in the same order
+ROW_SOURCES = ("t", *(f"q{i}" for i in range(1, 7)), *(f"signals.wrench_base[{k}]" for k in range(6)),
+               *(f"signals.correction[{k}]" for k in range(6)), "signals.status_word", "signals.fault_word",
+               "task.task_state")
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,7 @@ class TraceRing:
             self.h[:] = 0
             self.table.view(np.uint8)[:] = 0     # every page faulted in now, at start-up, not by the cycle's first pass
         self._pack, self._buf = _ROW.pack_into, self.shm.buf
+        self._bytes = np.ndarray((self.shm.size,), dtype=np.uint8, buffer=self.shm.buf)
         self._put_count = self.shm.buf[:8].cast("q")     # the cycle's own store of its count (cheaper than NumPy's)
         self._n = int(self.h[0])
 
@@ -97,6 +103,17 @@ class TraceRing:
             self.h[_START] = time.time_ns() - int(t * 1e9)
         self._pack(self._buf, 8 * _HEADER + 96 * (n % self.rows), t, *q_deg, *sig.wrench_base, *sig.correction,
                    sig.status_word, sig.fault_word, task_state)
+        self._n = n = n + 1
+        self._put_count[0] = n
+
+    def put_with(self, write, t: float) -> None:
+        """`put_cycle` for the compiled cycle: ``write(memory, offset)`` packs the row (by `ROW_SOURCES`) into
+        the ring's bytes (a uint8 array) at ``offset``; ``t``: the cycle's time (s)."""
+        n = self._n
+        if not n:
+            self.h[_START] = time.time_ns() - int(t * 1e9)
+        if not write(self._bytes, 8 * _HEADER + 96 * (n % self.rows)):
+            raise OverflowError("a value of the trace's row is beyond float32's range")
         self._n = n = n + 1
         self._put_count[0] = n
 
@@ -127,7 +144,7 @@ class TraceRing:
 
     def close(self) -> None:
         self.h = self.table = None
-        self._buf = None
+        self._buf = self._bytes = None
         if self._put_count is not None:
             self._put_count.release()
             self._put_count = None

@@ -21,12 +21,12 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-from stiffness.units import RAD_TO_DEG
+from stiffness.units import M_TO_MM, RAD_TO_DEG
 
 from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
-COMPILED_FILES = ("chain.py", "signal.py", "template.py", "build.py")     # what the generated module runs
+COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "steady.py", "template.py", "build.py")  # what it runs
 _HEAD = {"axial": "(tau, p)", "history": "(s, p, tau, dt)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}
 
@@ -81,7 +81,8 @@ def module_for(laws: dict[str, list]) -> ModuleType:
     key = h.hexdigest()[:20]
     if key in _MODULES:
         return _MODULES[key]
-    text = template.TEMPLATE.format(key=key, globals=glob, rad_to_deg=RAD_TO_DEG, **bodies)
+    text = template.TEMPLATE.format(key=key, globals=glob, rad_to_deg=RAD_TO_DEG, m_to_mm=M_TO_MM,
+                                    views=template.views(), state=template.state(), **bodies)
     path = _write(f"stiffcomp_cycle_{key}.py", text)
     spec = importlib.util.spec_from_file_location(f"stiffcomp_cycle_{key}", path)
     mod = importlib.util.module_from_spec(spec)

@@ -1,53 +1,64 @@
-"""A `Compensator`'s compiled signal path: the conditioning call and the rest of the cycle in one more call.
+"""A `Compensator`'s compiled signal path: the state of its stages in one array, the cycle in one call.
 
 The stages keep their Python objects (`SpikeRejector`, `SosLowPass`, `GravityCompensator`,
 `CorrectionLimiter`): a reload replaces them or their parameters, tests and the status read them, and the
 Python path runs on them. The compiled path works on arrays `bind` copies from them, and `unbind` copies
-its state back before the Python path takes a cycle (a model reload's ramp). A stage replaced or
-re-parametrised by a reload is noticed by identity at the next cycle and bound again.
+its state back before the Python path takes a cycle (a model reload's ramp) or a reload reads them. A stage
+replaced by a reload is noticed by identity at the next cycle and bound again; a reload that changes a stage's
+parameters releases the stages first (`Compensator.release_stages`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .build import NotCompilable
 from .signal import condition
+from .template import SECTIONS, STATE, STATE_SIZE
 
 
 class CompiledSignal:
-    """The arrays of the compiled signal path of one `Compensator`."""
+    """The arrays of the compiled signal path of one `Compensator`, all in ``S`` (`template.STATE`: the sample
+    x, the filtered y, the spike rejector's, the low-pass's and the limiter's state and parameters, the
+    payload's weight and the bias, the joints), each part also an attribute."""
 
     def __init__(self):
-        self.x, self.y = np.zeros(6), np.zeros(6)
-        self.sp, self.last, self.max_step = np.zeros(4), np.zeros(6), np.zeros(6)
-        self.coef, self.z = np.zeros((1, 5)), np.zeros((1, 2, 6))
-        self.lim, self.out, self.ramp_rate = np.zeros(15), np.zeros(6), np.zeros(6)
-        self.dq_deg, self.deflection = np.zeros(6), np.zeros(6)
+        self.S = np.zeros(STATE_SIZE)
+        for name, o, n in STATE:
+            setattr(self, name, self.S[o:o + n])
+        self.out = self.lout                    # the limiter's output, deg
+        self.x_in = memoryview(self.x).cast("B").cast("d")      # a sample in, six stores
+        self.coef, self.z = self.coefs[:5].reshape(1, 5), self.zs[:12].reshape(1, 2, 6)
         self.bound: tuple = ()
-        self.args: tuple = (None,)             # the predictor's arrays for the signal path (Compensator)
         self._condition = condition
 
-    def key(self, comp) -> tuple:
-        """What the binding depends on: the stage objects and the parameter lists a reload replaces."""
-        s, f, lim = comp.spikes, comp.filter, comp.limiter
-        return (s, s.max_step, s.max_held, f, lim, lim.max, lim.rate, lim.ramp_s)
 
     def bind(self, comp) -> None:
-        """Copy the stages' state and parameters into the arrays."""
-        s, f, lim = comp.spikes, comp.filter, comp.limiter
+        """Copy the stages' state and parameters into the arrays; the gravity compensator's parameters (its
+        ``gp``) live in S from now on."""
+        s, f, lim, g = comp.spikes, comp.filter, comp.limiter, comp.gravity
         self.sp[:] = (s.last is not None, s.held, s.max_held, s.rejected)
         if s.last is not None:
             self.last[:] = s.last
         self.max_step[:] = s.max_step
-        if self.coef.shape[0] != len(f._coef):
-            self.coef, self.z = np.zeros((len(f._coef), 5)), np.zeros((len(f._coef), 2, 6))
+        if f.y is not None:
+            self.y[:] = f.y
+        n = len(f._coef)
+        if n > SECTIONS:
+            raise NotCompilable(f"a low-pass of {n} second-order sections (the compiled one has room for {SECTIONS})")
+        self.sections[0] = n
+        self.coef, self.z = self.coefs[:5 * n].reshape(n, 5), self.zs[:12 * n].reshape(n, 2, 6)
         self.coef[:] = f._coef
         self.z[:] = f.state
+        self.q[:] = comp.q_rad
+        if g.gp is not self.gp:
+            self.gp[:] = g.gp
+            g.gp = self.gp
         self.lim[:6], self.lim[6:12] = lim.max, lim.rate
         self.lim[12], self.lim[13], self.lim[14] = lim.ramp_s, lim.max_dt, float(lim.safe)
         self.out[:] = lim.out
         self.ramp_rate[:] = lim._ramp_rate
-        self.bound = self.key(comp)
+        self.bound = (s, f, lim)               # the stages bound (`Compensator.cycle` checks them)
 
     def rebind(self, comp) -> None:
         """Bind again (after a stage changed), the state carried through the stages."""
@@ -57,12 +68,14 @@ class CompiledSignal:
 
     def unbind(self, comp) -> None:
         """Copy the state back into the stages it was bound to (the Python path takes the next cycle, or a
-        reload has replaced a stage: the replaced one keeps its state, the new one is bound next)."""
-        s, f, lim = self.bound[0], self.bound[3], self.bound[4]
+        reload reads or replaces a stage: the replaced one keeps its state, the new one is bound next)."""
+        s, f, lim = self.bound
         if self.sp[0]:
             s.last = self.last.tolist()
         s.held, s.rejected = int(self.sp[1]), int(self.sp[3])
         f.state = self.z.tolist()
+        if f.y is not None:                     # the filter has seen a sample: its last output
+            f.y = comp.filtered = self.y.tolist()
         lim.out, lim.safe, lim._ramp_rate = self.out.tolist(), bool(self.lim[14]), self.ramp_rate.tolist()
         self.bound = ()
 

@@ -1,5 +1,5 @@
-"""A `FastPredictor`'s compiled form: its model packed into arrays once, then one call per kinematics and
-one per cycle (`service.kernel.template`), no allocation in either.
+"""A `FastPredictor`'s compiled form: its model packed into arrays once, then one call per cycle
+(`service.kernel.template`, the kinematics in it when the joints moved), no allocation in it.
 
 `pack` reads pinocchio's model once (joint placements and axes, the DH frames, the sensor and the TCP)
 and `Statics` (masses, balancer, payload, identified preloads); the terms' parameters are stacked per
@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .build import NotCompilable, module_for
+from .template import FLOATS, INTS, STATE_SIZE
 
 _REVOLUTE = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0), "JointModelRZ": (0.0, 0.0, 1.0)}
 
@@ -49,7 +50,7 @@ class CompiledPredictor:
         self.fR = np.array([pm.frames[f].placement.rotation for f in fids])
         self.fp = np.array([pm.frames[f].placement.translation for f in fids])
         self.fj = np.array([pm.frames[f].parentJoint for f in fids], dtype=np.int64)
-        self.ch = np.array([fp.lam])
+        self.ch = np.array([fp.lam, fp.iterations])     # λ, and the Newton steps after the linear one
         self.iterations = fp.iterations
         self.oR = np.zeros((7, 3, 3))
         self.oR[0] = np.eye(3)
@@ -94,10 +95,17 @@ class CompiledPredictor:
         self.rR, self.rp = np.zeros((7, 3, 3)), np.zeros((7, 3))
         self.rR[0] = np.eye(3)
         self.statics(fp.statics)
+        self._stateful = [(fp.history, "hs"), (fp.wrench_terms, "wst"), (fp.twist_terms, "tst")]
+        self._carve()
         self.mod = module_for(laws)
         self._kin = self.mod.kinematics
         self._settle = self.mod.settle
         self._predict = self.mod.predict
+        self._cycle = self.mod.cycle
+        # the entries a service calls from Python, loaded now (numba's cache) rather than in a cycle: a steady
+        # call that finds nothing armed (V zero) does nothing; the cycle's own arrays are restored by its caller
+        self.mod.steady(self.F, self.I, np.zeros(STATE_SIZE), np.zeros(64), np.zeros((0, 5), dtype=np.int64),
+                        np.zeros(1, dtype=np.uint8), np.zeros(1, dtype=np.uint8), 0)
 
     @staticmethod
     def _states(terms) -> np.ndarray:
@@ -106,6 +114,29 @@ class CompiledPredictor:
             S[n, :len(t.state)] = t.state
             t.state = S[n, :len(t.state)]
         return S
+
+    def _carve(self) -> None:
+        """Move the arrays of `template.FLOATS` and `template.INTS` into one buffer per dtype, ``F`` and ``I`` (led
+        by four ints per array: its offset and shape), each attribute then a view of its part: `cycle` takes the
+        two. The terms' states follow their stacked array."""
+        rows = [*((n, float) for n, _ in FLOATS), *((n, np.int64) for n, _ in INTS)]
+        arrays = [np.ascontiguousarray(getattr(self, n), dtype=t) for n, t in rows]
+        n_f = sum(a.size for a, (_, t) in zip(arrays, rows) if t is float)
+        n_i = sum(a.size for a, (_, t) in zip(arrays, rows) if t is np.int64)
+        bufs = {float: np.zeros(n_f), np.int64: np.zeros(4 * len(rows) + n_i, dtype=np.int64)}
+        at = {float: 0, np.int64: 4 * len(rows)}
+        for k, ((name, t), a) in enumerate(zip(rows, arrays)):
+            o = at[t]
+            view = bufs[t][o:o + a.size].reshape(a.shape)
+            view[...] = a
+            setattr(self, name, view)
+            bufs[np.int64][4 * k:4 * k + 4] = (o, *a.shape, *(1,) * (3 - a.ndim))
+            at[t] = o + a.size
+        self.F, self.I = bufs[float], bufs[np.int64]
+        for terms, name in self._stateful:
+            S = getattr(self, name)
+            for n, term in enumerate(terms):
+                term.state = S[n, :len(term.state)]
 
     def statics(self, statics) -> None:
         """Take `Statics` (or None: tau_s = 0) into the arrays, in place."""
@@ -120,8 +151,14 @@ class CompiledPredictor:
         st[6:12] = [statics.pm.inertias[k].mass for k in range(1, 7)]
         st[12:18] = statics._balancer_gain
         self.lever[:] = [statics.pm.inertias[k].lever for k in range(1, 7)]
-        self.pre_rows = np.ascontiguousarray(statics._pre_rows, dtype=np.int64)
-        self.pre_w = np.ascontiguousarray(statics._pre_w, dtype=float)
+        rows = np.ascontiguousarray(statics._pre_rows, dtype=np.int64)
+        w = np.ascontiguousarray(statics._pre_w, dtype=float).reshape(len(rows), 60)
+        if hasattr(self, "F") and self.pre_w.shape == w.shape:     # carved: in place
+            self.pre_rows[:], self.pre_w[:] = rows, w
+        else:
+            self.pre_rows, self.pre_w = rows, w
+            if hasattr(self, "F"):
+                self._carve()
         self.payload(statics)
 
     def payload(self, statics) -> None:
@@ -138,6 +175,10 @@ class CompiledPredictor:
     def settle(self) -> None:
         self._settle(self.axis, self.oR, self.op, self.tmp, self.pw, self.st, self.lever, self.c_pay,
                      self.pre_rows, self.pre_w, self.tau_s, self.axj, self.axl, self.axp, self.at_rest)
+
+    def cycle(self, S: np.ndarray, out: np.ndarray, flags: int, dt: float) -> int:
+        """One cycle's arithmetic in one call (`template.cycle`: its arguments and the bits it returns)."""
+        return self._cycle(self.F, self.I, S, out, flags, dt)
 
     def predict(self, dt: float) -> None:
         """From ``wb`` (the wrench in base axes, about the sensor origin): ``dX`` and ``dq`` (without the

@@ -84,12 +84,13 @@ class FtSource(ABC):
             self.t_open = t
         errors: list[SensorError] = []
         newest = None
+        decode = self.protocol.decode
         for arb_id, data, is_error in self._frames(t):
             if is_error:
                 errors.append(CanFrameError(f"CAN error frame (id {arb_id:#05x})"))
                 continue
             try:
-                reading = self.protocol.decode(arb_id, data)
+                reading = decode(arb_id, data)
             except CanFrameError as e:
                 errors.append(e)
                 continue
@@ -106,6 +107,15 @@ class FtSource(ABC):
         return newest, errors
 
     def _check(self, r: Reading, errors: list[SensorError]) -> bool:
+        w, mf, mt = r.wrench, self.max_force, self.max_torque
+        # a good sample passes in one expression (NaN fails every comparison, so it is told below)
+        if (not r.status and not r.saturated and -mf <= w[0] <= mf and -mf <= w[1] <= mf and -mf <= w[2] <= mf
+                and -mt <= w[3] <= mt and -mt <= w[4] <= mt and -mt <= w[5] <= mt):
+            return True
+        return self._problems(r, errors)
+
+    def _problems(self, r: Reading, errors: list[SensorError]) -> bool:
+        """Each problem of a sample that did not pass `_check`, into ``errors``; False when it is not usable."""
         ok = True
         if r.status != 0:
             errors.append(SensorStatusError(f"sensor status word {r.status:#06x} (sample {r.counter})"))

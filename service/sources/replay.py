@@ -105,6 +105,8 @@ class ReplaySource(FtSource):
             raise SourceError(f"{name}: the CAN log holds no sample frame with id {self.sample_id:#05x} "
                               f"(source.ati.base_id = {self.protocol.base_id:#05x}); is base_id right?")
         self.frames = frames
+        self._times = [f[0] for f in frames]
+        self._hook = [f[1:] for f in frames]        # (id, data, is_error_frame): what `_frames` hands out
         self.fast = pacing == "fast"
         self.loop = loop
         gaps = [b[0] - a[0] for a, b in itertools.pairwise(frames) if b[0] > a[0]]
@@ -120,9 +122,18 @@ class ReplaySource(FtSource):
         return cls(read_log(path), r.pacing, r.loop, name=str(path), **cls.common_args(section, timeout_s))
 
     def _frames(self, t: float) -> Iterable[Frame]:
-        out: list[Frame] = []
         frames, n = self.frames, len(self.frames)
         rel = t - (self.t_open or 0.0)
+        if not self.fast and not self.exhausted:
+            # the frames whose time has come (a few per cycle): one slice, unless the log ends in it
+            k, times, offset = self.k, self._times, self.offset
+            end = k
+            while end < n and times[end] + offset <= rel:
+                end += 1
+            if end < n:
+                self.k = end
+                return self._hook[k:end]
+        out: list[Frame] = []
         # at most one pass over the log per poll: a looped log that yields no sample must not hang the cycle
         while not self.exhausted and len(out) < n:
             ts, arb, data, err = frames[self.k]
