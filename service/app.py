@@ -43,6 +43,7 @@ from plc_interface.io_server import IoSettings
 from .compensation import load_model
 from .config import ServiceConfig
 from .errors import ServiceConfigError
+from .glue import task_row
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
@@ -140,12 +141,13 @@ class Service:
         self.compile_s = time.perf_counter() - t0
         log.info("compiled signal path ready in %.2f s", self.compile_s)
 
-    def _task_tuple(self, state: int) -> tuple:
-        """The task's counters of the cycle now, in `TaskValues`' order."""
-        info = self.info
-        n = info.cycle_count + (state == _RUN)
-        return (n & 0xFFFF, state, n, info.exceed_count, info.last_exec_s * 1e6, self.period * 1e6,
-                info.last_jitter_s * 1e6, int(info.last_exceeded))
+    def _task_tuple(self, state: int) -> list[float]:
+        """The task's counters of the cycle now, in `TaskValues`' order, also into the values' task part
+        (`service.glue.task_row`)."""
+        info, v = self.info, self.values.task
+        task_row(v, info.cycle_count + (state == _RUN), state, info.exceed_count, info.last_exec_s * 1e6,
+                 self.period * 1e6, info.last_jitter_s * 1e6, info.last_exceeded)
+        return v.tolist()
 
     def _task_values(self, state: TaskState) -> TaskValues:
         return TaskValues._make(self._task_tuple(int(state)))
@@ -206,8 +208,7 @@ class Service:
                 self.trace.put_cycle(t, q, sig, record.task_state)
             return go_on
         # the compiled service: the values into the vector, then one compiled call packs the PLC's block
-        v = self.values.task
-        v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7] = task = self._task_tuple(_RUN)
+        task = self._task_tuple(_RUN)
         self._record = None
         if not self.image.publish_with(packers[0], time.time_ns(), task[4], task[6]):
             self.image.publish(self.record, time.time_ns())     # a value beyond float32: struct says which

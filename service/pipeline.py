@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field
 
-from plc_interface.contract import SENSOR_FAULTS, Fault, Status
+from plc_interface.contract import Fault
 from stiffness.model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 from stiffness.yamlio import Strict
@@ -29,6 +29,7 @@ from .dynamics import Dynamics
 from .errors import SensorError
 from .faults import FaultMonitor
 from .filters import FilterConfig, SosLowPass, SpikeRejector
+from .glue import safe_state, sample_age_ms, status_word
 from .gravity import GravityCompensator, GravityConfig
 from .limits import CorrectionLimiter, LimitsConfig
 from .payloads import PayloadSelector
@@ -37,11 +38,6 @@ from .supervision import Supervisor
 log = logging.getLogger("stiffcomp.service")
 
 _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
-# the status bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
-_RUNNING, _ACTIVE, _FAULTED, _RAMPING, _SENSOR_OK, _PLC_SEEN, _TARE_REFUSED = (int(b) for b in (
-    Status.RUNNING, Status.ACTIVE, Status.FAULTED, Status.RAMPING, Status.SENSOR_OK, Status.PLC_SEEN,
-    Status.TARE_REFUSED))
-_SENSOR_FAULTS = int(SENSOR_FAULTS)
 _MOVED, _FRESH, _GRAVITY, _SAFE = 1, 2, 4, 8      # the compiled cycle's flags (`service.kernel.template.cycle`)
 
 
@@ -276,7 +272,7 @@ class Compensator:
         elif payload_moved and self.have_sample:    # a switch's ramp goes on between samples too
             gravity_on = True
         flags = ((_MOVED if moved else 0) | (_FRESH if fresh else 0) | (_GRAVITY if gravity_on else 0)
-                 | (_SAFE if self.faults.word != 0 or hold or not self.have_sample else 0))
+                 | (_SAFE if safe_state(self.faults.word, hold, self.have_sample) else 0))
         bits = pk._cycle(pk.F, pk.I, k.S, self.vector, flags, dt)
         if not bits & 1:
             self.trip_not_finite()
@@ -309,7 +305,7 @@ class Compensator:
         if not math.isfinite(sum(dq_deg)):          # NaN and inf propagate through the sum
             self.trip_not_finite()
             target = [0.0] * 6
-        safe = self.faults.word != 0 or hold or not self.have_sample
+        safe = safe_state(self.faults.word, hold, self.have_sample)
         self.vector[:] = self.limiter.update(dt, target, safe) + dq_deg + wb + ws + (dX * _OUT_SCALE).tolist()
         self.ramping = self.limiter.ramping
 
@@ -396,24 +392,19 @@ class Cycle:
         comp = self.compensator
         comp.cycle(t, reading, s.q_deg, s.tare, not s.enabled or self.stopping, s.reset, payload_index, inputs)
         word = self.faults.word
-        status = (
-            _RUNNING | (0 if comp.limiter.safe else _ACTIVE) | (_FAULTED if word else 0)
-            | (_RAMPING if comp.ramping else 0) | (_SENSOR_OK if comp.have_sample and not word & _SENSOR_FAULTS else 0)
-            | (_PLC_SEEN if self.supervisor.plc_seen else 0) | (_TARE_REFUSED if comp.tare_refused else 0))
-        since = comp.sample_t if comp.sample_t is not None else comp.t_first
+        status = status_word(word, comp.limiter.safe, comp.ramping, comp.have_sample, self.supervisor.plc_seen,
+                             comp.tare_refused)
+        age = sample_age_ms(comp.t_prev, math.nan if comp.sample_t is None else comp.sample_t, comp.t_first)
         v, (a, b, c, d, e, f, g) = self._scalars, _SCALARS
-        v[a], v[b], v[c], v[d], v[e], v[f], v[g] = (status, word, comp.tares, comp.samples,
-                                                    (comp.t_prev - since) * 1000.0, comp.payloads.active.index,
-                                                    self.reloads & 0xFFFF)
+        v[a], v[b], v[c], v[d], v[e], v[f], v[g] = (status, word, comp.tares, comp.samples, age,
+                                                    comp.payloads.active.index, self.reloads & 0xFFFF)
 
     def signals(self) -> Signals:
         """The record of the last cycle."""
         c = self.compensator
-        since = c.sample_t if c.sample_t is not None else c.t_first
-        age_ms = 0.0 if since is None else (c.t_prev - since) * 1000.0
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
-                       c.wrench_sensor, c.deflection, c.tares, c.samples, age_ms, c.payloads.active.index,
-                       self.reloads & 0xFFFF)
+                       c.wrench_sensor, c.deflection, c.tares, c.samples, float(self.vector[_SCALARS[4]]),
+                       c.payloads.active.index, self.reloads & 0xFFFF)
 
     @property
     def status_word(self) -> int:

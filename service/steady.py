@@ -26,6 +26,7 @@ import numpy as np
 
 from plc_interface.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, Status, TaskValues
 
+from . import glue
 from .kernel import steady as ks
 from .pipeline import SIGNAL_SLOTS
 
@@ -39,8 +40,8 @@ assert [SIGNAL_SLOTS[n][0] for n in ("status_word", "fault_word", "correction", 
     ks.SIG_STATUS, ks.SIG_WORD, ks.SIG_VECTORS, ks.SIG_TARES, ks.SIG_SAMPLES, ks.SIG_AGE, ks.SIG_PAYLOAD,
     ks.SIG_RELOADS]
 assert [int(Status[n]) for n in ("RUNNING", "ACTIVE", "FAULTED", "RAMPING", "SENSOR_OK", "PLC_SEEN", "TARE_REFUSED")] == [
-    ks.RUNNING, ks.ACTIVE, ks.FAULTED, ks.RAMPING, ks.SENSOR_OK, ks.PLC_SEEN_BIT, ks.TARE_REFUSED_BIT]
-assert (int(Fault.VALUE_INVALID), int(SENSOR_FAULTS), COMMAND_BITS) == (ks.VALUE_INVALID, ks.SENSOR_FAULTS,
+    glue.RUNNING, glue.ACTIVE, glue.FAULTED, glue.RAMPING, glue.SENSOR_OK, glue.PLC_SEEN, glue.TARE_REFUSED]
+assert (int(Fault.VALUE_INVALID), int(SENSOR_FAULTS), COMMAND_BITS) == (ks.VALUE_INVALID, glue.SENSOR_FAULTS,
                                                                        ks.COMMAND_BITS)
 assert TaskValues._fields == ("heartbeat", "task_state", "cycle_count", "exceed_count", "last_exec_us",
                               "cycle_time_us", "period_jitter_us", "cycle_exceeded")

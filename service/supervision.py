@@ -31,6 +31,7 @@ from stiffness.yamlio import Strict
 
 from .errors import SensorError
 from .faults import FaultMonitor
+from .glue import heartbeat, heartbeat_late
 
 # the command bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
 _ENABLE, _TARE, _RESET = int(Command.ENABLE), int(Command.TARE), int(Command.RESET)
@@ -82,7 +83,7 @@ class Supervisor:
         self.overrun_trip = int(overrun_trip_count)
         self.enable_on_start = enable_on_start
         self.prev_command = 0
-        self.prev_hb: int | None = None
+        self.prev_hb = math.nan                 # the last heartbeat read (NaN: none yet)
         self.hb_change_t = 0.0
         self.plc_seen = False
         self.overruns = 0
@@ -149,17 +150,14 @@ class Supervisor:
 
     def heartbeat_seen(self, t: float, hb: int) -> None:
         """The PLC's heartbeat ``hb`` at ``t`` (s): a change restarts its timeout, and the first change says the
-        PLC is there."""
-        if self.prev_hb is None or hb != self.prev_hb:
-            if self.prev_hb is not None:
-                self.plc_seen = True
-            self.prev_hb = hb
-            self.hb_change_t = t
+        PLC is there (`service.kernel.glue.heartbeat`)."""
+        self.prev_hb, self.hb_change_t, self.plc_seen = heartbeat(self.prev_hb, self.hb_change_t, self.plc_seen,
+                                                                  float(hb), t, False)
 
     def _heartbeat(self, t: float, hb: int, enable_rose: bool, enabled_by_plc: bool) -> None:
-        self.heartbeat_seen(t, hb)
-        if enable_rose:
-            self.hb_change_t = t          # supervision starts when the PLC enables
-        if self.hb_timeout > 0 and enabled_by_plc and t - self.hb_change_t > self.hb_timeout:
+        # supervision starts when the PLC enables (the rising edge restarts the timeout too)
+        self.prev_hb, self.hb_change_t, self.plc_seen = heartbeat(self.prev_hb, self.hb_change_t, self.plc_seen,
+                                                                  float(hb), t, enable_rose)
+        if heartbeat_late(self.hb_timeout, enabled_by_plc, t, self.hb_change_t):
             self.faults.trip(Fault.PLC_HEARTBEAT, f"plc_heartbeat unchanged for {(t - self.hb_change_t) * 1000:.0f} "
                              f"ms (timeout {self.hb_timeout * 1000:g} ms)")

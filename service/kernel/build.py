@@ -26,7 +26,7 @@ from stiffness.units import M_TO_MM, RAD_TO_DEG
 from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
-COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "steady.py", "template.py", "build.py")  # what it runs
+COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "../glue.py", "steady.py", "template.py", "build.py")  # it runs
 _HEAD = {"axial": "(tau, p)", "history": "(s, p, tau, dt)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}
 

@@ -10,11 +10,14 @@ status and fault bits and the task's counters are literals here, checked against
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
+from .. import glue
 from . import pack
+
+# the glue's formulas (`service.glue`), compiled here from the functions the Python glue runs
+heartbeat, heartbeat_late, safe_state, status_word, sample_age_ms, task_row = (njit(f) for f in (
+    glue.heartbeat, glue.heartbeat_late, glue.safe_state, glue.status_word, glue.sample_age_ms, glue.task_row))
 
 HEAD = ("ready", "prev_command", "prev_hb", "hb_change_t", "plc_seen", "hb_timeout", "enable_on_start",
         "q_last0", "q_last1", "q_last2", "q_last3", "q_last4", "q_last5", "t_prev", "t_first", "samples",
@@ -29,15 +32,14 @@ HEAD = ("ready", "prev_command", "prev_hb", "hb_change_t", "plc_seen", "hb_timeo
 
 # Signals' places (`service.pipeline.SIGNAL_SLOTS`): the words, the five vectors, the counters
 SIG_STATUS, SIG_WORD, SIG_VECTORS, SIG_TARES, SIG_SAMPLES, SIG_AGE, SIG_PAYLOAD, SIG_RELOADS = 0, 1, 2, 32, 33, 34, 35, 36
-# `plc_interface.contract.Status`, `Fault.VALUE_INVALID`, `SENSOR_FAULTS`, `Command`'s defined bits
-RUNNING, ACTIVE, FAULTED, RAMPING, SENSOR_OK, PLC_SEEN_BIT, TARE_REFUSED_BIT = 0x1, 0x2, 0x4, 0x8, 0x10, 0x20, 0x80
-VALUE_INVALID, SENSOR_FAULTS, COMMAND_BITS = 0x8, 0x1F, 0x7
+# `plc_interface.contract.Fault.VALUE_INVALID` and `Command`'s defined bits (the status bits: `glue`)
+VALUE_INVALID, COMMAND_BITS = 0x8, 0x7
 # the signal path's flags (`template.cycle`) and what a steady call returns above its bits
 FRESH_FLAG, GRAVITY_FLAG, SAFE_FLAG = 2, 4, 8
 STEADY, HEARTBEAT, PACKED = 8, 16, 32
 
 
-@njit(cache=True)
+@njit
 def admit(V, T, IN):
     """Decode the PLC's block (IN) into V's inputs; (dt, the signal path's flags, whether the heartbeat changed)
     of a steady cycle, its bookkeeping done in the mirror; flags -1 (and the mirror as it was) when the cycle is
@@ -56,47 +58,40 @@ def admit(V, T, IN):
         if V[q + i] != V[Q_LAST + i]:
             return 0.0, -1, False
     prev = V[PREV_HB]
-    changed = hb != prev                    # (NaN: no heartbeat seen yet)
-    change_t = t if changed else V[HB_T]
-    if V[HB_TIMEOUT] > 0.0 and command & 1 and t - change_t > V[HB_TIMEOUT]:
+    prev_hb, change_t, seen = heartbeat(prev, V[HB_T], V[PLC_SEEN] != 0.0, hb, t, False)
+    if heartbeat_late(V[HB_TIMEOUT], command & 1 != 0, t, change_t):
         return 0.0, -1, False               # the heartbeat fault trips: the glue's cycle
     fresh = V[FRESH] != 0.0
     if fresh and (V[HAVE] == 0.0 or V[TARE_PENDING] != 0.0):
         return 0.0, -1, False
-    if changed:
-        if not math.isnan(prev):
-            V[PLC_SEEN] = 1.0
-        V[PREV_HB], V[HB_T] = hb, t
+    changed = hb != prev                    # (NaN: no heartbeat seen yet)
+    V[PREV_HB], V[HB_T], V[PLC_SEEN] = prev_hb, change_t, 1.0 if seen else 0.0
     dt = t - V[T_PREV]
     V[T_PREV] = t
     if fresh:
         V[SAMPLES] += 1.0
         V[SAMPLE_T] = t
-    enabled = command & 1 or V[ENABLE_ON_START] != 0.0
-    safe = V[WORD] != 0.0 or not enabled or V[HAVE] == 0.0
+    enabled = command & 1 != 0 or V[ENABLE_ON_START] != 0.0
+    safe = safe_state(int(V[WORD]), not enabled, V[HAVE] != 0.0)
     flags = (FRESH_FLAG | GRAVITY_FLAG if fresh else 0) | (SAFE_FLAG if safe else 0)
     return dt, flags, changed
 
 
-@njit(cache=True)
+@njit
 def finish(V, T, mem, base, bits, changed):
     """The status word, Signals' counters and the task's into V, then the PLC's block packed into mem at base.
     Returns STEADY | the signal path's bits | HEARTBEAT when it changed | PACKED when the block is written."""
     word = int(V[WORD])
     if not bits & 1:
         word |= VALUE_INVALID           # what the glue's trip sets (`service.steady.SteadyCycle.run` trips it)
-    have = V[HAVE] != 0.0
-    status = (RUNNING | (0 if bits & 2 else ACTIVE) | (FAULTED if word else 0) | (RAMPING if bits & 4 else 0)
-              | (SENSOR_OK if have and not word & SENSOR_FAULTS else 0) | (PLC_SEEN_BIT if V[PLC_SEEN] != 0.0 else 0)
-              | (TARE_REFUSED_BIT if V[TARE_REFUSED] != 0.0 else 0))
+    status = status_word(word, bits & 2 != 0, bits & 4 != 0, V[HAVE] != 0.0, V[PLC_SEEN] != 0.0,
+                              V[TARE_REFUSED] != 0.0)
     s = int(V[AT_SIGNALS])
     V[s + SIG_STATUS], V[s + SIG_WORD], V[s + SIG_TARES], V[s + SIG_SAMPLES] = status, word, V[TARES], V[SAMPLES]
-    since = V[T_FIRST] if math.isnan(V[SAMPLE_T]) else V[SAMPLE_T]
-    V[s + SIG_AGE] = (V[T_PREV] - since) * 1000.0
+    V[s + SIG_AGE] = sample_age_ms(V[T_PREV], V[SAMPLE_T], V[T_FIRST])
     V[s + SIG_PAYLOAD], V[s + SIG_RELOADS] = V[PAYLOAD_ACTIVE], int(V[RELOADS]) & 0xFFFF
-    a, n = int(V[AT_TASK]), V[N]
-    V[a], V[a + 1], V[a + 2], V[a + 3] = int(n) & 0xFFFF, 1.0, n, V[EXCEED]       # task_state 1: run
-    V[a + 4], V[a + 5], V[a + 6], V[a + 7] = V[EXEC], V[CYCLE_TIME], V[JITTER], 0.0
+    a = int(V[AT_TASK])                     # a steady cycle kept the last deadline; task_state 1: run
+    task_row(V[a:a + 8], int(V[N]), 1, int(V[EXCEED]), V[EXEC], V[CYCLE_TIME], V[JITTER], False)
     V[int(V[AT_T])] = V[NOW]
     n_in, n_out, sc = int(V[N_IN]), int(V[N_OUT]), int(V[AT_SCALES])
     ok = pack.pack(V, T[n_in:n_in + n_out], V[sc + n_in:sc + n_in + n_out], V[TMP:TMP + 1], mem, base)
