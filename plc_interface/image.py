@@ -25,7 +25,6 @@ is refused (False) and changes nothing.
 
 from __future__ import annotations
 
-import struct
 import time
 from multiprocessing.shared_memory import SharedMemory
 
@@ -40,6 +39,52 @@ DIRECTIONS = ("to_plc", "from_plc")
 # header (int64): version, seq of buffer 0, seq of buffer 1, stamp (ns) of buffer 0, of buffer 1, per direction
 _H = {"to_plc": 0, "from_plc": 5}
 _HEADER = 10
+
+
+# The cycle's side of the protocol as plain functions over the image's memory: the image's methods call them,
+# and the compiled service's steady cycle compiles the same functions (`service.kernel.steady`), so the
+# protocol has one implementation whichever runs it. ``h``: the header's int64s; ``k``: a direction's first
+# place in it (`_H`); buffers are byte ranges of ``mem`` (memoryviews here, arrays when compiled).
+def read_newest(h, k: int, off0: int, off1: int, n: int, mem, scratch, out) -> bool:
+    """Copy the ``n`` bytes of direction ``k``'s newest complete buffer into ``out`` (through ``scratch``: a
+    failed copy leaves ``out`` as it was); False after `RETRIES` copies overtaken by the writer."""
+    for _ in range(RETRIES):
+        b = h[k] & 1
+        s = h[k + 1 + b]
+        if s & 1:
+            continue
+        o = off0 if b == 0 else off1
+        scratch[:] = mem[o:o + n]
+        if h[k + 1 + b] == s:
+            out[:] = scratch
+            return True
+    return False
+
+
+def open_buffer(h, k: int) -> int:
+    """Open direction ``k``'s free buffer for writing (its sequence odd); its number."""
+    b = (h[k] + 1) & 1
+    h[k + 1 + b] += 1
+    return b
+
+
+def close_buffer(h, k: int, b: int, stamp_ns: int, published: bool) -> None:
+    """Close buffer ``b`` of direction ``k`` (its sequence even again); when ``published``, stamped and made
+    the newest (the version counts up), else as it was before it opened (nothing was written)."""
+    if published:
+        h[k + 3 + b] = stamp_ns
+    h[k + 1 + b] += 1
+    if published:
+        h[k] += 1
+
+
+def note_timing(count, ring, exec_us: float, jitter_us: float) -> None:
+    """One cycle's (exec, jitter) into the timing ring (``ring``: float32 rows, ``count``: one int64)."""
+    n = count[0]
+    i = n % TIMING_RING
+    ring[i, 0] = exec_us
+    ring[i, 1] = jitter_us
+    count[0] = n + 1
 
 
 class ProcessImage:
@@ -68,7 +113,7 @@ class ProcessImage:
         # per-cycle timings: a count, then a ring of (last_exec_us, period_jitter_us) as float32 pairs
         self._n_timing = self.shm.buf[off: off + 8].cast("q")
         self._timing = np.ndarray((TIMING_RING, 2), dtype=np.float32, buffer=self.shm.buf, offset=off + 8)
-        self._timing_at, self._pack_timing, self._mem = off + 8, struct.Struct("<2f").pack_into, self.shm.buf
+        self._timing_at, self._mem = off + 8, self.shm.buf
         self.bytes = np.ndarray((n_bytes,), dtype=np.uint8, buffer=self.shm.buf)     # for `publish_with`
         if self._owner:
             self._n_timing[0] = 0
@@ -82,8 +127,11 @@ class ProcessImage:
         self._read_inputs = self.in_codec.record_reader(FromPlc, frozenset(FromPlc._fields) - set(REQUIRED["from_plc"]))
         self._off_in, self._unpack_in = self._off["from_plc"], self.in_codec.unpacker()
         self._off_out = self._off["to_plc"]
-        self.in_copy = np.zeros(2 * self.in_codec.words, dtype=np.uint8)       # `copy_inputs`
-        self._in_copy, self._in_scratch = memoryview(self.in_copy), bytearray(2 * self.in_codec.words)
+        # the cycle's own copy of the PLC's block (`copy_inputs`), after the scratch it is copied through
+        n_in = 2 * self.in_codec.words
+        self.in_work = np.zeros(2 * n_in, dtype=np.uint8)
+        self.in_copy = self.in_work[n_in:]
+        self._in_scratch, self._in_copy = memoryview(self.in_work[:n_in]), memoryview(self.in_copy)
         assert _H["from_plc"] == 5              # (`inputs` names the counters' places)
         self._last_inputs: FromPlc | None = None
         self.stale_reads = 0            # cycle side: inputs kept from a previous copy
@@ -98,12 +146,9 @@ class ProcessImage:
     def _publish(self, direction: str, words, stamp_ns: int = 0) -> None:
         """Write the block's leading words (the rest never changes) into the free buffer, then publish it."""
         h, k = self._h, _H[direction]
-        b = (int(h[k]) + 1) & 1
-        h[k + 1 + b] += 1
+        b = open_buffer(h, k)
         self._buf[direction][b, :len(words)] = words
-        h[k + 3 + b] = stamp_ns
-        h[k + 1 + b] += 1
-        h[k] += 1
+        close_buffer(h, k, b, stamp_ns, True)
 
     def _copy(self, direction: str, lo: int, hi: int) -> tuple[int, int, list[int]] | None:
         """(version, stamp, words[lo:hi]) of the newest complete buffer, or None after `RETRIES` failures."""
@@ -126,12 +171,11 @@ class ProcessImage:
         packs the values straight into the free buffer (one struct call). ``stamp_ns``: the cycle's
         time (time.time_ns(), the default), for the FILETIME stamps of ADS notifications."""
         h = self._h
-        b = (h[0] + 1) & 1
-        h[1 + b] += 1
+        b = open_buffer(h, 0)
         try:
-            self.out_codec.pack_into(self._mem, self._off["to_plc"][b], self.out_codec.pick(record))
+            self.out_codec.pack_into(self._mem, self._off_out[b], self.out_codec.pick(record))
         except BaseException:
-            h[1 + b] += 1                     # even again, the buffer not published: readers go on as before
+            close_buffer(h, 0, b, 0, False)   # the buffer not published: readers go on as before
             raise
         self._last_record = record
         self._published(b, time.time_ns() if stamp_ns is None else stamp_ns, record.last_exec_us,
@@ -149,17 +193,15 @@ class ProcessImage:
         self._published(b, stamp_ns, exec_us, jitter_us)
         return True
 
-    # the same in three steps, for a compiled cycle that packs the block itself (`service.steady`)
+    # the same in steps, for a cycle that packs the block itself
     def begin_publish(self) -> tuple[int, int]:
         """Open the free to_plc buffer for writing: (its number, the byte offset of the block in `bytes`)."""
-        h = self._h
-        b = (h[0] + 1) & 1
-        h[1 + b] += 1
+        b = open_buffer(self._h, 0)
         return b, self._off_out[b]
 
     def abandon_publish(self, b: int) -> None:
         """Close buffer ``b`` unpublished (nothing was written into it)."""
-        self._h[1 + b] += 1
+        close_buffer(self._h, 0, b, 0, False)
 
     def end_publish(self, b: int, exec_us: float, jitter_us: float) -> None:
         """Publish buffer ``b``, written, stamped now; ``exec_us``, ``jitter_us``: the cycle's timing."""
@@ -168,32 +210,27 @@ class ProcessImage:
     def copy_inputs(self) -> bool:
         """Copy the PLC's newest complete block into `in_copy` (the cycle's own copy, which a compiled cycle
         decodes); False when the I/O side kept writing and the last good copy stays (``stale_reads``)."""
-        h, offs, mem, scratch, n = self._h, self._off_in, self._mem, self._in_scratch, 2 * self.in_codec.words
-        for _ in range(RETRIES):
-            b = h[5] & 1
-            s = h[6 + b]
-            if s & 1:
-                continue
-            o = offs[b]
-            scratch[:] = mem[o:o + n]
-            if h[6 + b] == s:
-                self._in_copy[:] = scratch
-                return True
+        (o0, o1), n = self._off_in, 2 * self.in_codec.words
+        if read_newest(self._h, 5, o0, o1, n, self._mem, self._in_scratch, self._in_copy):
+            return True
         if self._last_inputs is None:          # before the first cycle only: a copy must exist
             self.inputs()
             return self.copy_inputs()
         self.stale_reads += 1
         return False
 
+    def places(self) -> dict[str, int]:
+        """Where a compiled cycle finds the parts of `bytes` it runs this protocol's functions on
+        (`service.kernel.steady`): the header's bytes, the inputs' two buffers and their length (`in_work`
+        holds the scratch, then the copy, of that length each), the outputs' two buffers, the timing count."""
+        (i0, i1), (o0, o1) = self._off_in, self._off_out
+        return {"header_bytes": 8 * _HEADER, "in_off0": i0, "in_off1": i1, "in_bytes": 2 * self.in_codec.words,
+                "out_off0": o0, "out_off1": o1, "timing_count": self._timing_at - 8}
+
     def _published(self, b: int, stamp_ns: int, exec_us: float, jitter_us: float) -> None:
         """The to_plc buffer ``b`` is written: stamp it, make it the newest, and keep the cycle's timing."""
-        h = self._h
-        h[3 + b] = stamp_ns
-        h[1 + b] += 1
-        h[0] += 1
-        n = self._n_timing[0]                 # the previous cycle's timing, once per cycle, for the histograms
-        self._pack_timing(self._mem, self._timing_at + 8 * (n % TIMING_RING), exec_us, jitter_us)
-        self._n_timing[0] = n + 1
+        close_buffer(self._h, 0, b, stamp_ns, True)
+        note_timing(self._n_timing, self._timing, exec_us, jitter_us)   # once per cycle, for the histograms
 
     def inputs(self) -> FromPlc:
         """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""

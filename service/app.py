@@ -178,8 +178,7 @@ class Service:
                 swap(self.cycle, self.source)
         elif (steady is not None and steady.call is not None and not exceeded and not self.cycle.supervisor.held
               and not (self.task is not None and self.task.stop_requested)):
-            self.image.copy_inputs()    # the steady cycle (`service.steady`): one compiled call, when it is
-            reading, errors = self.source.poll(t)
+            reading, errors = self.source.poll(t)      # the steady cycle (`service.steady`): one compiled call
             if not errors and steady.run(t, reading):
                 if self.trace is not None:
                     self.trace.put_with(self._packers[1], t)

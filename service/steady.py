@@ -22,6 +22,8 @@ Imported only by a compiled service (it loads numba).
 
 from __future__ import annotations
 
+from time import time_ns
+
 import numpy as np
 
 from plc_interface.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, Status, TaskValues
@@ -80,6 +82,8 @@ class SteadyCycle:
         v[H["in_command"]], v[H["in_heartbeat"]] = fields.index("command_word"), fields.index("plc_heartbeat")
         v[H["in_q1"]], v[H["in_payload"]] = fields.index("q1"), fields.index("payload_index")
         self._hb = at["inputs"] + fields.index("plc_heartbeat")
+        for name, place in service.image.places().items():      # the process image's parts in its bytes
+            v[H[name]] = place
         self.call: tuple | None = None  # the model's compiled steady entry and its arrays, while armed
 
     def export(self) -> None:
@@ -95,7 +99,9 @@ class SteadyCycle:
                  and not comp.feeds)            # the feedforward's plan is fed from the PLC's values by the glue
         v, h = self.v, H
         v[h["ready"]] = ready
-        self.call = (pk.mod.steady, pk.F, pk.I, k.S) if ready else None
+        image = s.image
+        self.call = (pk.mod.steady, pk.F, pk.I, k.S, self.V, self.T, image.bytes, image.in_work,
+                     image._timing) if ready else None
         if not ready:
             return
         v[h["prev_command"]], v[h["prev_hb"]], v[h["hb_change_t"]] = (sup.prev_command, _float(sup.prev_hb),
@@ -112,28 +118,29 @@ class SteadyCycle:
         v[h["reloads"]], v[h["word"]], v[h["cycle_time_us"]] = cyc.reloads, comp.faults.word, s.period * 1e6
 
     def run(self, t: float, reading) -> bool:
-        """One steady cycle at ``t`` with this cycle's sample (or None), the PLC's block in the image's copy
-        (`ProcessImage.copy_inputs`); False when it is not steady (nothing changed: the glue runs it)."""
-        entry, F, I, S = self.call
+        """One steady cycle at ``t`` with this cycle's sample (or None); False when it is not steady (nothing
+        changed: the glue runs it). The compiled call reads the PLC's block from the image and publishes the
+        cycle's (`plc_interface.image`'s protocol, compiled)."""
+        entry, F, I, S, V, T, mem, work, ring = self.call
         s = self.service
-        v, info, image, comp = self.v, s.info, s.image, s.cycle.compensator
+        v, info, comp = self.v, s.info, s.cycle.compensator
         if reading is not None:
             x = comp.kernel.x_in
             x[0], x[1], x[2], x[3], x[4], x[5] = reading.wrench
-        exec_us, jitter_us = info.last_exec_s * 1e6, info.last_jitter_s * 1e6
-        v[_NOW], v[_FRESH], v[_N], v[_EXCEED], v[_EXEC], v[_JITTER] = (t, reading is not None, info.cycle_count + 1,
-                                                                       info.exceed_count, exec_us, jitter_us)
-        b, offset = image.begin_publish()
-        code = entry(F, I, S, self.V, self.T, image.in_copy, image.bytes, offset)
+        v[_NOW], v[_FRESH], v[_N], v[_EXCEED], v[_EXEC], v[_JITTER] = (
+            t, reading is not None, info.cycle_count + 1, info.exceed_count, info.last_exec_s * 1e6,
+            info.last_jitter_s * 1e6)
+        code = entry(F, I, S, V, T, mem, work, ring, time_ns())
+        if code & ks.STALE:
+            s.image.stale_reads += 1
         if not code & ks.STEADY:
-            image.abandon_publish(b)
             return False
         comp.t_prev = t
         if reading is not None:
             comp.samples += 1
             comp.sample_t = t
         if code & ks.HEARTBEAT:
-            s.cycle.supervisor.heartbeat_seen(t, int(self.V[self._hb]))
+            s.cycle.supervisor.heartbeat_seen(t, int(V[self._hb]))
         comp.limiter.safe = code & 2 != 0
         comp.ramping = code & 4 != 0
         s._record = None
@@ -141,13 +148,9 @@ class SteadyCycle:
             comp.trip_not_finite()
             v[_READY] = 0.0
             self.call = None
-        if code & ks.PACKED:
-            image.end_publish(b, exec_us, jitter_us)
-        else:                           # a value beyond float32: struct says which, as in the glue's publish
-            image.abandon_publish(b)
-            image.publish(s.record)
+        if not code & ks.PACKED:        # a value beyond float32: struct says which, as in the glue's publish
+            s.image.publish(s.record)
         return True
-
 
 _NOW, _FRESH, _N, _EXCEED, _EXEC, _JITTER, _READY = (H[n] for n in ("now", "fresh", "n", "exceed_count", "exec_us",
                                                                     "jitter_us", "ready"))

@@ -26,7 +26,9 @@ from stiffness.units import M_TO_MM, RAD_TO_DEG
 from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
-COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "../glue.py", "steady.py", "template.py", "build.py")  # it runs
+# what the generated module runs (its key): these files, the glue's formulas and the process image's protocol
+COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "../glue.py", "../../plc_interface/image.py", "steady.py",
+                  "template.py", "build.py")
 _HEAD = {"axial": "(tau, p)", "history": "(s, p, tau, dt)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}
 

@@ -104,8 +104,8 @@ class CompiledPredictor:
         self._cycle = self.mod.cycle
         # the entries a service calls from Python, loaded now (numba's cache) rather than in a cycle: a steady
         # call that finds nothing armed (V zero) does nothing; the cycle's own arrays are restored by its caller
-        self.mod.steady(self.F, self.I, np.zeros(STATE_SIZE), np.zeros(64), np.zeros((0, 5), dtype=np.int64),
-                        np.zeros(1, dtype=np.uint8), np.zeros(1, dtype=np.uint8), 0)
+        self.mod.steady(self.F, self.I, np.zeros(STATE_SIZE), np.zeros(128), np.zeros((0, 5), dtype=np.int64),
+                        np.zeros(1, dtype=np.uint8), np.zeros(1, dtype=np.uint8), np.zeros((1, 2), dtype=np.float32), 0)
 
     @staticmethod
     def _states(terms) -> np.ndarray:

@@ -10,7 +10,10 @@ status and fault bits and the task's counters are literals here, checked against
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
+
+from plc_interface import image
 
 from .. import glue
 from . import pack
@@ -18,17 +21,22 @@ from . import pack
 # the glue's formulas (`service.glue`), compiled here from the functions the Python glue runs
 heartbeat, heartbeat_late, safe_state, status_word, sample_age_ms, task_row = (njit(f) for f in (
     glue.heartbeat, glue.heartbeat_late, glue.safe_state, glue.status_word, glue.sample_age_ms, glue.task_row))
+# the process image's protocol on the cycle's side (`plc_interface.image`), compiled from the image's functions
+read_newest, open_buffer, close_buffer, note_timing = (njit(f) for f in (
+    image.read_newest, image.open_buffer, image.close_buffer, image.note_timing))
 
 HEAD = ("ready", "prev_command", "prev_hb", "hb_change_t", "plc_seen", "hb_timeout", "enable_on_start",
         "q_last0", "q_last1", "q_last2", "q_last3", "q_last4", "q_last5", "t_prev", "t_first", "samples",
         "sample_t", "have_sample", "tare_pending", "tare_refused", "tares", "payload_requested", "payload_active",
         "reloads", "word", "cycle_time_us", "now", "fresh", "n", "exceed_count", "exec_us", "jitter_us", "tmp",
         "at_task", "at_signals", "at_t", "at_inputs", "at_scales", "n_in", "n_out", "in_command", "in_heartbeat",
-        "in_q1", "in_payload")
+        "in_q1", "in_payload", "header_bytes", "in_off0", "in_off1", "in_bytes", "out_off0", "out_off1",
+        "timing_count")
 (READY, PREV_COMMAND, PREV_HB, HB_T, PLC_SEEN, HB_TIMEOUT, ENABLE_ON_START, Q_LAST, _, _, _, _, _, T_PREV, T_FIRST,
  SAMPLES, SAMPLE_T, HAVE, TARE_PENDING, TARE_REFUSED, TARES, PAYLOAD_REQUESTED, PAYLOAD_ACTIVE, RELOADS, WORD,
  CYCLE_TIME, NOW, FRESH, N, EXCEED, EXEC, JITTER, TMP, AT_TASK, AT_SIGNALS, AT_T, AT_INPUTS, AT_SCALES, N_IN, N_OUT,
- IN_COMMAND, IN_HEARTBEAT, IN_Q1, IN_PAYLOAD) = range(len(HEAD))
+ IN_COMMAND, IN_HEARTBEAT, IN_Q1, IN_PAYLOAD, HEADER_BYTES, IN_OFF0, IN_OFF1, IN_BYTES, OUT_OFF0, OUT_OFF1,
+ TIMING_COUNT) = range(len(HEAD))
 
 # Signals' places (`service.pipeline.SIGNAL_SLOTS`): the words, the five vectors, the counters
 SIG_STATUS, SIG_WORD, SIG_VECTORS, SIG_TARES, SIG_SAMPLES, SIG_AGE, SIG_PAYLOAD, SIG_RELOADS = 0, 1, 2, 32, 33, 34, 35, 36
@@ -36,7 +44,32 @@ SIG_STATUS, SIG_WORD, SIG_VECTORS, SIG_TARES, SIG_SAMPLES, SIG_AGE, SIG_PAYLOAD,
 VALUE_INVALID, COMMAND_BITS = 0x8, 0x7
 # the signal path's flags (`template.cycle`) and what a steady call returns above its bits
 FRESH_FLAG, GRAVITY_FLAG, SAFE_FLAG = 2, 4, 8
-STEADY, HEARTBEAT, PACKED = 8, 16, 32
+STEADY, HEARTBEAT, PACKED, STALE = 8, 16, 32, 64
+
+
+@njit
+def take_inputs(V, mem, work):
+    """The PLC's newest complete block from the image (``mem``, its bytes) into the cycle's copy (``work``: the
+    scratch, then the copy; `ProcessImage.copy_inputs`); False when the writer kept overtaking (the last copy
+    stays)."""
+    n = int(V[IN_BYTES])
+    h = mem[:int(V[HEADER_BYTES])].view(np.int64)
+    return read_newest(h, 5, int(V[IN_OFF0]), int(V[IN_OFF1]), n, mem, work[:n], work[n:2 * n])
+
+
+@njit
+def publish(V, T, mem, ring, stamp_ns, bits, changed):
+    """`finish` into the image's free to_plc buffer, published with ``stamp_ns`` and the cycle's timing into the
+    timing ring (``ring``) when packed, closed unpublished when not (`ProcessImage.publish_with`)."""
+    h = mem[:int(V[HEADER_BYTES])].view(np.int64)
+    b = open_buffer(h, 0)
+    code = finish(V, T, mem, int(V[OUT_OFF0]) if b == 0 else int(V[OUT_OFF1]), bits, changed)
+    packed = code & PACKED != 0
+    close_buffer(h, 0, b, stamp_ns, packed)
+    if packed:
+        at = int(V[TIMING_COUNT])
+        note_timing(mem[at:at + 8].view(np.int64), ring, V[EXEC], V[JITTER])
+    return code
 
 
 @njit

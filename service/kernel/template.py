@@ -227,16 +227,21 @@ def cycle(F, I, S, out, flags, dt):
 
 
 @njit(cache=True)
-def steady(F, I, S, V, T, IN, mem, base):
-    """The compiled service's steady cycle (`service.steady`): `ks.admit` (the PLC's block decoded from IN, the
-    cycle's bookkeeping), `cycle` into Signals' five vectors in V, then `ks.finish` (status, counters, the
-    PLC's block packed into mem at base). Returns 0 (nothing done) when the cycle is not steady."""
-    dt, flags, changed = ks.admit(V, T, IN)
-    if flags < 0:
+def steady(F, I, S, V, T, mem, work, ring, stamp_ns):
+    """The compiled service's steady cycle (`service.steady`): the PLC's newest block from the process image
+    (``mem``: its bytes; ``work``: the cycle's copy, `ks.take_inputs`), `ks.admit` (the block decoded, the
+    cycle's bookkeeping), `cycle` into Signals' five vectors in V, then `ks.publish` (status, counters, the
+    PLC's block packed into the image and published). Returns 0 (nothing done) when the cycle is not steady;
+    | ks.STALE when the image's writer kept overtaking the copy (the last one was used)."""
+    if V[ks.READY] == 0.0:                  # not armed (`service.steady.SteadyCycle.export`): nothing to read
         return 0
+    stale = 0 if ks.take_inputs(V, mem, work) else ks.STALE
+    dt, flags, changed = ks.admit(V, T, work[int(V[ks.IN_BYTES]):])
+    if flags < 0:
+        return stale
     o = int(V[ks.AT_SIGNALS]) + ks.SIG_VECTORS
     bits = cycle(F, I, S, V[o:o + 30], flags, dt)
-    return ks.finish(V, T, mem, base, bits, changed)
+    return ks.publish(V, T, mem, ring, stamp_ns, bits, changed) | stale
 '''
 
 # The predictor's arrays as `cycle` takes them, each carved from one buffer per dtype
