@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 # (label, owner attribute path, method): whichever the service's version has
-STAGES = (("image.copy_inputs", "image", "copy_inputs"), ("steady.run", "_steady", "run"),
+STAGES = (("steady.run", "_steady", "run"),
           ("image.inputs", "image", "inputs"), ("source.poll", "source", "poll"),
           ("cycle.step", "cycle", "step"), ("cycle.advance", "cycle", "advance"),
           ("cycle.signals", "cycle", "signals"), ("record", "", "produce"),

@@ -127,11 +127,10 @@ class ProcessImage:
         self._read_inputs = self.in_codec.record_reader(FromPlc, frozenset(FromPlc._fields) - set(REQUIRED["from_plc"]))
         self._off_in, self._unpack_in = self._off["from_plc"], self.in_codec.unpacker()
         self._off_out = self._off["to_plc"]
-        # the cycle's own copy of the PLC's block (`copy_inputs`), after the scratch it is copied through
-        n_in = 2 * self.in_codec.words
+        # the cycle's own copy of the PLC's block (`read_newest`, `inputs`), after the scratch it is copied through
+        self._in_bytes = n_in = 2 * self.in_codec.words
         self.in_work = np.zeros(2 * n_in, dtype=np.uint8)
-        self.in_copy = self.in_work[n_in:]
-        self._in_scratch, self._in_copy = memoryview(self.in_work[:n_in]), memoryview(self.in_copy)
+        self._in_scratch, self._in_copy = memoryview(self.in_work[:n_in]), memoryview(self.in_work[n_in:])
         assert _H["from_plc"] == 5              # (`inputs` names the counters' places)
         self._last_inputs: FromPlc | None = None
         self.stale_reads = 0            # cycle side: inputs kept from a previous copy
@@ -207,18 +206,6 @@ class ProcessImage:
         """Publish buffer ``b``, written, stamped now; ``exec_us``, ``jitter_us``: the cycle's timing."""
         self._published(b, time.time_ns(), exec_us, jitter_us)
 
-    def copy_inputs(self) -> bool:
-        """Copy the PLC's newest complete block into `in_copy` (the cycle's own copy, which a compiled cycle
-        decodes); False when the I/O side kept writing and the last good copy stays (``stale_reads``)."""
-        (o0, o1), n = self._off_in, 2 * self.in_codec.words
-        if read_newest(self._h, 5, o0, o1, n, self._mem, self._in_scratch, self._in_copy):
-            return True
-        if self._last_inputs is None:          # before the first cycle only: a copy must exist
-            self.inputs()
-            return self.copy_inputs()
-        self.stale_reads += 1
-        return False
-
     def places(self) -> dict[str, int]:
         """Where a compiled cycle finds the parts of `bytes` it runs this protocol's functions on
         (`service.kernel.steady`): the header's bytes, the inputs' two buffers and their length (`in_work`
@@ -234,16 +221,10 @@ class ProcessImage:
 
     def inputs(self) -> FromPlc:
         """The PLC's values, consistent with one write; the last good copy if the I/O side kept writing."""
-        h, offs, unpack, buf = self._h, self._off_in, self._unpack_in, self._mem
-        for _ in range(RETRIES):
-            b = h[5] & 1                    # the from_plc counters: version, then the two buffers' sequences
-            s = h[6 + b]
-            if s & 1:
-                continue
-            values = unpack(buf, offs[b])
-            if h[6 + b] == s:
-                self._last_inputs = r = self._read_inputs(values)
-                return r
+        (o0, o1), copy = self._off_in, self._in_copy
+        if read_newest(self._h, 5, o0, o1, self._in_bytes, self._mem, self._in_scratch, copy):
+            self._last_inputs = r = self._read_inputs(self._unpack_in(copy, 0))
+            return r
         if self._last_inputs is None:          # before the first cycle only: a copy must exist
             got = None
             while got is None:

@@ -50,7 +50,7 @@ STEADY, HEARTBEAT, PACKED, STALE = 8, 16, 32, 64
 @njit
 def take_inputs(V, mem, work):
     """The PLC's newest complete block from the image (``mem``, its bytes) into the cycle's copy (``work``: the
-    scratch, then the copy; `ProcessImage.copy_inputs`); False when the writer kept overtaking (the last copy
+    scratch, then the copy: `ProcessImage.in_work`); False when the writer kept overtaking (the last copy
     stays)."""
     n = int(V[IN_BYTES])
     h = mem[:int(V[HEADER_BYTES])].view(np.int64)
