@@ -11,11 +11,14 @@ tare waiting for it, and a supervised heartbeat has not timed out; and no part o
 reads the PLC's values (the feedforward's plan, which the glue feeds). Otherwise the call changes nothing and
 the glue runs the cycle; after each cycle of the glue the mirror is exported again (`SteadyCycle.export`).
 
-A steady cycle does what the glue would do: the heartbeat's bookkeeping, the time and the sample count, the
-signal path, the status word, Signals and the task's counters into the service's values, and the PLC's block
-packed into the process image (inside the image's seqlock). It then writes to the Python objects what changed,
-and a correction that is not finite trips ``value_invalid`` as the glue does. `tests/service/test_steady.py`
-holds the two to the same bytes, cycle by cycle, through every kind of event.
+A steady cycle does what the glue would do, with the same functions compiled: the PLC's block read from the
+process image and the cycle's published into it (`plc_interface.image`'s protocol: `read_newest`,
+`open_buffer`, `close_buffer`, `note_timing`), the heartbeat's bookkeeping, the safe state, the status word,
+the sample's age and the task's counters (`service.glue`), the signal path (the model's compiled `cycle`, as
+the glue's compiled path calls it), and the block packed as the glue's compiled publish packs it
+(`service.kernel.pack`). It then writes to the Python objects what changed (the mirror's counters), and a
+correction that is not finite trips ``value_invalid`` as the glue does. `tests/service/test_steady.py` holds
+the two to the same bytes, cycle by cycle, through every kind of event.
 
 Imported only by a compiled service (it loads numba).
 """

@@ -1,11 +1,16 @@
 """The compiled service's steady cycle (`service.steady`): whether a cycle is steady, and its bookkeeping, status
 word, values and packed block around the model's `cycle` (the generated module's ``steady`` entry calls
-`admit`, then `cycle`, then `finish`; numba, no allocation).
+`take_inputs`, `admit`, then `cycle`, then `publish`; numba, no allocation).
 
-Every place is read from the service's values ``V`` at run time: `HEAD` names the leading ones (the mirror of
-the Python objects' state, the cycle's inputs, and the offsets of the other parts). The Signals layout, the
-status and fault bits and the task's counters are literals here, checked against their owners where
-`service.steady` is imported (a compiled module caches them, so they must not come from another file).
+The formulas are not written here: the glue's (`service.glue`) and the process image's protocol
+(`plc_interface.image`) are compiled from the functions the Python glue and the image run. What is here is
+the order, and the mirror: every place is read from the service's values ``V`` at run time, and `HEAD` names
+the leading ones (the mirror of the Python objects' state, the cycle's inputs, and the places of the other
+parts and of the image's). The Signals layout and the fault and command bits are literals here, checked
+against their owners where `service.steady` is imported (a compiled module caches them, so they must not
+come from another file). `admit`, `finish` and the two around them are compiled with the model's module,
+whose key covers their files (`build.COMPILED_FILES`), not cached apart: numba's cache of a function does
+not see a change in a function it calls.
 """
 
 from __future__ import annotations
