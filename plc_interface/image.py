@@ -114,7 +114,8 @@ class ProcessImage:
         self._n_timing = self.shm.buf[off: off + 8].cast("q")
         self._timing = np.ndarray((TIMING_RING, 2), dtype=np.float32, buffer=self.shm.buf, offset=off + 8)
         self._timing_at, self._mem = off + 8, self.shm.buf
-        self.bytes = np.ndarray((n_bytes,), dtype=np.uint8, buffer=self.shm.buf)     # for `publish_with`
+        # the whole image as bytes, for the compiled service's packer (`publish_with`) and its steady call
+        self.bytes = np.ndarray((n_bytes,), dtype=np.uint8, buffer=self.shm.buf)
         if self._owner:
             self._n_timing[0] = 0
             for k in range(_HEADER):
