@@ -186,33 +186,20 @@ class ProcessImage:
         cycle's packer, `service.kernel.pack`: ``memory`` the image's bytes as a uint8 array, ``offset`` where
         the block starts) and returns True; never waits. False from ``write`` (nothing written) publishes
         nothing. ``exec_us``, ``jitter_us``: the cycle's timing, for the histograms."""
-        b, offset = self.begin_publish()
-        if not write(self.bytes, offset):
-            self.abandon_publish(b)
+        h = self._h
+        b = open_buffer(h, 0)
+        if not write(self.bytes, self._off_out[b]):
+            close_buffer(h, 0, b, 0, False)
             return False
         self._published(b, stamp_ns, exec_us, jitter_us)
         return True
-
-    # the same in steps, for a cycle that packs the block itself
-    def begin_publish(self) -> tuple[int, int]:
-        """Open the free to_plc buffer for writing: (its number, the byte offset of the block in `bytes`)."""
-        b = open_buffer(self._h, 0)
-        return b, self._off_out[b]
-
-    def abandon_publish(self, b: int) -> None:
-        """Close buffer ``b`` unpublished (nothing was written into it)."""
-        close_buffer(self._h, 0, b, 0, False)
-
-    def end_publish(self, b: int, exec_us: float, jitter_us: float) -> None:
-        """Publish buffer ``b``, written, stamped now; ``exec_us``, ``jitter_us``: the cycle's timing."""
-        self._published(b, time.time_ns(), exec_us, jitter_us)
 
     def places(self) -> dict[str, int]:
         """Where a compiled cycle finds the parts of `bytes` it runs this protocol's functions on
         (`service.kernel.steady`): the header's bytes, the inputs' two buffers and their length (`in_work`
         holds the scratch, then the copy, of that length each), the outputs' two buffers, the timing count."""
         (i0, i1), (o0, o1) = self._off_in, self._off_out
-        return {"header_bytes": 8 * _HEADER, "in_off0": i0, "in_off1": i1, "in_bytes": 2 * self.in_codec.words,
+        return {"header_bytes": 8 * _HEADER, "in_off0": i0, "in_off1": i1, "in_bytes": self._in_bytes,
                 "out_off0": o0, "out_off1": o1, "timing_count": self._timing_at - 8}
 
     def _published(self, b: int, stamp_ns: int, exec_us: float, jitter_us: float) -> None:

@@ -240,11 +240,11 @@ class Compensator:
             self.samples += 1
             self.sample_t = t
         if pk is None:
-            self._cycle_python(pred, dt, t, reading, hold, payload_moved)
+            self._cycle_python(pred, dt, reading, hold, payload_moved)
         else:
-            self._cycle_compiled(k, pk, pred, dt, t, reading, hold, moved, payload_moved)
+            self._cycle_compiled(k, pk, pred, dt, reading, hold, moved, payload_moved)
 
-    def _cycle_compiled(self, k, pk, pred, dt: float, t: float, reading: Reading | None, hold: bool, moved: bool,
+    def _cycle_compiled(self, k, pk, pred, dt: float, reading: Reading | None, hold: bool, moved: bool,
                         payload_moved: bool) -> None:
         """`cycle` on the compiled path after the steps both paths take first: the arithmetic in one compiled
         call (the kinematics in it when the joints moved); the state of the stages lives in k
@@ -279,7 +279,7 @@ class Compensator:
         lim.safe = bits & 2 != 0
         self.ramping = bits & 4 != 0
 
-    def _cycle_python(self, pred, dt: float, t: float, reading: Reading | None, hold: bool, moved: bool) -> None:
+    def _cycle_python(self, pred, dt: float, reading: Reading | None, hold: bool, moved: bool) -> None:
         """`cycle` on the Python path (the reference), after the steps both paths take first (``moved``: the
         payload's switch moved)."""
         if reading is not None:

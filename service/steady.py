@@ -107,7 +107,7 @@ class SteadyCycle:
                      image._timing) if ready else None
         if not ready:
             return
-        v[h["prev_command"]], v[h["prev_hb"]], v[h["hb_change_t"]] = (sup.prev_command, _float(sup.prev_hb),
+        v[h["prev_command"]], v[h["prev_hb"]], v[h["hb_change_t"]] = (sup.prev_command, sup.prev_hb,
                                                                       sup.hb_change_t)
         v[h["plc_seen"]], v[h["hb_timeout"]], v[h["enable_on_start"]] = (sup.plc_seen, sup.hb_timeout,
                                                                          sup.enable_on_start)
