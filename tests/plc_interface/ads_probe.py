@@ -14,6 +14,7 @@ import threading
 import time
 
 import pyads
+from pyads_callbacks import delete_notification
 
 TASK = "TwinCAT_SystemInfoVarList._TaskInfo[1]."
 CORR = [f"GVL_Comp.correction_q{i}" for i in range(1, 7)]
@@ -44,7 +45,7 @@ def main() -> int:
                 if len(got) >= 10:
                     break
             time.sleep(0.05)
-        plc.del_device_notification(*h)
+        delete_notification(plc, h)
         out["notifications"] = got
         try:
             plc.read_by_name("GVL_Comp.NoSuchSymbol", pyads.PLCTYPE_REAL)

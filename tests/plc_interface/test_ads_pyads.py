@@ -12,6 +12,7 @@ from itertools import pairwise
 import pyads
 import pytest
 from ads_child import MAP, fake_values
+from pyads_callbacks import delete_notification
 
 from plc_interface.ads import symbols_from_map
 from plc_interface.ads.symbols import TASKINFO_PREFIX
@@ -133,7 +134,7 @@ def test_notifications_cyclic_and_on_change(plc):
                 break
         time.sleep(0.05)
     for h in handles:
-        plc.del_device_notification(*h)
+        delete_notification(plc, h)
     with lock:
         cyclic, change, task = list(seen["cyclic"]), list(seen["change"]), list(seen["task"])
     assert len(change) >= 4 and len(cyclic) >= 20 and len(task) >= 5
