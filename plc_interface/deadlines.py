@@ -62,11 +62,22 @@ class Deadlines:
             await asyncio.sleep(delay)
 
 
+CANCEL_AGAIN_S = 0.05
+
+
 async def cancel(task: asyncio.Task | None) -> None:
-    """Cancel a periodic task and wait until it has ended (the I/O parts' one way to stop one)."""
-    if task is not None:
+    """Cancel a periodic task and wait until it has ended (the I/O parts' one way to stop one).
+
+    A cancel can be lost. Before Python 3.12, ``asyncio.wait_for`` returns the awaited result, and
+    drops the cancel, when the result arrives in the same step of the loop as the cancel; pymodbus
+    awaits every reply so. The periodic loop then runs on, and a stop waited for it until the I/O
+    process was killed. The cancel is therefore sent again every `CANCEL_AGAIN_S` until the task
+    has ended. An exception the task ended with is raised here.
+    """
+    if task is None:
+        return
+    while not task.done():
         task.cancel()
-        try:
-            await task
-        except asyncio.CancelledError:
-            pass
+        await asyncio.wait((task,), timeout=CANCEL_AGAIN_S)
+    if not task.cancelled() and task.exception() is not None:
+        raise task.exception()

@@ -44,12 +44,15 @@ class ModbusClient:
         self.image = image
         self.host, self.port, self.device_id = host, port, device_id
         self.period = period_s
+        self.timeout = timeout_s
         self.client = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
         self.errors = RateLimitedLog(log)
         self._out_start, self._in_start = write_start, read_start
         self._in_words = image.in_codec.words
         self._read_fc4 = read_table == "input_registers"
         self._task: asyncio.Task | None = None
+        self._stopping = False
+        self.final_write_failed = False
 
     async def start(self) -> None:
         if not await self.client.connect():
@@ -59,11 +62,23 @@ class ModbusClient:
         log.info("Modbus TCP client to the PLC at %s:%d, every %.0f ms", self.host, self.port, self.period * 1e3)
 
     async def stop(self) -> None:
+        """End the periodic exchange after the one in flight, then write the final state once.
+
+        The exchange in flight is let finish, not cancelled: a cancelled request's reply is still
+        owed, and a final write sent behind it makes two requests at once. A PLC's server may take
+        one at a time; pymodbus' own server drops what it has received when more than 264 bytes
+        wait (two of our writes), and the PLC then never sees the stopped state. Only an exchange
+        still running after both its requests' timeouts is cancelled."""
+        self._stopping = True
+        if self._task is not None:
+            await asyncio.wait((self._task,), timeout=2 * self.timeout + self.period)
         await cancel(self._task)
         try:
             await self.exchange()            # the final state (stopped, zero correction) reaches the PLC
-        except (ModbusException, OSError, PlcConnectionError):
-            pass
+        except (ModbusException, OSError, PlcConnectionError) as e:
+            self.final_write_failed = True
+            log.warning("the stopped state may not have reached the PLC at %s:%d (%s); its heartbeat "
+                        "watch sees the service stop", self.host, self.port, e)
         self.client.close()
 
     async def exchange(self) -> None:
@@ -79,7 +94,7 @@ class ModbusClient:
 
     async def _run(self) -> None:
         deadlines = Deadlines(self.period)
-        while True:
+        while not self._stopping:
             try:
                 await self.exchange()
             except (ModbusException, OSError, PlcConnectionError) as e:

@@ -16,6 +16,7 @@ from hil.testing import CONFIG, free_port, write_config
 from plc_interface.errors import PlcConnectionError
 from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings, IoThread
+from plc_interface.modbus_client import ModbusClient
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import PlcClientSettings, PlcSettings
 from service.app import Service
@@ -29,13 +30,25 @@ class PlcMemory:
     """A PLC's Modbus memory, served by a real pymodbus server in a thread: holding registers anyone may
     write, and input registers the PLC program fills (``inputs``, address -> word)."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, answer_after_s: float = 0.0):
         self.port, self.inputs = port, {}
+        self.answer_after_s = answer_after_s
+        self.in_flight = self.most_in_flight = 0
+        self.writes: list[list[int]] = []
+        self.serving = threading.Event()            # set as a request's answer begins
         self._loop = asyncio.new_event_loop()
         self._ready = threading.Event()
         self._thread = threading.Thread(target=self._loop.run_until_complete, args=(self._serve(),), daemon=True)
 
     async def _action(self, fc, start, address, count, registers, set_values):
+        self.in_flight += 1
+        self.most_in_flight = max(self.most_in_flight, self.in_flight)
+        self.serving.set()
+        if self.answer_after_s:
+            await asyncio.sleep(self.answer_after_s)
+        self.in_flight -= 1
+        if fc == 16:
+            self.writes.append(list(set_values))
         if fc == 4:
             registers[address - start: address - start + count] = [self.inputs.get(a, 0)
                                                                   for a in range(address, address + count)]
@@ -107,6 +120,28 @@ def test_service_in_client_role_exchanges_with_the_plc(tmp_path, plc):
         s.stop()
     r = plc_client.read_holding_registers(OUT, count=4).registers
     assert r[1] & 0x40 and r[3] == 2                  # the PLC sees the service stopped
+
+
+def test_stop_lets_the_exchange_in_flight_finish_then_writes_the_final_state_once():
+    """The stop comes while the PLC is still answering a request (it takes 100 ms for each). The
+    final write must not go out behind it: that is two requests at once, and pymodbus' own server
+    drops both when they arrive together, so the PLC never sees the stopped state."""
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    with PlcMemory(free_port(), answer_after_s=0.1) as device:
+        async def run():
+            client = ModbusClient(image, "127.0.0.1", device.port, period_s=0.005, timeout_s=5.0)
+            await client.start()
+            await asyncio.to_thread(device.serving.wait)      # a request is being answered
+            await client.stop()
+            return client, list(image.to_plc_words())
+
+        try:
+            client, final = asyncio.run(run())
+        finally:
+            image.close()
+    assert device.most_in_flight == 1                     # one request at a time, the stop's included
+    assert device.writes[-1] == final                     # the final state was written last
+    assert client.errors.total == 0 and not client.final_write_failed
 
 
 def test_unreachable_plc_is_a_clear_error():
