@@ -45,6 +45,12 @@ _HEADER = 10
 # and the compiled service's steady cycle compiles the same functions (`service.kernel.steady`), so the
 # protocol has one implementation whichever runs it. ``h``: the header's int64s; ``k``: a direction's first
 # place in it (`_H`); buffers are byte ranges of ``mem`` (memoryviews here, arrays when compiled).
+def copy_bytes(dst, src) -> None:
+    """``dst[:] = src``, of equal lengths. Compiled (`service.kernel.steady`), it is a loop: numba's slice
+    assignment carries a shape error whose message alone takes some 2.5 s to compile for each model."""
+    dst[:] = src
+
+
 def read_newest(h, k: int, off0: int, off1: int, n: int, mem, scratch, out) -> bool:
     """Copy the ``n`` bytes of direction ``k``'s newest complete buffer into ``out`` (through ``scratch``: a
     failed copy leaves ``out`` as it was); False after `RETRIES` copies overtaken by the writer."""
@@ -54,9 +60,9 @@ def read_newest(h, k: int, off0: int, off1: int, n: int, mem, scratch, out) -> b
         if s & 1:
             continue
         o = off0 if b == 0 else off1
-        scratch[:] = mem[o:o + n]
+        copy_bytes(scratch, mem[o:o + n])
         if h[k + 1 + b] == s:
-            out[:] = scratch
+            copy_bytes(out, scratch)
             return True
     return False
 

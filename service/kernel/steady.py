@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
 from plc_interface import image
 
@@ -26,6 +27,19 @@ from . import pack
 # the glue's formulas (`service.glue`), compiled here from the functions the Python glue runs
 heartbeat, heartbeat_late, safe_state, status_word, sample_age_ms, task_row = (njit(f) for f in (
     glue.heartbeat, glue.heartbeat_late, glue.safe_state, glue.status_word, glue.sample_age_ms, glue.task_row))
+
+
+@overload(image.copy_bytes)
+def _copy_bytes(dst, src):
+    """`image.copy_bytes` compiled: a loop, not a slice assignment (see there)."""
+    def copy(dst, src):
+        if len(dst) != len(src):
+            raise ValueError("copy_bytes: the lengths differ")
+        for i in range(len(dst)):
+            dst[i] = src[i]
+    return copy
+
+
 # the process image's protocol on the cycle's side (`plc_interface.image`), compiled from the image's functions
 read_newest, open_buffer, close_buffer, note_timing = (njit(f) for f in (
     image.read_newest, image.open_buffer, image.close_buffer, image.note_timing))

@@ -265,9 +265,11 @@ STATE_SIZE = 75 + 17 * SECTIONS
 
 
 def views() -> str:
-    """`cycle`'s lines that carve F and I into the predictor's arrays, in the order of `FLOATS` and `INTS`."""
+    """`cycle`'s lines that carve F and I into the predictor's arrays, in the order of `FLOATS` and `INTS`. The
+    index is an int64, not a literal: numba compiles a function again for each literal it is called with, and
+    fifty-six literal indices cost some 8 s of compile per model."""
     rows = [*(("F", n, d) for n, d in FLOATS), *(("I", n, d) for n, d in INTS)]
-    return "\n".join(f"    {name} = _v{d}({buf}, I, {k})" for k, (buf, name, d) in enumerate(rows))
+    return "\n".join(f"    {name} = _v{d}({buf}, I, np.int64({k}))" for k, (buf, name, d) in enumerate(rows))
 
 
 def state() -> str:
