@@ -4,9 +4,8 @@ read only the addresses they need, so they answer about the service instead of e
 
 from __future__ import annotations
 
-import time
-
 import yaml
+from stiffcomp_testlib import wait_for
 
 from hil.testing import free_port, write_config
 from service.app import Service
@@ -51,10 +50,7 @@ def test_status_with_the_site_config_reads_the_running_service(tmp_path, capsys)
     service = Service(load_config(runnable))
     try:
         service.start()
-        deadline = time.monotonic() + 60
-        while service.info.cycle_count == 0 and time.monotonic() < deadline:     # a cycle's record, not the start's
-            time.sleep(0.001)
-        assert service.info.cycle_count > 0
+        assert wait_for(lambda: service.info.cycle_count > 0, timeout=60, every=0.001)  # a cycle's record, not the start's
         assert main(["status", "--config", site]) == 0
     finally:
         service.stop()
