@@ -144,6 +144,28 @@ def test_stop_lets_the_exchange_in_flight_finish_then_writes_the_final_state_onc
     assert client.errors.total == 0 and not client.final_write_failed
 
 
+def test_a_stop_whose_final_write_goes_unanswered_says_so(caplog):
+    """The PLC is gone when the service stops: the stop still ends, and the log names the PLC whose
+    stopped state may be missing (never in silence)."""
+    image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    device = PlcMemory(free_port())
+
+    async def run():
+        with device:
+            client = ModbusClient(image, "127.0.0.1", device.port, period_s=0.005, timeout_s=0.5)
+            await client.start()
+            await asyncio.to_thread(device.serving.wait)   # the exchange runs
+        await client.stop()                                # the PLC's server has shut down
+        return client
+
+    try:
+        client = asyncio.run(run())
+    finally:
+        image.close()
+    assert client.final_write_failed
+    assert f"the stopped state may not have reached the PLC at 127.0.0.1:{device.port}" in caplog.text
+
+
 def test_unreachable_plc_is_a_clear_error():
     image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
     settings = IoSettings(plc=PlcSettings(role="client", port=free_port(), client=PlcClientSettings(timeout_s=0.5)))
