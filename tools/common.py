@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -11,7 +12,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from stiffness.errors import OutputError
+from stiffness.errors import ConfigError, OutputError
 from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.sanity import resolve_duplicates
@@ -82,6 +83,20 @@ def write_output(path: str | Path, write: Callable[[Path], T]) -> T:
         return write(path)
     except OSError as e:
         raise OutputError(f"{path}: cannot write: {e.strerror or e}") from e
+
+
+def check_number(option: str, value: float, unit: str, *, above: float | None = None,
+                 at_least: float | None = None, at_most: float | None = None) -> float:
+    """``value`` of ``option`` if it is finite and within the bounds given; ConfigError naming the option
+    otherwise (called right after parsing, before any work starts). ``unit`` says what the number is in."""
+    bounds = [f"above {above:g}" if above is not None else "", f"at least {at_least:g}" if at_least is not None else "",
+              f"at most {at_most:g}" if at_most is not None else ""]
+    ok = (math.isfinite(value) and (above is None or value > above) and (at_least is None or value >= at_least)
+          and (at_most is None or value <= at_most))
+    if not ok:
+        raise ConfigError(f"{option} {value:g}: must be a finite number {' and '.join(b for b in bounds if b)} "
+                          f"({unit})")
+    return value
 
 
 def to_jsonable(x: Any) -> Any:

@@ -14,7 +14,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from .common import Progress, print_json, write_output
+from .common import Progress, check_number, print_json, write_output
 
 
 def register(sub) -> None:
@@ -64,6 +64,14 @@ def _prior_options(p) -> None:
                         "(1 sigma; default 0.5)")
 
 
+def _check_options(args) -> None:
+    """Refuse a bad option before anything is read: one line naming it (exit 2), nothing written."""
+    check_number("--near-mm", args.near_mm, "mm", above=0.0)
+    check_number("--smooth-hz", args.smooth_hz, "Hz; 0: the wrench as traced", at_least=0.0)
+    if getattr(args, "prior_relative", None) is not None:
+        check_number("--prior-relative", args.prior_relative, "a fraction of each value", above=0.0)
+
+
 def _parts(args, model) -> list:
     from stiffness.part import read_part
     from stiffness.part_rows import read_against
@@ -101,6 +109,7 @@ def run_compare(args) -> int:
     from stiffness.model import StiffnessModel
     from stiffness.part_compare import compare_part
 
+    _check_options(args)
     model = StiffnessModel.from_yaml(args.model)
     comp = compare_part(model, _parts(args, model)[0])
     if args.report:
@@ -120,6 +129,7 @@ def _setup(args, command: str):
     """Progress, the prior, the model to start from and the parts, for learn and diagnose."""
     from stiffness.model import StiffnessModel
 
+    _check_options(args)
     progress = Progress(command)
     prior, start = _prior(args, StiffnessModel.from_yaml(args.model), progress)
     return progress, prior, start, _parts(args, start)
