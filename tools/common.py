@@ -85,6 +85,17 @@ def write_output(path: str | Path, write: Callable[[Path], T]) -> T:
         raise OutputError(f"{path}: cannot write: {e.strerror or e}") from e
 
 
+def check_output_file(option: str, path: str | Path) -> Path:
+    """The output file ``path`` given as ``option``, checked before any work starts: its folder must exist
+    (nothing creates it) and it must not be a folder; OutputError naming the option otherwise."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{option} {path}: is a folder; name a file in it")
+    if not path.parent.is_dir():
+        raise OutputError(f"{option} {path}: the folder {path.parent} does not exist (create it first)")
+    return path
+
+
 def check_number(option: str, value: float, unit: str, *, above: float | None = None,
                  at_least: float | None = None, at_most: float | None = None) -> float:
     """``value`` of ``option`` if it is finite and within the bounds given; ConfigError naming the option

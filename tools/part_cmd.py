@@ -14,7 +14,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from .common import Progress, check_number, print_json, write_output
+from .common import Progress, check_number, check_output_file, print_json, write_output
 
 
 def register(sub) -> None:
@@ -70,6 +70,8 @@ def _check_options(args) -> None:
     check_number("--smooth-hz", args.smooth_hz, "Hz; 0: the wrench as traced", at_least=0.0)
     if getattr(args, "prior_relative", None) is not None:
         check_number("--prior-relative", args.prior_relative, "a fraction of each value", above=0.0)
+    if getattr(args, "output", None):
+        check_output_file("-o", args.output)
 
 
 def _parts(args, model) -> list:

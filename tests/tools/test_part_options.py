@@ -1,4 +1,4 @@
-"""`stiffcomp part compare|learn|diagnose`: a bad option is refused before any work (issue 35, item 9):
+"""`stiffcomp part compare|learn|diagnose`: a bad option is refused before any work (issue 35, items 9 and 10):
 one line on stderr naming the option, exit 2, nothing written. The model, trace and part named do not exist,
 so a refusal that names the option came before anything was read."""
 
@@ -41,3 +41,17 @@ def test_a_bad_prior_fraction_is_refused_naming_the_option(tmp_path, capsys, act
     extra = ["-o", str(tmp_path / "learned.yaml")] if action == "learn" else []
     assert main(["part", action, *_inputs(tmp_path), "--prior-relative", value, *extra]) == 2
     _refused(capsys, "--prior-relative")
+
+
+def test_learn_to_a_missing_folder_is_refused_and_creates_nothing(tmp_path, capsys):
+    """As `stiffcomp modes -o` does: the folder must exist; nothing is created, not even the folder."""
+    target = tmp_path / "no" / "such" / "folder" / "x.yaml"
+    assert main(["part", "learn", *_inputs(tmp_path), "-o", str(target)]) == 2
+    line = _refused(capsys, f"-o {target}")
+    assert f"the folder {target.parent} does not exist" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_learn_to_a_folder_is_refused(tmp_path, capsys):
+    assert main(["part", "learn", *_inputs(tmp_path), "-o", str(tmp_path)]) == 2
+    assert "is a folder" in _refused(capsys, f"-o {tmp_path}")
