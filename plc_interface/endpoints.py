@@ -1,58 +1,38 @@
 """Where the running service answers and how to ask it, for the light commands (the health probe).
 
-A probe that an orchestrator runs every few seconds must cost milliseconds, so this module imports
-the standard library, pyyaml (through `stiffness.yamlread`) and nothing else: no pydantic, no NumPy,
-no model code. It owns
+A probe that an orchestrator runs every few seconds must cost little, so this module imports the
+standard library, pyyaml (through `stiffness.yamlread`), and, to read a config, pydantic and the I/O
+process's own schemas; never NumPy, the model code or the cycle's schemas. It owns
 
-* the reading of the keys a probe reads, whose defaults `MonitoringEndpoint` and `PlcEndpoint` hold
-  (`plc_interface.defaults`; the schemas in `plc_interface.settings` take theirs from there too);
 * the probes of the I/O process's HTTP endpoint, `PROBES` (served by `plc_interface.monitoring`);
-* `read_endpoints`, the light reader of those keys, and `read_probe`, the HTTP client.
+* `read_endpoints`, the reader of the sections a probe asks by, and `read_probe`, the HTTP client.
 
-`read_endpoints` reads only ``monitoring.enabled``, ``.host``, ``.port``, ``.health_max_exceed_rate``
-and ``plc.role``, ``.host``, ``.port``, ``.register_map``. A plain value (an integer port in range, a
-boolean, a string) is taken as it is; any other value is handed to the service's own schema, so the
-probe accepts exactly what the service accepts, with the same message naming the file, the key and
-the value. Every other key is left to the service, which refuses the whole file at its start when
-anything in it is wrong.
+`read_endpoints` validates ``monitoring``, ``plc`` and ``ads`` with the very schemas the service
+composes into its config (`MonitoringSettings`, `PlcSettings`, `AdsSettings`, through
+`stiffness.yamlio.validate`), so each refusal is the service's, word for word, and refuses a top-level
+key outside the service config's sections as the service does. The other sections' values and the
+files the config names (the model, the replay: paths inside an image) are the service's to check at
+its start; the probe reads none of them.
 """
 
 from __future__ import annotations
 
 import http.client
 import json
-import math
 import time
-from dataclasses import dataclass, fields
+from collections.abc import Collection
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from stiffness.errors import ConfigError, quote
+from stiffness.errors import ConfigError
 from stiffness.yamlread import read_yaml
-
-from .defaults import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
 
 # probe -> (HTTP path, the verdict's key in its JSON); `plc_interface.health` explains each verdict
 PROBES: dict[str, tuple[str, str]] = {
     "health": ("/health", "healthy"),
     "live": ("/health/live", "live"),
     "ready": ("/health/ready", "ready"),
-}
-
-
-def _number(v: Any) -> bool:
-    return type(v) in (int, float) and math.isfinite(v)
-
-
-# key -> the values the schema takes exactly as they are: the fast path; any other value is decided by
-# the schema itself (pydantic, imported only then), so the probe accepts what the service accepts
-_PLAIN = {
-    "enabled": lambda v: type(v) is bool,
-    "host": lambda v: type(v) is str,
-    "port": lambda v: type(v) is int and PORT_MIN <= v <= PORT_MAX,
-    "health_max_exceed_rate": lambda v: _number(v) and 0.0 <= v <= 1.0,
-    "role": lambda v: v in PLC_ROLES and type(v) is str,
-    "register_map": lambda v: type(v) is str,
 }
 
 
@@ -85,55 +65,44 @@ def load_register_map(config_path: Path, relative: str):
 
 @dataclass(frozen=True)
 class Endpoints:
-    """What `read_endpoints` found: the config file, and its ``monitoring`` and ``plc`` keys."""
+    """What `read_endpoints` found: the config file, and its ``monitoring`` (`MonitoringSettings`),
+    ``plc`` (`PlcSettings`) and ``ads`` (`AdsSettings`) sections as the service reads them."""
 
     path: Path
-    monitoring: MonitoringEndpoint
-    plc: PlcEndpoint
+    monitoring: Any
+    plc: Any
+    ads: Any
+
+    def resolve(self, relative: str) -> Path:
+        """A path written in the config, found as the service finds it (`resolve_path`)."""
+        return resolve_path(self.path, relative)
 
     def register_map(self):
         """The register map ``plc.register_map`` names (`load_register_map`)."""
         return load_register_map(self.path, self.plc.register_map)
 
 
-def read_endpoints(path: str | Path) -> Endpoints:
-    """The probe's keys of the service config at ``path``; ConfigError names the file, key and value."""
-    return endpoints_from(read_yaml(path), Path(path))
+def read_endpoints(path: str | Path, sections: Collection[str] = ()) -> Endpoints:
+    """The probe's sections of the service config at ``path`` (`endpoints_from`); ConfigError names the
+    file, the key and the value."""
+    return endpoints_from(read_yaml(path), Path(path), sections)
 
 
-def endpoints_from(data: dict, path: Path) -> Endpoints:
-    """The probe's keys of a config's mapping ``data``, read from ``path`` (for the messages)."""
-    return Endpoints(path, _section(path, data, "monitoring", MonitoringEndpoint),
-                     _section(path, data, "plc", PlcEndpoint))
+def endpoints_from(data: dict, path: Path, sections: Collection[str] = ()) -> Endpoints:
+    """``monitoring``, ``plc`` and ``ads`` of a config's mapping ``data`` (read from ``path``, for the
+    messages), validated by the service's own schemas; with ``sections``, the service config's top-level
+    names, a top-level key outside them is refused in the words the service refuses it with."""
+    from stiffness.yamlio import validate
 
-
-def _section(path: Path, data: dict, name: str, cls):
-    section = data.get(name)
-    if section is None:
-        section = {}
-    if not isinstance(section, dict):
-        raise ConfigError(f"{path}: {name} = {quote(section)}: expected a mapping")
-    values = {k: section[k] for k in (f.name for f in fields(cls)) if k in section}
-    odd = {k: v for k, v in values.items() if not _PLAIN[k](v)}
-    if odd:
-        values.update(_validated(path, name, odd))
-    return cls(**{k: float(v) if k == "health_max_exceed_rate" else v for k, v in values.items()})
-
-
-def _validated(path: Path, name: str, values: dict) -> dict:
-    """``values`` as the service's schema reads them; ConfigError with the schema's message if it refuses."""
-    from pydantic import ValidationError
-
-    from stiffness.yamlio import format_validation_error
-
+    from .ads.settings import AdsSettings
     from .settings import MonitoringSettings, PlcSettings
 
-    schema = {"monitoring": MonitoringSettings, "plc": PlcSettings}[name]
-    try:
-        parsed = schema.model_validate(values)
-    except ValidationError as e:
-        raise ConfigError(format_validation_error(str(path), e, prefix=name)) from e
-    return {k: getattr(parsed, k) for k in values}
+    unknown = [k for k in data if sections and k not in sections]
+    if unknown:
+        raise ConfigError(f"{path}: {unknown[0]} is not a known key")
+    schemas = {"monitoring": MonitoringSettings, "plc": PlcSettings, "ads": AdsSettings}
+    return Endpoints(path, **{name: validate(schema, data[name], str(path), name) if name in data else schema()
+                              for name, schema in schemas.items()})
 
 
 def read_probe(host: str, port: int, probe: str = "health", timeout_s: float = 1.0) -> dict:

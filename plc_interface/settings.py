@@ -13,10 +13,10 @@ from pydantic import Field, field_validator, model_validator
 
 from stiffness.yamlio import Strict
 
-from .defaults import PLC_ROLES, PORT_MAX, PORT_MIN, MonitoringEndpoint, PlcEndpoint
-
 IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
 Access = Literal["none", "read", "write"]
+PORT_MIN, PORT_MAX = 1, 65535
+PLC_ROLES = ("server", "client", "none")
 
 
 class PlcClientSettings(Strict):
@@ -92,19 +92,18 @@ class TlsSettings(Strict):
 
 
 class PlcSettings(ClientLimits):
-    """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``). The
-    defaults a probe reads are `PlcEndpoint`'s.
+    """The ``plc:`` section; the client limits apply to the Modbus server (role ``server``).
 
     ``writers``: the addresses or networks (CIDR) whose plain Modbus TCP clients may write; every other
     client may read, and its writes are answered with exception 01. None (the default): any client may
     write. Over TLS the client certificate's role decides (``tls``).
     """
 
-    role: Literal[PLC_ROLES] = PlcEndpoint.role
-    host: str = PlcEndpoint.host
-    port: int = Field(PlcEndpoint.port, ge=PORT_MIN, le=PORT_MAX)
+    role: Literal[PLC_ROLES] = "server"
+    host: str = "127.0.0.1"
+    port: int = Field(5020, ge=PORT_MIN, le=PORT_MAX)
     device_id: int = Field(1, ge=0, le=247)
-    register_map: str = PlcEndpoint.register_map
+    register_map: str = "registers.yaml"
     initial_q_deg: list[float] = Field(default_factory=lambda: [0.0, -90.0, 90.0, 0.0, 45.0, 0.0],
                                        min_length=6, max_length=6)
     enable_on_start: bool = False
@@ -141,10 +140,10 @@ class PlcSettings(ClientLimits):
 
 class MonitoringSettings(Strict):
     """The I/O process's HTTP endpoint: /health, /health/live and /health/ready always, /metrics
-    (Prometheus) when ``metrics``. The defaults a probe reads are `MonitoringEndpoint`'s."""
+    (Prometheus) when ``metrics``."""
 
-    enabled: bool = MonitoringEndpoint.enabled
-    host: str = MonitoringEndpoint.host
-    port: int = Field(MonitoringEndpoint.port, ge=PORT_MIN, le=PORT_MAX)
+    enabled: bool = True
+    host: str = "127.0.0.1"
+    port: int = Field(9020, ge=PORT_MIN, le=PORT_MAX)
     metrics: bool = False
-    health_max_exceed_rate: float = Field(MonitoringEndpoint.health_max_exceed_rate, ge=0.0, le=1.0)
+    health_max_exceed_rate: float = Field(0.05, ge=0.0, le=1.0)

@@ -15,11 +15,12 @@ twice over Modbus instead and judges it as the I/O process would. Exit code 0 wh
 passes, 1 when not (also when nothing answers), 2 when the config is bad or offers neither way; the
 reason is printed in one line.
 
-A probe runs every few seconds, so this command stays light: it imports the standard library and
-pyyaml, reads only the keys it needs (`plc_interface.endpoints.read_endpoints`), and never the
-service's schemas, NumPy, scipy or the model (tests/tools/test_health_probe.py holds its import set).
-A site config copied out of the container names a model and a replay inside the image, which this
-command never opens, so it works from the host as docs/deploy.md shows it.
+A probe runs every few seconds, so this command stays light: it reads the ``monitoring``, ``plc`` and
+``ads`` sections with the service's own schemas (`plc_interface.endpoints.read_endpoints`), so it
+refuses what the service refuses there, and a top-level key the service does not know, and never
+imports NumPy, scipy or the model (tests/tools/test_health_cmd.py holds its import set). A site config
+copied out of the container names a model and a replay inside the image, which this command never
+opens, so it works from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import sys
 import time
 
 from plc_interface.endpoints import PROBES, Endpoints, read_endpoints, read_probe
-from service.paths import DEFAULT_CONFIG
+from service.paths import DEFAULT_CONFIG, SECTIONS
 from stiffness.errors import ConfigError
 
 TIMEOUT_S = 1.0
@@ -54,7 +55,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     try:
-        ep = read_endpoints(args.config)
+        check_options(args)
+        ep = read_endpoints(args.config, SECTIONS)
     except ConfigError as e:
         print(f"stiffcomp health: error: {e}", file=sys.stderr)
         return 2
@@ -68,6 +70,21 @@ def run(args) -> int:
         return 2
     print(f"{WORDS[args.probe][0 if passed else 1]}: {reason}")
     return 0 if passed else 1
+
+
+def check_options(args) -> None:
+    """``--host`` and ``--port`` checked as the config's keys are, by the schema of the section they stand
+    for (a port 1 to 65535); ConfigError naming the option."""
+    from pydantic import ValidationError
+
+    from plc_interface.settings import MonitoringSettings
+
+    given = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
+    try:
+        MonitoringSettings.model_validate(given)
+    except ValidationError as e:
+        key = e.errors()[0]["loc"][0]
+        raise ConfigError(f"--{key} {given[key]}: {e.errors()[0]['msg']}") from e
 
 
 def address(section, args) -> tuple[str, int]:

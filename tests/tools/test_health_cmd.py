@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from hil.testing import ROOT, free_port, write_config
+from service.paths import SECTIONS
 from tools.cli import main
 
 
@@ -123,19 +124,68 @@ def test_without_http_it_reads_the_modbus_block_and_says_where(tmp_path, capsys)
     assert capsys.readouterr().out == f"not live: no answer from the service at 127.0.0.1:{port}\n"
 
 
-# -- the probe stays light (docs/deploy.md#health, STYLE 17) --------------------------------------------
+# -- the probe refuses what the service refuses (docs/deploy.md#health) --------------------------------
+# Each mistake in a complete service config: `run --check` refuses it, and the probe refuses it with the
+# same line, in one line on stderr, exit 2, before it asks anything (nothing on stdout).
+MISTAKES = {
+    "misspelt section": {"monitorin": {"port": 9021}},
+    "misspelt key": {"monitoring": {"hots": "0.0.0.0"}},
+    "empty section": {"monitoring": None},
+    "monitoring port 0": {"monitoring": {"port": 0}},
+    "plc port 99999": {"plc": {"port": 99999}},
+    "tls switch no boolean": {"plc": {"tls": {"plain": "maybe"}}},
+    "tls without its files": {"plc": {"tls": {"enabled": True}}},
+    "ads port -1": {"ads": {"port": -1}},
+}
+
+
+@pytest.mark.parametrize("mistake", MISTAKES.values(), ids=MISTAKES.keys())
+def test_the_probe_refuses_what_the_service_refuses_in_the_same_words(tmp_path, capsys, mistake):
+    cfg = write_config(tmp_path, mistake)
+    assert main(["run", "--check", "--config", str(cfg)]) == 2
+    refused = capsys.readouterr().err
+    assert main(["health", "--live", "--config", str(cfg)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1
+    assert err.removeprefix("stiffcomp health: error: ") == refused.removeprefix("stiffcomp run: error: ")
+
+
+def test_the_sections_it_knows_are_the_service_configs():
+    from service.config import ServiceConfig
+
+    assert set(SECTIONS) == set(ServiceConfig.model_fields) - {"path"}
+
+
+@pytest.mark.parametrize("port", ["0", "-1", "99999"])
+def test_a_port_option_outside_1_to_65535_is_refused_naming_it(port, capsys):
+    assert main(["health", "--live", "--port", port]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and err.startswith(f"stiffcomp health: error: --port {port}: ")
+
+
+# -- the probe stays light (docs/deploy.md#health) ------------------------------------------------------
 # One interpreter, started as the HEALTHCHECK starts it, runs the probe over HTTP against a /health/live
 # answered by this test, then the Modbus fallback against a port where nothing listens, and reports the
-# modules each left imported. The HTTP probe may import the standard library, pyyaml and the few project
-# modules on ALLOWED, nothing else: so moving a schema or a helper cannot quietly pull pydantic, NumPy,
-# scipy, pinocchio or the model code into the probe. The fallback may add pymodbus and the register map,
-# never NumPy, scipy, pinocchio or the service.
-ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "plc_interface", "plc_interface.defaults", "plc_interface.endpoints", "service",
-           "service.paths", "stiffness", "stiffness.errors", "stiffness.yamlread"}
+# modules each left imported. The HTTP probe may import the standard library, pyyaml, pydantic (the
+# service's schemas of the sections it reads validate them) and the few project modules on ALLOWED,
+# nothing else: so moving a schema or a helper cannot quietly pull NumPy, scipy, pinocchio, the ADS
+# server or the model code into the probe. The fallback may add pymodbus and the register map, never
+# NumPy, scipy, pinocchio or the service.
+ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "plc_interface", "plc_interface.endpoints",
+           "plc_interface.settings", "plc_interface.ads", "plc_interface.ads.settings", "plc_interface.ads.ams",
+           "service", "service.paths", "stiffness", "stiffness.errors", "stiffness.yamlread", "stiffness.yamlio"}
 OURS = ("tools", "hil", "service", "plc_interface", "stiffness")
+PYDANTIC = ("pydantic", "pydantic_core", "annotated_types", "typing_extensions", "typing_inspection")
+
+
 def pyyaml(top: str) -> bool:
     """pyyaml, with the modules its C loader (libyaml bound by Cython) registers."""
     return top in ("yaml", "_yaml", "cython_runtime") or top.startswith("_cython_")
+
+
+def standard(top: str) -> bool:
+    """The standard library, with the build's configuration module that sysconfig loads (for pydantic)."""
+    return top in sys.stdlib_module_names or top.startswith("_sysconfigdata_")
 
 
 NEVER = ("numpy", "scipy", "pinocchio", "pin", "matplotlib", "pyarrow", "pandas", "rich", "can")
@@ -168,7 +218,7 @@ def test_the_probe_imports_the_standard_library_pyyaml_and_its_own_few_modules(t
 
     probe = set(got["after_http"]) - set(got["at_start"])
     tops = {m.split(".")[0] for m in probe}
-    foreign = sorted(t for t in tops - set(sys.stdlib_module_names) - set(OURS) if not pyyaml(t))
+    foreign = sorted(t for t in tops - set(OURS) - set(PYDANTIC) if not (pyyaml(t) or standard(t)))
     ours = sorted(m for m in probe if m.split(".")[0] in OURS and m not in ALLOWED)
     assert foreign == [] and ours == [], f"the HTTP probe imports {foreign + ours}"
 
