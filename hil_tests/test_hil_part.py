@@ -9,6 +9,8 @@ measures the same in real time. The truth is examples/truth_reference.yaml and t
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hil_lib import ROOT
@@ -22,7 +24,8 @@ from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
 from stiffness.part_rows import read_against
 from stiffness.prior import Prior
-from stiffness.trace import read_trace
+from stiffness.trace import COLUMNS, read_trace
+from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 A = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]          # the scenario's circle
@@ -96,3 +99,31 @@ def test_the_part_names_a_hidden_hysteresis_at_joint_1_and_the_control_nothing(t
         assert "a step at each reversal of joint 1's torque" in found.message
     else:
         assert best is None and found.diagnosis.verdict == "no_missing_effect", found.message
+
+
+def test_a_trace_that_lost_rows_reads_as_the_whole_one_and_names_the_gap(loop, tmp_path, capsys):
+    """The service's trace of cut A with 150 rows removed from its middle (a gap in its cycle count, as a stalled
+    writer leaves): `part compare` and `part learn` name the gap and the points made during it, leave those out,
+    and their figures are the whole trace's."""
+    w, start, _, _, _ = loop
+    lines = (w / "A.csv").read_text().splitlines(keepends=True)
+    k = len(lines) // 2
+    gapped = tmp_path / "A_gap.csv"
+    gapped.write_text("".join(lines[:k] + lines[k + 150:]))
+    lost_from = int(lines[k].split(",")[COLUMNS.index("cycle")])
+    got = {}
+    for name, trace in (("whole", w / "A.csv"), ("gap", gapped)):
+        assert main(["part", "compare", str(start), str(trace), str(w / "A_part.csv"), "--json"]) == 0
+        got[name] = json.loads(capsys.readouterr().out)
+        assert main(["part", "learn", str(start), str(trace), str(w / "A_part.csv"), "-o",
+                     str(tmp_path / f"{name}.yaml"), "--json"]) == 0
+        got[name]["learn"] = json.loads(capsys.readouterr().out)
+    whole, gap = got["whole"], got["gap"]
+    assert whole["left_out_count"] == 0 and whole["trace_gaps"] == []
+    assert [(g["after_cycle"] + 1, g["lost_rows"]) for g in gap["trace_gaps"]] == [(lost_from, 150)]
+    assert 0 < gap["left_out_count"] < 40 and {x["why"] for x in gap["left_out"]} == {"trace_gap"}
+    assert gap["points"] + gap["left_out_count"] == whole["points"]
+    for key in ("part_error_max_mm", "part_error_mean_mm", "model_missed_rms_mm", "model_missed_max_mm"):
+        assert gap[key] == pytest.approx(whole[key], abs=0.005), key
+    assert gap["learn"]["rms_after_mm"] == pytest.approx(whole["learn"]["rms_after_mm"], abs=0.003)
+    assert any(f"150 row(s) lost: cycles {lost_from} to {lost_from + 149}" in n for n in gap["learn"]["notes"])

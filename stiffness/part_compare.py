@@ -44,7 +44,8 @@ class PartComparison:
 
     def summary(self) -> dict:
         r = self.rows
-        return {"points": int(r.used.sum()), "left_out": int((~r.used).sum()),
+        return {"points": int(r.used.sum()), "left_out_count": len(r.left_out),
+                "left_out": [x.to_dict() for x in r.left_out], "trace_gaps": [g.to_dict() for g in r.gaps],
                 "part_error_mean_mm": _mean_abs(r.nominal_mm), "part_error_max_mm": _max_abs(r.nominal_mm),
                 "deflection_mean_mm": float(np.mean(r.deviation_mm)),
                 "model_missed_rms_mm": float(np.sqrt(np.mean(self.missed_mm ** 2))),
@@ -55,7 +56,8 @@ class PartComparison:
     def lines(self) -> list[str]:
         s = self.summary()
         r = self.rows
-        left = f" ({s['left_out']} left out)" if s["left_out"] else ""
+        left = (f" of {len(r.used)} ({s['left_out_count']} left out, named below; every figure is over the "
+                f"{s['points']} used)" if s["left_out_count"] else "")
         return [f"part {r.part.source} against the trace {r.trace.source}: {s['points']} points{left}",
                 (f"part error against the nominal contour: mean {s['part_error_mean_mm']:.4f} mm, "
                 f"max {s['part_error_max_mm']:.4f} mm"),

@@ -38,12 +38,16 @@ history for effects that have one (hysteresis).
 Checks, each naming the file and the line: points far from where the tool went; a file whose points fit
 the traced path only after scaling by 25.4 or 1000 (inches, metres); a trace that never passes the
 contour at all. A point the tool passed twice (the overlap of a closed contour's entry and exit: another
-pass came within PASS_MARGIN_MM as close to it as the closest one) is left out and counted: which pass made
-it cannot be told.
+pass came within PASS_MARGIN_MM as close to it as the closest one) is left out and named: which pass made
+it cannot be told. So is a point made while the trace lost rows (a gap in its cycle count, `Trace.gaps`), or
+within GAP_MARGIN_MM of the path of them: where the arm was and what loaded it then is not known, and the
+path across the gap is a chord. The notes name each gap (its cycles, its time, how many rows) and the points
+left out by file line (`stiffness.part_leftout`); the wrench is smoothed on each side of a gap on its own.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,8 +57,9 @@ from scipy.spatial import cKDTree
 from .errors import DataError, Problems
 from .measurements import Dataset
 from .part import PartMeasurement
+from .part_leftout import IN_GAP, TWICE, LeftOut, gap_of, left_out_lines
 from .robot import Robot
-from .trace import Trace
+from .trace import Gap, Trace
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
@@ -89,6 +94,8 @@ class PartRows:
     trace_tool: np.ndarray       # (N trace, 3) the commanded tool centre of every trace row, m
     notes: list[str] = field(default_factory=list)
     curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`part_timing.when_made`); None: not placed yet
+    left_out: list[LeftOut] = field(default_factory=list)    # the points not used, and why
+    gaps: list[Gap] = field(default_factory=list)            # rows the trace lost
 
     @property
     def measured_mm(self) -> np.ndarray:
@@ -177,55 +184,74 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     else:
         frame = part.frame
     p = part.in_base(frame)
-    p2 = np.column_stack([p @ e1, p @ e2])
-    tree = cKDTree(c2)
-    problems, used, u_of = Problems(), np.zeros(len(p), dtype=bool), np.full(len(p), np.nan)
-    near = tree.query(p2)[0]
-    far = np.abs(near - r) > near_mm / 1000.0
-    if far.mean() > 0.5:
-        raise DataError(f"{part.source}: the trace {trace.source} never passes the measured contour: the tool's "
-                        f"centre came no closer than {1000 * np.median(near):.1f} mm (median over the points) "
-                        f"where the tool radius is {part.tool_radius_mm:g} mm; they do not belong together, or "
-                        "the part_frame is wrong")
-    twice = 0
-    for k in range(len(p)):
-        if far[k]:
-            problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
-                         f"(tolerance {near_mm:g} mm): it is not on the machined contour")
-            continue
-        cand = np.array(tree.query_ball_point(p2[k], near[k] + PASS_MARGIN_MM / 1000.0), dtype=int)
-        passes = _passes(np.sort(cand))
-        if passes > 1:
-            twice += 1
-            continue
-        u_of[k] = _abeam(idx, c2, p2[k], cand)
-        used[k] = True
-    if problems:
-        raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
-                        "nothing was used", problems)
+    gaps = trace.gaps()
+    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, gaps)
+    lost = gap_of(c_all, [g.row for g in gaps], u_of)
+    for k in np.nonzero(used & (lost >= 0))[0]:
+        left[k] = IN_GAP
+    used &= lost < 0
+    left_out = [LeftOut(part.source, int(part.lines[k]), part.labels[k], why) for k, why in sorted(left.items())]
     if used.sum() < 3:
-        raise DataError(f"{part.source}: only {int(used.sum())} point(s) lie where the tool passed once")
-    notes = []
-    if twice:
-        notes.append(f"{twice} point(s) left out: the tool passed them twice (a closed contour's entry and exit "
-                     "overlap), so which pass made them cannot be told")
+        raise DataError(f"{part.source}: only {int(used.sum())} point(s) lie where the tool passed once"
+                        + "".join(f"; {n}" for n in left_out_lines(left_out)))
+    notes = [g.text(trace.source) for g in gaps] + left_out_lines(left_out)
     if best_fit:
         notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
                      "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
                      "neither shown nor learned")
-    return _rows(part, trace, robot, label, used, u_of[used], p[used], F, a, r, frame, notes,
-                 smoothed(trace, smooth_hz))
+    out = _rows(part, trace, robot, label, used, u_of[used], p[used], F, a, r, frame, notes,
+                smoothed(trace, smooth_hz, gaps))
+    out.left_out, out.gaps = left_out, gaps
+    return out
 
 
-def smoothed(trace: Trace, cutoff_hz: float) -> np.ndarray:
-    """The trace's wrench low-passed without lag (Butterworth, order 2, forward and backward) at ``cutoff_hz``;
-    the trace's own where the cutoff is 0 or the trace too short."""
-    w = trace.wrench_base
+def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray, c2: np.ndarray, r: float,
+           near_mm: float, gaps: list[Gap]) -> tuple[np.ndarray, np.ndarray, dict[int, str]]:
+    """Each point's fractional trace row where the path (moving rows ``idx``, in-plane ``c2``) passes abeam of
+    it (in-plane ``p2``): which points are used, their rows, and why each other one is left out. A point far
+    off the path where the trace lost rows is left out for that; far off elsewhere, it is refused by line."""
+    tree = cKDTree(c2)
+    near, j = tree.query(p2)
+    beside_gap = np.isin(idx[j], [g.row + d for g in gaps for d in (0, 1)])
+    far = np.abs(near - r) > near_mm / 1000.0
+    if (far & ~beside_gap).mean() > 0.5:
+        raise DataError(f"{part.source}: the trace {trace.source} never passes the measured contour: the tool's "
+                        f"centre came no closer than {1000 * np.median(near):.1f} mm (median over the points) "
+                        f"where the tool radius is {part.tool_radius_mm:g} mm; they do not belong together, or "
+                        "the part_frame is wrong")
+    problems, used, u_of, left = Problems(), np.zeros(len(p2), dtype=bool), np.full(len(p2), np.nan), {}
+    for k in range(len(p2)):
+        if far[k] and beside_gap[k]:
+            left[k] = IN_GAP
+        elif far[k]:
+            problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
+                         f"(tolerance {near_mm:g} mm): it is not on the machined contour")
+        else:
+            cand = np.array(tree.query_ball_point(p2[k], near[k] + PASS_MARGIN_MM / 1000.0), dtype=int)
+            if _passes(np.sort(cand)) > 1:
+                left[k] = TWICE
+            else:
+                u_of[k], used[k] = _abeam(idx, c2, p2[k], cand), True
+    if problems:
+        raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
+                        "nothing was used", problems)
+    return used, u_of, left
+
+
+def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap] | None = None) -> np.ndarray:
+    """The trace's wrench low-passed without lag (Butterworth, order 2, forward and backward) at ``cutoff_hz``,
+    each run of rows between ``gaps`` (rows the trace lost) on its own; the trace's own where the cutoff is 0 or
+    a run too short."""
+    w = trace.wrench_base.copy()
     dt = float(np.median(np.diff(trace.time_s))) if len(trace) > 1 else 0.0
-    if cutoff_hz <= 0 or dt <= 0 or len(w) < 30 or cutoff_hz >= 0.5 / dt:
-        return w.copy()
+    if cutoff_hz <= 0 or dt <= 0 or cutoff_hz >= 0.5 / dt:
+        return w
     sos = signal.butter(2, cutoff_hz, fs=1.0 / dt, output="sos")
-    return signal.sosfiltfilt(sos, w, axis=0)
+    ends = [0] + [g.row + 1 for g in gaps or []] + [len(w)]
+    for lo, hi in itertools.pairwise(ends):
+        if hi - lo >= 30:
+            w[lo:hi] = signal.sosfiltfilt(sos, w[lo:hi], axis=0)
+    return w
 
 
 def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) -> PartRows:

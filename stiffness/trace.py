@@ -13,6 +13,10 @@ c1_deg .. c6_deg                   the joint correction the service sent (after 
 status_word, fault_word, task_state  the contract's words (`plc_interface.contract`)
 =================================  ===============================================================
 
+The cycle counts 1, 2, ... with no gap; a gap is rows the service lost (its writer fell a ring behind):
+`Trace.gaps` names each, and what reads the trace leaves out what happened then. A cycle that does not rise
+is refused (two runs in one file).
+
 The file is CSV or Parquet, by its suffix. `TraceFile` writes it in batches and rotates it: when the
 file reaches ``max_bytes`` it becomes ``NAME.1.SUFFIX`` (the older ones move up to ``keep``; the oldest
 goes, and the log says so) and a new ``NAME.SUFFIX`` starts. `read_trace` reads one file back.
@@ -160,6 +164,24 @@ def _csv_row(r: np.ndarray) -> list[str]:
     return [str(int(v)) if c in INTEGER else repr(float(v)) for c, v in zip(COLUMNS, r)]
 
 
+@dataclass(frozen=True)
+class Gap:
+    """Rows a trace lost: ``lost`` cycles between table rows ``row`` and ``row + 1``."""
+
+    row: int
+    after_cycle: int
+    lost: int
+    from_s: float                     # time_s of the rows either side
+    to_s: float
+
+    def text(self, source: str) -> str:
+        return (f"{source}: {self.lost} row(s) lost: cycles {self.after_cycle + 1} to {self.after_cycle + self.lost} "
+                f"(between t = {self.from_s:.3f} and {self.to_s:.3f} s)")
+
+    def to_dict(self) -> dict:
+        return {"after_cycle": self.after_cycle, "lost_rows": self.lost, "from_s": self.from_s, "to_s": self.to_s}
+
+
 @dataclass
 class Trace:
     """A trace read back: one array per column (``trace.time_s``, ``trace.q_deg`` ...)."""
@@ -183,6 +205,12 @@ class Trace:
     correction_deg = property(lambda self: self.block(CORRECTION))
     fault_word = property(lambda self: self.column("fault_word").astype(np.int64))
     status_word = property(lambda self: self.column("status_word").astype(np.int64))
+
+    def gaps(self) -> list[Gap]:
+        """Where the cycle count jumps: the rows lost there (docs/part_format.md)."""
+        c, t = self.cycle, self.time_s
+        return [Gap(int(k), int(c[k]), int(c[k + 1] - c[k] - 1), float(t[k]), float(t[k + 1]))
+                for k in np.nonzero(np.diff(c) > 1)[0]]
 
 
 def read_trace(path: str | Path) -> Trace:
@@ -228,9 +256,11 @@ def _checked(path: Path, table: np.ndarray, lines: np.ndarray | None) -> Trace:
         k = int(np.argmax(bad))
         where = f"line {lines[k]}" if lines is not None else f"row {k + 1}"
         raise DataError(f"{path}: {where}: a time, cycle or joint position is not finite")
-    if np.any(np.diff(table[:, 0]) < 0):
-        k = int(np.argmax(np.diff(table[:, 0]) < 0)) + 1
-        where = f"line {lines[k]}" if lines is not None else f"row {k + 1}"
-        raise DataError(f"{path}: {where}: time_s goes back (a trace is one run in time order; "
-                        "give the rotated files one at a time)")
+    for col, what in ((0, "time_s goes back"), (2, "the cycle count does not rise")):
+        back = np.diff(table[:, col]) < 0 if col == 0 else np.diff(table[:, col]) < 1
+        if back.any():
+            k = int(np.argmax(back)) + 1
+            where = f"line {lines[k]}" if lines is not None else f"row {k + 1}"
+            raise DataError(f"{path}: {where}: {what} (a trace is one run in time order; "
+                            "give the rotated files one at a time)")
     return Trace(str(path), table)

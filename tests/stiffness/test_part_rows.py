@@ -3,6 +3,8 @@ bad input named by file and line (issue 29, item 2)."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -13,10 +15,12 @@ from stiffcomp_testlib import ROOT
 from stiffness.errors import DataError
 from stiffness.model import StiffnessModel
 from stiffness.part import read_part, write_part
+from stiffness.part_compare import compare_part
 from stiffness.part_rows import read_against
 from stiffness.part_timing import when_made
 from stiffness.robot import PoseConfig
-from stiffness.trace import read_trace
+from stiffness.trace import TraceFile, read_trace
+from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 
@@ -141,3 +145,55 @@ def test_a_bad_part_file_is_refused_naming_the_file_and_line(tmp_path, text, mat
     with pytest.raises(DataError, match=match) as e:
         read_part(path)
     assert str(path) in str(e.value)
+
+
+def test_rows_the_trace_lost_are_named_and_the_points_made_then_left_out(cut, truth, tmp_path, capsys):
+    """150 rows removed from the middle of the trace (a gap in its cycle count): the gap is named by its cycles,
+    its time and its size; the points made while it lasted (and a margin of path either side) are left out and
+    named by line; every other point reads as it did from the whole trace, and so do the model's figures."""
+    trace = read_trace(cut.trace)
+    k = len(trace) // 2
+    gapped = tmp_path / "gap.csv"
+    with TraceFile(gapped) as f:
+        f.write(np.delete(trace.table, np.s_[k:k + 150], axis=0))
+    part = read_part(cut.part)
+    clean = read_against(part, trace, truth.robot)
+    rows = read_against(part, read_trace(gapped), truth.robot)
+    lost_from, lost_to = trace.cycle[k], trace.cycle[k + 149]
+    assert [(g.after_cycle + 1, g.after_cycle + g.lost) for g in rows.gaps] == [(lost_from, lost_to)]
+    assert any(f"150 row(s) lost: cycles {lost_from} to {lost_to} (between t = {trace.time_s[k - 1]:.3f} and "
+               f"{trace.time_s[k + 150]:.3f} s)" in n for n in rows.notes), rows.notes
+    # the points the tool passed during the lost rows are left out, and only a margin of path more
+    made_then = (clean.u > k - 1) & (clean.u < k + 150)
+    left = ~rows.used
+    assert left[clean.used][made_then].all() and 0 < made_then.sum() < left.sum() <= made_then.sum() + 8
+    assert [x.line for x in rows.left_out] == part.lines[left].tolist()
+    assert {x.why for x in rows.left_out} == {"trace_gap"}
+    assert any(f"{left.sum()} point(s) left out: the trace lost the rows" in n and str(cut.part) in n
+               for n in rows.notes)
+    np.testing.assert_allclose(rows.deviation_mm, clean.deviation_mm[rows.used[clean.used]], atol=1e-6)
+    # the model's account from the gapped trace is the whole trace's over the same points
+    whole, gap = compare_part(truth, clean), compare_part(truth, rows)
+    same = rows.used[clean.used]
+    np.testing.assert_allclose(gap.model_mm, whole.model_mm[same], atol=0.001)  # 1 um: smoothed per side
+    assert gap.summary()["model_missed_rms_mm"] == pytest.approx(whole.summary()["model_missed_rms_mm"], abs=5e-4)
+    # and the command says so in its JSON
+    assert main(["part", "compare", str(TRUTH), str(gapped), str(cut.part), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["left_out_count"] == left.sum() and [x["line"] for x in out["left_out"]] == part.lines[left].tolist()
+    assert out["trace_gaps"] == [{"after_cycle": int(lost_from) - 1, "lost_rows": 150, "from_s": trace.time_s[k - 1],
+                                  "to_s": trace.time_s[k + 150]}]
+    assert out["part_error_max_mm"] == pytest.approx(compare_part(truth, clean).summary()["part_error_max_mm"],
+                                                     abs=0.005)
+
+
+def test_a_cycle_count_that_does_not_rise_is_refused_by_line(cut, tmp_path):
+    """Two runs in one file: the count starts again."""
+    trace = read_trace(cut.trace)
+    table = trace.table.copy()
+    table[100:, 2] -= 50
+    path = tmp_path / "twice.csv"
+    with TraceFile(path) as f:
+        f.write(table)
+    with pytest.raises(DataError, match=f"{path}: line 102: the cycle count does not rise"):
+        read_trace(path)

@@ -18,6 +18,7 @@ from stiffness.trace import COLUMNS, INTEGER, TraceFile, check_path, read_trace
 def _rows(values: np.ndarray) -> np.ndarray:
     rows = values.copy()
     rows[:, 0] = np.arange(len(rows)) * 0.001                         # time in order
+    rows[:, COLUMNS.index("cycle")] = np.arange(len(rows)) + 1         # one run: the count rises
     for k, c in enumerate(COLUMNS):
         if c in INTEGER:
             rows[:, k] = np.round(rows[:, k])

@@ -1,0 +1,89 @@
+"""The points of a part that no figure holds, and why: every part command names them, in its text and its
+JSON, and says which figures hold them (docs/part.md).
+
+A point is left out when the tool passed it twice (which pass made it cannot be told), when the trace lost
+the rows of the moment it was made (`stiffness.trace.Trace.gaps`: where the arm was and what loaded it then
+is not known), or when a robust fit judged it a gross error (`stiffness.robust`).
+
+Example: two points of one file left out for one reason make one line.
+
+>>> text = left_out_lines([LeftOut("p.csv", 12, "10", TWICE), LeftOut("p.csv", 13, "11", TWICE)])
+>>> len(text), text[0].startswith("2 point(s) left out: the tool passed them twice"), text[0].endswith("p.csv line(s) 12-13")
+(1, True, True)
+>>> line_ranges([5, 6, 7, 9, 12, 13])
+'5-7, 9, 12-13'
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+GAP_MARGIN_MM = 3.0      # a point this close along the path to rows the trace lost may have been made then: the
+                         # deflected tool passes a point up to its deflection along the path from the commanded
+                         # one, and the path's curve is read over 2 mm either side
+TWICE, IN_GAP, GROSS = "passed_twice", "trace_gap", "gross_error"      # why, in the JSON
+REASONS = {TWICE: "the tool passed them twice (a closed contour's entry and exit overlap), so which pass made "
+                  "them cannot be told",
+           IN_GAP: f"the trace lost the rows of the moment they were made (or within {GAP_MARGIN_MM:g} mm of the "
+                   "path of them): where the arm was and what loaded it then is not known",
+           GROSS: "the robust fit judged them gross errors"}
+SHOWN_LINES = 40         # file lines named per reason in the text (the JSON has all)
+
+
+@dataclass(frozen=True)
+class LeftOut:
+    """A point of a part file that the figures leave out: its file, line and label, and why."""
+
+    source: str
+    line: int
+    label: str
+    why: str                              # a key of REASONS
+    residual_mm: float | None = None      # a gross error's residual along the normal, after the fit
+
+    def to_dict(self) -> dict:
+        out = {"part": self.source, "line": self.line, "point": self.label, "why": self.why,
+               "reason": REASONS[self.why]}
+        if self.residual_mm is not None:
+            out["residual_mm"] = self.residual_mm
+        return out
+
+
+def left_out_lines(items: list[LeftOut]) -> list[str]:
+    """One line per file and reason: how many points, why, and their file lines."""
+    groups: dict[tuple[str, str], list[LeftOut]] = {}
+    for x in items:
+        groups.setdefault((x.why, x.source), []).append(x)
+    out = []
+    for (why, source), xs in groups.items():
+        lines = sorted(x.line for x in xs)
+        more = f" and {len(lines) - SHOWN_LINES} more" if len(lines) > SHOWN_LINES else ""
+        sizes = [f"{x.residual_mm:+.3f}" for x in sorted(xs, key=lambda x: x.line) if x.residual_mm is not None]
+        size = f" (residual {', '.join(sizes[:SHOWN_LINES])} mm)" if sizes else ""
+        out.append(f"{len(xs)} point(s) left out: {REASONS[why]}: {source} line(s) {line_ranges(lines[:SHOWN_LINES])}"
+                   f"{more}{size}")
+    return out
+
+
+def line_ranges(lines: list[int]) -> str:
+    """Sorted line numbers as runs: '5-7, 9'."""
+    runs: list[list[int]] = []
+    for v in lines:
+        if runs and v == runs[-1][1] + 1:
+            runs[-1][1] = v
+        else:
+            runs.append([v, v])
+    return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
+
+
+def gap_of(tool: np.ndarray, rows: list[int], u: np.ndarray, margin_m: float = GAP_MARGIN_MM / 1000.0) -> np.ndarray:
+    """For each fractional trace row ``u``, the index into ``rows`` (each the last trace row before a gap) of the
+    gap the path passed within ``margin_m`` of there, or -1: by the path's length (``tool``, the tool centre of
+    every trace row, m), so a tool standing still adds nothing."""
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tool, axis=0), axis=1))])
+    s_u = np.interp(u, np.arange(len(s)), s)
+    out = np.full(len(u), -1)
+    for g, k in enumerate(rows):
+        out[(s_u >= s[k] - margin_m) & (s_u <= s[k + 1] + margin_m) & (out < 0)] = g
+    return out
