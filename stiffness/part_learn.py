@@ -27,6 +27,7 @@ from .errors import ConfigError, StiffnessError
 from .identify import FitResult, fit, jacobian
 from .measurements import Dataset
 from .model import StiffnessModel
+from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
 from .part_rows import PartRows, plane_basis
 from .part_timing import when_made
 from .prior import Prior, covariance_entry
@@ -109,18 +110,32 @@ class Learned:
     parts: list[PartRows]
     determined: list[Combination]
     n_params: int
-    before_mm: float             # RMS of the parts' deviation the model leaves, before and after
-    after_mm: float
+    before_mm: float             # RMS of the parts' deviation the model leaves, before and after, over the
+    after_mm: float              # points the fit kept (not its gross errors)
     changes: list[tuple[str, float, float]]      # (label, before, after) SI, largest relative first
     notes: list[str] = field(default_factory=list)
+    before_all_mm: float = float("nan")       # the same over every point read, the fit's gross errors too
+    after_all_mm: float = float("nan")
+    left_out: list[LeftOut] = field(default_factory=list)  # the points no figure holds: the parts' and the fit's
+
+    @property
+    def points_kept(self) -> int:
+        """The points the figures hold: read against their traces and kept by the fit."""
+        return sum(len(p.used) for p in self.parts) - len(self.left_out)
+
+    def _with_gross(self) -> str:
+        n = sum(x.why == GROSS for x in self.left_out)
+        return (f"; with the {n} the fit left out: {self.before_all_mm:.4f} mm before, {self.after_all_mm:.4f} mm "
+                "after" if n else "")
 
     def lines(self) -> list[str]:
-        n_pts = sum(int(p.used.sum()) for p in self.parts)
-        out = [f"learned from {len(self.parts)} part(s), {n_pts} points: "
+        n_pts = self.points_kept
+        left = f" ({len(self.left_out)} left out, named below)" if self.left_out else ""
+        out = [f"learned from {len(self.parts)} part(s), {n_pts} points{left}: "
                + "; ".join(f"{p.label}: {p.part.source} against {p.trace.source}" for p in self.parts),
                f"prior: {self.prior.source}",
-               (f"the parts' normal deviation the model leaves: RMS {self.before_mm:.4f} mm before, "
-                f"{self.after_mm:.4f} mm after")]
+               (f"the parts' normal deviation the model leaves, over the {n_pts} points kept: RMS "
+                f"{self.before_mm:.4f} mm before, {self.after_mm:.4f} mm after" + self._with_gross())]
         k = len(self.determined)
         out.append(f"the parts determine {k} combination(s) of the model's {self.n_params} parameters better than "
                    f"the prior; the other {self.n_params - k} stay at the prior"
@@ -132,7 +147,7 @@ class Learned:
             out.append("largest changes: " + ", ".join(
                 f"{lab} {100 * (b1 / b0 - 1):+.0f} %" for lab, b0, b1 in self.changes[:5]))
         out += [f"warning: {w}" for w in self.fit.warnings if "the non-negative bound" in w]
-        out += self.notes
+        out += self.notes + left_out_lines([x for x in self.left_out if x.why == GROSS])
         return out
 
 
@@ -155,7 +170,7 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
                               model.robot_ref, model.noise, model.source, model.payload)
         fit_prior = prior.with_more(work.param_labels()[len(model.theta):], placement.loose)
     ctx = work.context(data)
-    before = _rms(ctx, data, work.predict(ctx))
+    pred_before = work.predict(ctx)
     say(f"fitting {len(model.theta)} parameters to {int(data.measured.sum())} points with the prior")
     result = fit(work, ctx, prior=fit_prior, nonnegative=True)
     learned = _without_placement(result, model) if best_fit else result.model
@@ -165,23 +180,21 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
                              "refuses such a model too): check the trace and the part belong together")
     say("naming what the parts determine")
     combos = _determined(result, work, ctx, prior, len(model.theta))
-    after = _rms(ctx, data, result.model.predict(ctx))
+    left_out, after, after_all = fit_account(parts, data, result)
+    before, before_all = rms_kept_and_all(data.deflection[:, 0] - pred_before[:, 0], data.measured[:, 0],
+                                          result.outlier)
     labs = model.param_labels()
     ch = [(lab, b0, b1) for lab, b0, b1 in zip(labs, model.theta, learned.theta) if b0 != 0 and b1 != b0]
     ch.sort(key=lambda c: -abs(c[2] / c[1] - 1))
     notes = [n for p in parts for n in p.notes]
-    return Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes)
+    return Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes,
+                   before_all_mm=before_all, after_all_mm=after_all, left_out=left_out)
 
 
 def _concat(sets: list[Dataset]) -> Dataset:
     cat = [np.concatenate([getattr(d, a) for d in sets]) for a in ("time_s", "config", "q_deg", "wrench", "body",
                                                                   "deflection", "line", "axes")]
     return Dataset(*cat[:7], source=", ".join(d.source for d in sets), axes=cat[7])
-
-
-def _rms(ctx: Context, data: Dataset, pred: np.ndarray) -> float:
-    m = data.measured[:, 0]
-    return float(np.sqrt(np.mean((data.deflection[m, 0] - pred[m, 0]) ** 2)))
 
 
 def _without_placement(result: FitResult, model: StiffnessModel) -> StiffnessModel:

@@ -87,3 +87,30 @@ def gap_of(tool: np.ndarray, rows: list[int], u: np.ndarray, margin_m: float = G
     for g, k in enumerate(rows):
         out[(s_u >= s[k] - margin_m) & (s_u <= s[k + 1] + margin_m) & (out < 0)] = g
     return out
+
+
+def gross_errors(parts: list, data, outlier: np.ndarray, residual: np.ndarray) -> list[LeftOut]:
+    """The points a robust fit judged gross errors: ``outlier`` and ``residual`` (mm, after the fit) over the
+    rows of ``data``, the ``parts``' (`PartRows`) datasets concatenated; named by part file and line."""
+    by_label = {p.label: p.part for p in parts}
+    out = []
+    for r in np.nonzero(outlier & data.measured[:, 0])[0]:
+        part = by_label[data.config[r]]
+        k = int(np.nonzero(part.lines == data.line[r])[0][0])
+        out.append(LeftOut(part.source, int(part.lines[k]), part.labels[k], GROSS, float(residual[r, 0])))
+    return out
+
+
+def rms_kept_and_all(residual_mm: np.ndarray, measured: np.ndarray, outlier: np.ndarray) -> tuple[float, float]:
+    """The RMS of the measured ``residual_mm`` over the points kept (not ``outlier``), and over all of them."""
+    def rms(m):
+        return float(np.sqrt(np.mean(residual_mm[m] ** 2))) if m.any() else float("nan")
+
+    return rms(measured & ~outlier), rms(measured)
+
+
+def fit_account(parts: list, data, fit) -> tuple[list[LeftOut], float, float]:
+    """Every point left out of a fit (`identify.FitResult`) of the ``parts``' rows ``data``: the parts' own and
+    the fit's gross errors; and the fit's RMS along the normal over the points kept, and with its gross errors."""
+    left = [x for p in parts for x in p.left_out] + gross_errors(parts, data, fit.outlier, fit.residual)
+    return left, *rms_kept_and_all(fit.residual[:, 0], data.measured[:, 0], fit.outlier)

@@ -155,8 +155,12 @@ def run_learn(args) -> int:
         path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
         print(f"report: {path}", file=sys.stderr)
     if args.json:
-        print_json({"output": args.output, "prior": prior.source, "points": sum(int(p.used.sum()) for p in parts),
-                    "rms_before_mm": result.before_mm, "rms_after_mm": result.after_mm,
+        print_json({"output": args.output, "prior": prior.source, "points": result.points_kept,
+                    "rms_before_mm": result.before_mm, "rms_after_mm": result.after_mm,       # over the points kept
+                    "rms_before_with_left_out_mm": result.before_all_mm,           # the fit's gross errors too
+                    "rms_after_with_left_out_mm": result.after_all_mm,
+                    "left_out": [x.to_dict() for x in result.left_out],
+                    "trace_gaps": [g.to_dict() for p in parts for g in p.gaps],
                     "parameters": result.n_params,
                     "determined": [{"weights": c.weights, "information_ratio": c.ratio, "moved_prior_sigma": c.moved_sigma}
                                    for c in result.determined],
@@ -171,11 +175,14 @@ def run_learn(args) -> int:
 def run_diagnose(args) -> int:
     from stiffness.diagnose_report import VERDICT_KIND, to_dict
     from stiffness.part_diagnose import diagnose_parts
+    from stiffness.part_leftout import GROSS, fit_account, left_out_lines
 
     progress, prior, start, parts = _setup(args, "part diagnose")
     pd = diagnose_parts(start, parts, prior, progress)
     progress.done()
     d = pd.diagnosis
+    left_out, rms_kept, rms_all = fit_account(pd.parts, pd.data, d.fit)
+    gross = [x for x in left_out if x.why == GROSS]
     if args.report:
         from stiffness.part_compare import compare_part
         from stiffness.part_report import diagnose_report
@@ -189,11 +196,15 @@ def run_diagnose(args) -> int:
         out["message"] = pd.message
         out["where"] = pd.where
         out["marks_deg"] = pd.marks_deg or []
+        out.update(rms_kept_mm=rms_kept, rms_with_left_out_mm=rms_all, left_out=[x.to_dict() for x in left_out],
+                   trace_gaps=[g.to_dict() for p in pd.parts for g in p.gaps], notes=[n for p in pd.parts for n in p.notes])
         print_json(out)
         return 0
     print(f"verdict: {d.verdict}")
     print(f"  {pd.message}")
-    print(f"  the parts' residual RMS {d.fit.rms_position_mm:.4f} mm along the normal; prior: {prior.source}")
+    with_gross = f" ({rms_all:.4f} mm with the {len(gross)} the fit left out)" if gross else ""
+    print(f"  the parts' residual RMS {rms_kept:.4f} mm along the normal over the "
+          f"{sum(len(p.used) for p in pd.parts) - len(left_out)} points kept{with_gross}; prior: {prior.source}")
     print("  candidates (best first):")
     for c in d.candidates[:8]:
         where = f"{c.effect.location_key} {c.joint}" if c.joint is not None else "global"
@@ -203,4 +214,6 @@ def run_diagnose(args) -> int:
         b = d.best
         loc = f" --joint {b.joint}" if b.joint is not None else ""
         print(f"  next: stiffcomp model add {args.model} {b.name}{loc} -o with_{b.name}.yaml")
+    for line in [n for p in pd.parts for n in p.notes] + left_out_lines(gross):
+        print(f"  {line}")
     return 0
