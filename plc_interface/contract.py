@@ -16,7 +16,7 @@ publishes) and bind it in the register map YAML. docs/architecture.md walks thro
 
 The ``source`` of a to_plc value is a dotted path with an optional index, read once per cycle (by
 operator getters compiled once, no ``eval``) from the cycle's records: ``task`` (the task's counters,
-`TaskValues`) and ``signals`` (the signal path's outputs of the cycle, `service.pipeline.Signals`),
+`TaskValues`) and ``signals`` (the signal path's outputs of the cycle, `service.signals.Signals`),
 e.g. ``signals.correction[0]``.
 """
 

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import NamedTuple
-
 import numpy as np
 from pydantic import Field
 
@@ -33,54 +31,15 @@ from .glue import safe_state, sample_age_ms, status_word
 from .gravity import GravityCompensator, GravityConfig
 from .limits import CorrectionLimiter, LimitsConfig
 from .payloads import PayloadSelector
+from .signals import SCALAR_AT, SCALARS, SIGNAL_SIZE, VECTOR_AT, VECTORS_SIZE, VECTORS_START, Signals, six
 from .supervision import Supervisor
 
 log = logging.getLogger("stiffcomp.service")
 
 _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
 _MOVED, _FRESH, _GRAVITY, _SAFE = 1, 2, 4, 8      # the compiled cycle's flags (`service.kernel.template.cycle`)
-
-
-class Signals(NamedTuple):
-    """What one cycle computed (the ``signals`` of the contract's sources)."""
-
-    status_word: int
-    fault_word: int
-    correction: list[float]         # δq after limits, deg
-    dq_deg: list[float]             # δq before limits, deg
-    wrench_base: list[float]        # filtered, compensated wrench, base axes (N, Nm about the sensor origin)
-    wrench_sensor: list[float]      # the same in sensor axes
-    deflection: list[float]         # predicted TCP deflection, mm and deg, base axes
-    tare_count: int
-    sensor_samples: int             # good samples since start
-    sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
-    payload_active: int             # the payload set in use (service.payloads)
-    reload_count: int               # accepted reloads of the config (service.reload)
-
-
-# Signals as one float vector, field by field in their order (a list takes six places): what the compiled
-# cycle writes and the service packs for the PLC and the trace (`Cycle.vector`); name -> (offset, length)
-_VECTORS = ("correction", "dq_deg", "wrench_base", "wrench_sensor", "deflection")
-SIGNAL_SLOTS: dict[str, tuple[int, int]] = {}
-for _name in Signals._fields:
-    SIGNAL_SLOTS[_name] = (sum(n for _, n in SIGNAL_SLOTS.values()), 6 if _name in _VECTORS else 1)
-SIGNAL_SIZE = sum(n for _, n in SIGNAL_SLOTS.values())
-_V = SIGNAL_SLOTS[_VECTORS[0]][0]         # the five vectors follow one another from here (`Compensator.vector`)
-assert [SIGNAL_SLOTS[n][0] for n in _VECTORS] == list(range(_V, _V + 30, 6))
-_SCALARS = [SIGNAL_SLOTS[n][0] for n in ("status_word", "fault_word", "tare_count", "sensor_samples",
-                                          "sample_age_ms", "payload_active", "reload_count")]
-
-
-def _six(k: int, doc: str) -> property:
-    """A list of six floats kept in the compensator's ``vector`` from place ``k``."""
-
-    def get(self) -> list[float]:
-        return self.vector[k:k + 6].tolist()
-
-    def put(self, values) -> None:
-        self.vector[k:k + 6] = values
-
-    return property(get, put, doc=doc)
+# the scalars' places in `Cycle.vector`
+_STATUS, _FAULT, _TARES, _SAMPLES, _AGE, _PAYLOAD, _RELOADS = (SCALAR_AT[n] for n in SCALARS)
 
 
 class TareConfig(Strict):
@@ -125,7 +84,7 @@ class Compensator:
         self.faults = faults
         self.t_prev: float | None = None
         self.have_sample = False
-        self.vector = np.zeros(30)              # the cycle's outputs, in Signals' order (the properties below)
+        self.vector = np.zeros(VECTORS_SIZE)    # the cycle's outputs, in Signals' order (the properties below)
         self.filtered = [0.0] * 6               # the last sample, filtered (sensor axes)
         self.ramping = False                    # the limiter ramps the correction to zero
         self.q_rad = np.zeros(6)
@@ -139,14 +98,14 @@ class Compensator:
         self.kernel = None                      # the compiled signal path (`compile`), None: the Python path
         self._pk = None                         # the compiled predictor of the last compiled cycle
 
-    correction = _six(0, "δq after limits, deg (the cycle's output)")
-    dq_deg = _six(6, "δq before limits, deg")
-    wrench_base = _six(12, "the filtered, compensated wrench in base axes (N, Nm about the sensor origin)")
-    wrench_sensor = _six(18, "the same in sensor axes")
-    deflection = _six(24, "the predicted TCP deflection, mm and deg, base axes")
+    correction = six("correction", "δq after limits, deg (the cycle's output)")
+    dq_deg = six("dq_deg", "δq before limits, deg")
+    wrench_base = six("wrench_base", "the filtered, compensated wrench in base axes (N, Nm about the sensor origin)")
+    wrench_sensor = six("wrench_sensor", "the same in sensor axes")
+    deflection = six("deflection", "the predicted TCP deflection, mm and deg, base axes")
 
     def attach(self, vector: np.ndarray) -> None:
-        """Keep the outputs in ``vector`` (30 floats, a view of `Cycle.vector`) from now on."""
+        """Keep the outputs in ``vector`` (`VECTORS_SIZE` floats, a view of `Cycle.vector`) from now on."""
         vector[:] = self.vector
         self.vector = vector
 
@@ -162,7 +121,7 @@ class Compensator:
         k.bind(self)
         k.condition([0.0] * 6)                  # compile or load now, then restore the state
         pk = pred.kernel
-        pk.cycle(k.S, np.zeros(30), _FRESH | _SAFE, 0.0)
+        pk.cycle(k.S, np.zeros(VECTORS_SIZE), _FRESH | _SAFE, 0.0)
         k.bind(self)
         pk.ws[:] = self.wrench_sensor
         pred.reset_history()
@@ -255,7 +214,7 @@ class Compensator:
         if not b or lim is not b[2] or self.filter is not b[1] or self.spikes is not b[0]:
             k.rebind(self)
         if pk is not self._pk:                  # another predictor (a reload's): the wrench goes on from here
-            pk.ws[:] = self.vector[18:24]
+            pk.ws[:] = self.wrench_sensor
             self._pk = pk
         fresh = gravity_on = False
         if reading is not None:
@@ -361,7 +320,7 @@ class Cycle:
         # the last cycle's Signals as one vector (SIGNAL_SLOTS), filled by every cycle on either path; the
         # compiled service packs the PLC's registers and the trace from it
         self.vector = np.zeros(SIGNAL_SIZE) if vector is None else vector
-        compensator.attach(self.vector[_V:_V + 30])
+        compensator.attach(self.vector[VECTORS_START:VECTORS_START + VECTORS_SIZE])
         self._scalars = memoryview(self.vector).cast("B").cast("d")
 
     @classmethod
@@ -395,21 +354,21 @@ class Cycle:
         status = status_word(word, comp.limiter.safe, comp.ramping, comp.have_sample, self.supervisor.plc_seen,
                              comp.tare_refused)
         age = sample_age_ms(comp.t_prev, math.nan if comp.sample_t is None else comp.sample_t, comp.t_first)
-        v, (a, b, c, d, e, f, g) = self._scalars, _SCALARS
-        v[a], v[b], v[c], v[d], v[e], v[f], v[g] = (status, word, comp.tares, comp.samples, age,
-                                                    comp.payloads.active.index, self.reloads & 0xFFFF)
+        v = self._scalars
+        v[_STATUS], v[_FAULT], v[_TARES], v[_SAMPLES] = status, word, comp.tares, comp.samples
+        v[_AGE], v[_PAYLOAD], v[_RELOADS] = age, comp.payloads.active.index, self.reloads & 0xFFFF
 
     def signals(self) -> Signals:
         """The record of the last cycle."""
         c = self.compensator
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
-                       c.wrench_sensor, c.deflection, c.tares, c.samples, float(self.vector[_SCALARS[4]]),
+                       c.wrench_sensor, c.deflection, c.tares, c.samples, float(self.vector[_AGE]),
                        c.payloads.active.index, self.reloads & 0xFFFF)
 
     @property
     def status_word(self) -> int:
         """The last cycle's status word (`Status` bits)."""
-        return int(self.vector[_SCALARS[0]])
+        return int(self.vector[_STATUS])
 
     # what a test or a log reads of the last cycle (the signal path's values)
     correction = property(lambda self: self.compensator.correction)

@@ -33,7 +33,7 @@ from plc_interface.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, 
 
 from . import glue
 from .kernel import steady as ks
-from .pipeline import SIGNAL_SLOTS
+from .signals import SIGNAL_SLOTS
 
 H = {name: k for k, name in enumerate(ks.HEAD)}
 HEAD_SIZE = len(ks.HEAD)

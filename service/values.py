@@ -5,7 +5,7 @@
 * head: the steady cycle's mirror of the Python objects' state, its inputs and the offsets of the parts below
   (`service.kernel.steady.HEAD`; at most `HEAD_ROOM` places);
 * task: the task's counters of the cycle (`plc_interface.contract.TaskValues`, ``task.NAME``);
-* signals: the cycle's Signals (`service.pipeline.SIGNAL_SLOTS`, ``signals.NAME`` or ``signals.NAME[k]``), the
+* signals: the cycle's Signals (`service.signals.SIGNAL_SLOTS`, ``signals.NAME`` or ``signals.NAME[k]``), the
   cycle's own vector (`Cycle.vector` is this part);
 * t: the cycle's time, and inputs: the PLC's values (`FromPlc`, ``inputs.NAME``; ``q1`` .. ``q6`` too), for
   the trace's row;
@@ -25,7 +25,7 @@ import numpy as np
 from plc_interface.contract import TO_PLC, FromPlc, TaskValues
 from plc_interface.register_map import struct_fields
 
-from .pipeline import SIGNAL_SIZE, SIGNAL_SLOTS
+from .signals import SIGNAL_SIZE, SIGNAL_SLOTS
 from .trace import ROW_SOURCES
 
 HEAD_ROOM = 64

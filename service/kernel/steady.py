@@ -57,7 +57,7 @@ HEAD = ("ready", "prev_command", "prev_hb", "hb_change_t", "plc_seen", "hb_timeo
  IN_COMMAND, IN_HEARTBEAT, IN_Q1, IN_PAYLOAD, HEADER_BYTES, IN_OFF0, IN_OFF1, IN_BYTES, OUT_OFF0, OUT_OFF1,
  TIMING_COUNT) = range(len(HEAD))
 
-# Signals' places (`service.pipeline.SIGNAL_SLOTS`): the words, the five vectors, the counters
+# Signals' places (`service.signals.SIGNAL_SLOTS`): the words, the five vectors, the counters
 SIG_STATUS, SIG_WORD, SIG_VECTORS, SIG_TARES, SIG_SAMPLES, SIG_AGE, SIG_PAYLOAD, SIG_RELOADS = 0, 1, 2, 32, 33, 34, 35, 36
 # `plc_interface.contract.Fault.VALUE_INVALID` and `Command`'s defined bits (the status bits: `glue`)
 VALUE_INVALID, COMMAND_BITS = 0x8, 0x7

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from plc_interface import contract
 from plc_interface.contract import TO_PLC, Producer, Source, TaskValues, _compile
 from plc_interface.errors import ContractError
-from service.pipeline import Signals
+from service.signals import Signals
 
 LISTS = ("correction", "dq_deg", "wrench_base", "wrench_sensor", "deflection")
 SCALARS = ("status_word", "fault_word", "tare_count", "sensor_samples", "sample_age_ms", "payload_active",

@@ -15,7 +15,7 @@ from hil.testing import CONFIG
 from service.app import Service
 from service.config import load_config
 from service.errors import TraceError
-from service.pipeline import Signals
+from service.signals import Signals
 from service.trace import TraceOptions, TraceRing
 from stiffness.trace import COLUMNS
 
