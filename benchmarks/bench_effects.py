@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> dict:
         every.to_dict(), "every effect, preloaded", robot=load_robot(ROOT / "config" / "robots" / "kr125_masses.yaml"))
     # the same on the KR 125 without masses, its static torque identified at joints 2 and 3 (`preload`)
     identified = every.to_dict()
-    identified["preload"] = [{"joint": 2, "my2_kgm": -40.0, "m3_kg": 30.0}, {"joint": 3, "mx3_kgm": 12.0}]
+    identified["preload"] = [{"joint": 2, "my2_kgm": -40.0, "my3_kgm": 30.0}, {"joint": 3, "mx3_kgm": 12.0}]
     models["every effect, preload identified"] = StiffnessModel.from_dict(
         identified, "every effect, preload identified", robot=every.robot)
     runners = {(k, c): Runner(m, c) for k, m in models.items() for c in (False, True)}

@@ -9,8 +9,8 @@ prior_j   the static torque of the robot's masses, balancer and payload (zero wi
 phi_jk    column k of row j of the arm's static regressor: tau_arm = -Y(q) pi, Y pinocchio's joint torque
           regressor at rest (`computeJointTorqueRegressor` with v = a = 0), pi the links' masses and
           first moments (m, m c_x, m c_y, m c_z of link i in joint i's frame: DH frame i-1 turned with
-          the joint); only the columns that row j can tell apart are kept (the base columns, QR with
-          pivoting over random configurations);
+          the joint); only the columns that row j can tell apart are kept (the base columns over random
+          configurations, the first in key order of those that depend on each other);
 beta_k    the correction of those base parameters *as joint j feels them*: a balancer's share on joint j
           scales its whole row, so it folds into beta (one joint's crossings cannot separate it from the
           masses).

@@ -31,7 +31,6 @@ from typing import NamedTuple
 
 import numpy as np
 from pydantic import Field
-from scipy.linalg import qr
 
 from .errors import quote
 from .robot import Robot
@@ -243,10 +242,29 @@ def _base_columns(robot_id: int, joint: int, pm) -> tuple[int, ...]:
     hi = np.asarray(pm.upperPositionLimit)
     pd = pm.createData()
     Y = np.array([static_regressor(pm, pd, rng.uniform(lo, hi))[joint - 1] for _ in range(120)])
-    _, R, piv = qr(Y, pivoting=True, mode="economic")
-    d = np.abs(np.diag(R))
-    rank = int(np.sum(d > 1e-6))                 # Nm per kg or kg m: a vertical joint 1 sees none
-    return tuple(sorted(int(k) for k in piv[:rank]))
+    return independent_columns(Y)
+
+
+def independent_columns(Y: np.ndarray, tol: float = 1e-6) -> tuple[int, ...]:
+    """The columns of ``Y`` taken in their order, each kept when it adds a direction the kept ones do not
+    span (its part outside their span above ``tol``, in Y's units: Nm per kg or kg m, so a vertical joint
+    1 keeps none). Among columns that depend on each other the first in key order is kept, whatever the
+    linear algebra library's rounding: the keys a model file holds stay valid from one numpy to the next
+    (QR with pivoting chose between equal columns by rounding).
+
+    >>> independent_columns(np.array([[1.0, 2.0, 0.0], [1.0, 2.0, 1.0]]))
+    (0, 2)
+    """
+    basis = np.zeros((Y.shape[0], 0))
+    kept = []
+    for k in range(Y.shape[1]):
+        r = Y[:, k] - basis @ (basis.T @ Y[:, k])
+        r = r - basis @ (basis.T @ r)               # twice: Gram-Schmidt keeps the basis orthogonal
+        norm = float(np.linalg.norm(r))
+        if norm > tol:
+            basis = np.column_stack([basis, r / norm])
+            kept.append(k)
+    return tuple(kept)
 
 
 def base_columns(robot, joint: int) -> tuple[int, ...]:

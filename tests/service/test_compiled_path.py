@@ -43,7 +43,7 @@ def on_robot(model: StiffnessModel, robot: str) -> StiffnessModel:
         return model
     if robot == "kr125_masses":
         return StiffnessModel.from_dict(d, robot, robot=load_robot(CONFIG / "robots" / "kr125_masses.yaml"))
-    d["preload"] = [{"joint": 2, "my2_kgm": -40.0, "m3_kg": 30.0}, {"joint": 3, "mx3_kgm": 12.0}]
+    d["preload"] = [{"joint": 2, "my2_kgm": -40.0, "my3_kgm": 30.0}, {"joint": 3, "mx3_kgm": 12.0}]
     return StiffnessModel.from_dict(d, robot, robot=model.robot)
 
 
