@@ -1,9 +1,12 @@
 """The points of a part that no figure holds, and why: every part command names them, in its text and its
 JSON, and says which figures hold them (docs/part.md).
 
-A point is left out when the tool passed it twice (which pass made it cannot be told), when the trace lost
-the rows of the moment it was made (`stiffness.trace.Trace.gaps`: where the arm was and what loaded it then
-is not known), or when a robust fit judged it a gross error (`stiffness.robust`).
+A point is left out when the tool passed it twice (which pass made it cannot be told), when the trace is
+blind to the moment it was made, or when a robust fit judged it a gross error (`stiffness.robust`). A trace
+is blind where it lost rows (`stiffness.trace.Trace.gaps`) and where the joints it holds jumped: the tool
+moved JUMP_FACTOR times its typical step and JUMP_MM or more between two rows, most often after the joints
+stood still for a while (a stalled PLC or host). Either way where the arm was and what loaded it then is not
+known, and the path across is a chord.
 
 Example: two points of one file left out for one reason make one line.
 
@@ -23,13 +26,60 @@ import numpy as np
 GAP_MARGIN_MM = 3.0      # a point this close along the path to rows the trace lost may have been made then: the
                          # deflected tool passes a point up to its deflection along the path from the commanded
                          # one, and the path's curve is read over 2 mm either side
-TWICE, IN_GAP, GROSS = "passed_twice", "trace_gap", "gross_error"      # why, in the JSON
+JUMP_FACTOR = 10.0       # a step between two rows this many times the typical one, and JUMP_MM or more, is a jump
+JUMP_MM = 2.0            # the trace did not see (a chord of 2 mm on a 35 mm circle is 14 um off the arc)
+TWICE, IN_GAP, JUMP, GROSS = "passed_twice", "trace_gap", "trace_jump", "gross_error"      # why, in the JSON
 REASONS = {TWICE: "the tool passed them twice (a closed contour's entry and exit overlap), so which pass made "
                   "them cannot be told",
            IN_GAP: f"the trace lost the rows of the moment they were made (or within {GAP_MARGIN_MM:g} mm of the "
                    "path of them): where the arm was and what loaded it then is not known",
+           JUMP: f"the joints the trace holds jumped across the moment they were made (or within {GAP_MARGIN_MM:g} "
+                 "mm of the path of it): where the arm was and what loaded it then is not known",
            GROSS: "the robust fit judged them gross errors"}
 SHOWN_LINES = 40         # file lines named per reason in the text (the JSON has all)
+
+
+@dataclass(frozen=True)
+class Jump:
+    """The tool moved ``moved_mm`` between table rows ``row`` and ``row + 1`` of a trace, ``moved_mm /
+    typical_mm`` times its typical step, after the joints stood still for ``still`` rows."""
+
+    row: int
+    after_cycle: int
+    moved_mm: float
+    typical_mm: float
+    from_s: float
+    to_s: float
+    still: int
+
+    def text(self, source: str) -> str:
+        before = f" after standing still for {self.still} cycle(s)" if self.still else ""
+        return (f"{source}: the joints jumped between cycles {self.after_cycle} and {self.after_cycle + 1} (t = "
+                f"{self.from_s:.3f} to {self.to_s:.3f} s){before}: the tool moved {self.moved_mm:.2f} mm, "
+                f"{self.moved_mm / self.typical_mm:.0f} x its typical step, and the trace did not see it pass (a "
+                "stalled PLC or host)")
+
+    def to_dict(self) -> dict:
+        return {"kind": "joints_jumped", "after_cycle": self.after_cycle, "moved_mm": self.moved_mm,
+                "typical_step_mm": self.typical_mm, "still_rows": self.still, "from_s": self.from_s, "to_s": self.to_s}
+
+
+def jumps(trace, tool: np.ndarray, run: np.ndarray) -> list[Jump]:
+    """Where ``trace``'s tool centre (``tool``, m, per row) moves JUMP_FACTOR times its typical step (the median
+    of the steps it moves in rows ``run``) and JUMP_MM or more between two rows that ``run`` and follow each other
+    (rows lost between two are a gap, `Trace.gaps`)."""
+    step = np.linalg.norm(np.diff(tool, axis=0), axis=1)
+    both = run[:-1] & run[1:] & (np.diff(trace.cycle) == 1)
+    moves = step[both & (step > 1e-9)]
+    if not len(moves):
+        return []
+    typical = float(np.median(moves))
+    still = np.zeros(len(step), dtype=int)            # rows the joints stood still before each step
+    for k in range(1, len(step)):
+        still[k] = still[k - 1] + 1 if step[k - 1] <= 1e-9 else 0
+    c, t = trace.cycle, trace.time_s
+    return [Jump(int(k), int(c[k]), 1000 * float(step[k]), 1000 * typical, float(t[k]), float(t[k + 1]), int(still[k]))
+            for k in np.nonzero(both & (step > max(JUMP_FACTOR * typical, JUMP_MM / 1000.0)))[0]]
 
 
 @dataclass(frozen=True)

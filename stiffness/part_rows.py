@@ -57,7 +57,7 @@ from scipy.spatial import cKDTree
 from .errors import DataError, Problems
 from .measurements import Dataset
 from .part import PartMeasurement
-from .part_leftout import IN_GAP, TWICE, LeftOut, gap_of, left_out_lines
+from .part_leftout import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
 from .robot import Robot
 from .trace import Gap, Trace
 
@@ -95,7 +95,7 @@ class PartRows:
     notes: list[str] = field(default_factory=list)
     curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`part_timing.when_made`); None: not placed yet
     left_out: list[LeftOut] = field(default_factory=list)    # the points not used, and why
-    gaps: list[Gap] = field(default_factory=list)            # rows the trace lost
+    gaps: list[Gap | Jump] = field(default_factory=list)     # where the trace is blind: rows lost, joints jumped
 
     @property
     def measured_mm(self) -> np.ndarray:
@@ -184,35 +184,45 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     else:
         frame = part.frame
     p = part.in_base(frame)
-    gaps = trace.gaps()
-    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, gaps)
-    lost = gap_of(c_all, [g.row for g in gaps], u_of)
+    blind = trace.gaps() + jumps(trace, c_all, run)         # rows lost, and joints that jumped
+    blind.sort(key=lambda b: b.row)
+    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, blind)
+    lost = gap_of(c_all, [b.row for b in blind], u_of)
     for k in np.nonzero(used & (lost >= 0))[0]:
-        left[k] = IN_GAP
+        left[k] = int(lost[k])
     used &= lost < 0
-    left_out = [LeftOut(part.source, int(part.lines[k]), part.labels[k], why) for k, why in sorted(left.items())]
+    left_out = [LeftOut(part.source, int(part.lines[k]), part.labels[k], _why(blind[v]) if isinstance(v, int) else v)
+                for k, v in sorted(left.items())]
+    hit = set(left.values())
+    blind = [b for k, b in enumerate(blind) if isinstance(b, Gap) or k in hit]     # a jump no point was near: silent
     if used.sum() < 3:
         raise DataError(f"{part.source}: only {int(used.sum())} point(s) lie where the tool passed once"
                         + "".join(f"; {n}" for n in left_out_lines(left_out)))
-    notes = [g.text(trace.source) for g in gaps] + left_out_lines(left_out)
+    notes = [b.text(trace.source) for b in blind] + left_out_lines(left_out)
     if best_fit:
         notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
                      "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
                      "neither shown nor learned")
     out = _rows(part, trace, robot, label, used, u_of[used], p[used], F, a, r, frame, notes,
-                smoothed(trace, smooth_hz, gaps))
-    out.left_out, out.gaps = left_out, gaps
+                smoothed(trace, smooth_hz, blind))
+    out.left_out, out.gaps = left_out, blind
     return out
 
 
+def _why(blind: Gap | Jump) -> str:
+    return IN_GAP if isinstance(blind, Gap) else JUMP
+
+
 def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray, c2: np.ndarray, r: float,
-           near_mm: float, gaps: list[Gap]) -> tuple[np.ndarray, np.ndarray, dict[int, str]]:
+           near_mm: float, blind: list[Gap | Jump]) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
     """Each point's fractional trace row where the path (moving rows ``idx``, in-plane ``c2``) passes abeam of
-    it (in-plane ``p2``): which points are used, their rows, and why each other one is left out. A point far
-    off the path where the trace lost rows is left out for that; far off elsewhere, it is refused by line."""
+    it (in-plane ``p2``): which points are used, their rows, and why each other one is left out (a reason, or
+    the index of the ``blind`` span it lies beside). A point far off the path where the trace is blind is left
+    out for that; far off elsewhere, it is refused by line."""
     tree = cKDTree(c2)
     near, j = tree.query(p2)
-    beside_gap = np.isin(idx[j], [g.row + d for g in gaps for d in (0, 1)])
+    at = {row: k for k, b in enumerate(blind) for row in range(b.row - getattr(b, "still", 0), b.row + 2)}
+    beside_gap = np.isin(idx[j], list(at))
     far = np.abs(near - r) > near_mm / 1000.0
     if (far & ~beside_gap).mean() > 0.5:
         raise DataError(f"{part.source}: the trace {trace.source} never passes the measured contour: the tool's "
@@ -222,7 +232,7 @@ def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray,
     problems, used, u_of, left = Problems(), np.zeros(len(p2), dtype=bool), np.full(len(p2), np.nan), {}
     for k in range(len(p2)):
         if far[k] and beside_gap[k]:
-            left[k] = IN_GAP
+            left[k] = at[int(idx[j[k]])]
         elif far[k]:
             problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
                          f"(tolerance {near_mm:g} mm): it is not on the machined contour")
@@ -238,10 +248,10 @@ def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray,
     return used, u_of, left
 
 
-def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap] | None = None) -> np.ndarray:
+def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap | Jump] | None = None) -> np.ndarray:
     """The trace's wrench low-passed without lag (Butterworth, order 2, forward and backward) at ``cutoff_hz``,
-    each run of rows between ``gaps`` (rows the trace lost) on its own; the trace's own where the cutoff is 0 or
-    a run too short."""
+    each run of rows between ``gaps`` (rows the trace lost, joints that jumped) on its own; the trace's own where
+    the cutoff is 0 or a run too short."""
     w = trace.wrench_base.copy()
     dt = float(np.median(np.diff(trace.time_s))) if len(trace) > 1 else 0.0
     if cutoff_hz <= 0 or dt <= 0 or cutoff_hz >= 0.5 / dt:

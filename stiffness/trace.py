@@ -179,7 +179,8 @@ class Gap:
                 f"(between t = {self.from_s:.3f} and {self.to_s:.3f} s)")
 
     def to_dict(self) -> dict:
-        return {"after_cycle": self.after_cycle, "lost_rows": self.lost, "from_s": self.from_s, "to_s": self.to_s}
+        return {"kind": "rows_lost", "after_cycle": self.after_cycle, "lost_rows": self.lost, "from_s": self.from_s,
+                "to_s": self.to_s}
 
 
 @dataclass

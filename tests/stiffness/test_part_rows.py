@@ -19,7 +19,7 @@ from stiffness.part_compare import compare_part
 from stiffness.part_rows import read_against
 from stiffness.part_timing import when_made
 from stiffness.robot import PoseConfig
-from stiffness.trace import TraceFile, read_trace
+from stiffness.trace import COLUMNS, TraceFile, read_trace
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
@@ -181,8 +181,8 @@ def test_rows_the_trace_lost_are_named_and_the_points_made_then_left_out(cut, tr
     assert main(["part", "compare", str(TRUTH), str(gapped), str(cut.part), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["left_out_count"] == left.sum() and [x["line"] for x in out["left_out"]] == part.lines[left].tolist()
-    assert out["trace_gaps"] == [{"after_cycle": int(lost_from) - 1, "lost_rows": 150, "from_s": trace.time_s[k - 1],
-                                  "to_s": trace.time_s[k + 150]}]
+    assert out["trace_gaps"] == [{"kind": "rows_lost", "after_cycle": int(lost_from) - 1, "lost_rows": 150,
+                                  "from_s": trace.time_s[k - 1], "to_s": trace.time_s[k + 150]}]
     assert out["part_error_max_mm"] == pytest.approx(compare_part(truth, clean).summary()["part_error_max_mm"],
                                                      abs=0.005)
 
@@ -197,3 +197,40 @@ def test_a_cycle_count_that_does_not_rise_is_refused_by_line(cut, tmp_path):
         f.write(table)
     with pytest.raises(DataError, match=f"{path}: line 102: the cycle count does not rise"):
         read_trace(path)
+
+
+def test_joints_that_stood_still_then_jumped_are_named_and_the_points_passed_meanwhile_left_out(cut, truth, tmp_path):
+    """A stalled PLC: the joints the trace holds stand still for 80 rows (the wrench goes on), then jump 8 mm to
+    where the tool is. The trace holds every cycle but did not see the tool pass the points in between: they are
+    left out and named with the jump; every other point reads as from the whole trace."""
+    trace = read_trace(cut.trace)
+    k = len(trace) // 2
+    table = trace.table.copy()
+    q = [COLUMNS.index(c) for c in COLUMNS if c.startswith("q")]
+    table[k:k + 80, q] = table[k - 1, q]
+    stalled = tmp_path / "stalled.csv"
+    with TraceFile(stalled) as f:
+        f.write(table)
+    part = read_part(cut.part)
+    clean = read_against(part, trace, truth.robot)
+    rows = read_against(part, read_trace(stalled), truth.robot)
+    assert len(rows.gaps) == 1 and rows.gaps[0].to_dict()["kind"] == "joints_jumped"
+    jump = rows.gaps[0].to_dict()
+    assert jump["after_cycle"] == trace.cycle[k + 79] and jump["still_rows"] == 80
+    assert jump["moved_mm"] == pytest.approx(1000 * np.linalg.norm(clean.trace_tool[k + 80] - clean.trace_tool[k - 1]),
+                                             rel=1e-4)
+    assert any(f"the joints jumped between cycles {trace.cycle[k + 79]} and {trace.cycle[k + 80]}" in n
+               and "after standing still for 80 cycle(s)" in n for n in rows.notes), rows.notes
+    passed_then = (clean.u > k - 1) & (clean.u < k + 80)
+    left = ~rows.used
+    assert left[clean.used][passed_then].all() and 0 < passed_then.sum() < left.sum() <= passed_then.sum() + 8
+    assert {x.why for x in rows.left_out} == {"trace_jump"}
+    np.testing.assert_allclose(rows.deviation_mm, clean.deviation_mm[rows.used[clean.used]], atol=1e-6)
+    whole, stall = compare_part(truth, clean), compare_part(truth, rows)
+    np.testing.assert_allclose(stall.model_mm, whole.model_mm[rows.used[clean.used]], atol=0.001)
+
+
+def test_a_trace_without_a_stall_names_no_jump(cut, truth):
+    """The synthetic cut starts at rest at the contour and moves every row: nothing to name."""
+    rows = read_against(read_part(cut.part), read_trace(cut.trace), truth.robot)
+    assert rows.gaps == [] and rows.left_out == [] and rows.notes == []
