@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import math
+
 import numpy as np
 from pydantic import Field
 
@@ -31,7 +32,7 @@ from .glue import safe_state, sample_age_ms, status_word
 from .gravity import GravityCompensator, GravityConfig
 from .limits import CorrectionLimiter, LimitsConfig
 from .payloads import PayloadSelector
-from .signals import SCALAR_AT, SCALARS, SIGNAL_SIZE, VECTOR_AT, VECTORS_SIZE, VECTORS_START, Signals, six
+from .signals import SCALAR_AT, SCALARS, SIGNAL_SIZE, VECTORS_SIZE, VECTORS_START, Signals, six
 from .supervision import Supervisor
 
 log = logging.getLogger("stiffcomp.service")

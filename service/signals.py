@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+
 class Signals(NamedTuple):
     """What one cycle computed (the ``signals`` of the contract's sources)."""
 

@@ -23,6 +23,7 @@ from types import ModuleType
 
 from stiffness.units import M_TO_MM, RAD_TO_DEG
 
+from ..signals import VECTOR_AT
 from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
@@ -78,13 +79,15 @@ def module_for(laws: dict[str, list]) -> ModuleType:
     here = Path(__file__).parent
     h = hashlib.sha256()
     for part in [glob, *bodies.values(), *(_source_of(fn) for fn in names.values()),
-                 *((here / f).read_text() for f in COMPILED_FILES), numba.__version__, sys.version]:
+                 *((here / f).read_text() for f in COMPILED_FILES), repr(VECTOR_AT), numba.__version__, sys.version]:
         h.update(part.encode())
     key = h.hexdigest()[:20]
     if key in _MODULES:
         return _MODULES[key]
+    at = {f"at_{name}": VECTOR_AT[name] for name in ("wrench_base", "wrench_sensor", "deflection")}
     text = template.TEMPLATE.format(key=key, globals=glob, rad_to_deg=RAD_TO_DEG, m_to_mm=M_TO_MM,
-                                    views=template.views(), state=template.state(), **bodies)
+                                    views=template.views(), state=template.state(), at_dq=VECTOR_AT["dq_deg"],
+                                    **at, **bodies)
     path = _write(f"stiffcomp_cycle_{key}.py", text)
     spec = importlib.util.spec_from_file_location(f"stiffcomp_cycle_{key}", path)
     mod = importlib.util.module_from_spec(spec)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .build import NotCompilable
-from .signal import condition
+from .signal import HAVE_LAST, HELD, MAX_DT, MAX_HELD, RAMP_S, RATE, REJECTED, SAFE_BEFORE, condition
 from .template import SECTIONS, STATE, STATE_SIZE
 
 
@@ -37,7 +37,8 @@ class CompiledSignal:
         """Copy the stages' state and parameters into the arrays; the gravity compensator's parameters (its
         ``gp``) live in S from now on."""
         s, f, lim, g = comp.spikes, comp.filter, comp.limiter, comp.gravity
-        self.sp[:] = (s.last is not None, s.held, s.max_held, s.rejected)
+        self.sp[HAVE_LAST], self.sp[HELD] = s.last is not None, s.held
+        self.sp[MAX_HELD], self.sp[REJECTED] = s.max_held, s.rejected
         if s.last is not None:
             self.last[:] = s.last
         self.max_step[:] = s.max_step
@@ -54,8 +55,8 @@ class CompiledSignal:
         if g.gp is not self.gp:
             self.gp[:] = g.gp
             g.gp = self.gp
-        self.lim[:6], self.lim[6:12] = lim.max, lim.rate
-        self.lim[12], self.lim[13], self.lim[14] = lim.ramp_s, lim.max_dt, float(lim.safe)
+        self.lim[:RATE], self.lim[RATE:RAMP_S] = lim.max, lim.rate
+        self.lim[RAMP_S], self.lim[MAX_DT], self.lim[SAFE_BEFORE] = lim.ramp_s, lim.max_dt, float(lim.safe)
         self.out[:] = lim.out
         self.ramp_rate[:] = lim._ramp_rate
         self.bound = (s, f, lim)               # the stages bound (`Compensator.cycle` checks them)
@@ -70,13 +71,13 @@ class CompiledSignal:
         """Copy the state back into the stages it was bound to (the Python path takes the next cycle, or a
         reload reads or replaces a stage: the replaced one keeps its state, the new one is bound next)."""
         s, f, lim = self.bound
-        if self.sp[0]:
+        if self.sp[HAVE_LAST]:
             s.last = self.last.tolist()
-        s.held, s.rejected = int(self.sp[1]), int(self.sp[3])
+        s.held, s.rejected = int(self.sp[HELD]), int(self.sp[REJECTED])
         f.state = self.z.tolist()
         if f.y is not None:                     # the filter has seen a sample: its last output
             f.y = comp.filtered = self.y.tolist()
-        lim.out, lim.safe, lim._ramp_rate = self.out.tolist(), bool(self.lim[14]), self.ramp_rate.tolist()
+        lim.out, lim.safe, lim._ramp_rate = self.out.tolist(), bool(self.lim[SAFE_BEFORE]), self.ramp_rate.tolist()
         self.bound = ()
 
     def condition(self, wrench) -> list[float]:
