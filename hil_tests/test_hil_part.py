@@ -96,7 +96,7 @@ def test_the_part_names_a_hidden_hysteresis_at_joint_1_and_the_control_nothing(t
     best = found.diagnosis.best
     if hidden:
         assert best is not None and (best.name, best.joint) == ("hysteresis", 1), found.message
-        assert "a step at each reversal of joint 1's torque" in found.message
+        assert "where its loading state switches after each reversal of joint 1's torque" in found.message
     else:
         assert best is None and found.diagnosis.verdict == "no_missing_effect", found.message
 

@@ -85,6 +85,11 @@ class Candidate:
     def joint(self) -> int | None:
         return self.effect.joint
 
+    @property
+    def where(self) -> str:
+        """Where the effect sits, in words: 'joint 3', 'link 2' (its location key), or 'global'."""
+        return f"{self.effect.location_key} {self.joint}" if self.joint is not None else "global"
+
     def entry(self) -> dict:
         """The YAML entry that adds this effect with its estimated parameters."""
         return _with_theta(self.effect, self.estimate).to_config()

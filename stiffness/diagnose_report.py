@@ -50,7 +50,7 @@ def build_report(d: Diagnosis, model_path: str, data_path: str, plots: bool = Tr
     rep.verdict(f"{d.verdict}: {d.message}", VERDICT_KIND[d.verdict])
     best = d.best
     if best is not None:
-        loc = f" --{'joint'} {best.joint}" if best.joint is not None else ""
+        loc = f" --{best.effect.location_key} {best.joint}" if best.joint is not None else ""
         rep.heading("Next step")
         rep.paragraph("Add the named effect, fit, and compare before and after:")
         rep.preformatted(f"stiffcomp model add {model_path} {best.name}{loc} -o with_{best.name}.yaml\n"
@@ -75,7 +75,7 @@ def build_report(d: Diagnosis, model_path: str, data_path: str, plots: bool = Tr
     rep.heading("Candidate effects, best first")
     rep.table(["effect", "where", "CV improvement", "ΔBIC", "F-test p", "RMS after (mm)", "RMS after (deg)",
                "counts"],
-              [[c.name, c.joint, c.cv_improvement, c.delta_bic, c.p_value, c.rms_position_mm_after,
+              [[c.name, c.where, c.cv_improvement, c.delta_bic, c.p_value, c.rms_position_mm_after,
                 c.rms_rotation_deg_after, "yes" if c.named else "no"] for c in d.candidates],
               caption="An effect counts when it passes cross-validation by configuration (CV improvement "
                       ">= 0.5 %) and at least one of: ΔBIC < -10, F-test p below 1 % / number of candidates.")

@@ -444,5 +444,7 @@ def _standard_errors(X, resid, w, scale, theta, blind, prior):
 
 def _source_text(ctx: Context, prior: Prior | None) -> str:
     """What the fit's covariance summarises, in words (the model YAML's covariance.source)."""
-    data = f"{ctx.data.source} ({len(ctx.data)} rows)"
+    n, m = len(ctx.data), int(ctx.data.measured.any(axis=1).sum())     # a part's: its points, and the trace between
+    rows = f"{n} rows" if m == n else f"{m} rows measured; {n - m} more carry only the load's history"
+    data = f"{ctx.data.source} ({rows})"
     return data if prior is None else f"{data} with the prior {prior.source}"

@@ -9,9 +9,10 @@ prior holds the rest (`stiffness.prior`), in the fit and in every candidate's ne
 
 What the campaign's diagnosis says about a configuration, this one says about the contour: where along it
 the named effect shows. An effect on a joint's axis that switches with the direction of the joint's torque
-(its evidence plot is the torque's branches, hysteresis) shows as a step at each reversal of that torque; one
-that acts around zero torque (backlash, a soft zone) where the torque crosses zero; any other along the whole
-contour, with the load.
+(its evidence plot is the torque's branches, hysteresis) shows as a step after each reversal of that torque,
+where its own loading state passes the middle of its branches (a breakaway and a transition torque after the
+turn: 10-20 deg along the paper's circle); one that acts around zero torque (backlash, a soft zone) where the
+torque crosses zero; any other along the whole contour, with the load.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from .diagnose import Candidate, Diagnosis, diagnose
 from .effects.axial import joint_torque
 from .errors import DataError
-from .measurements import Dataset
+from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 from .part_compare import at_points
 from .part_learn import _concat
@@ -31,6 +32,8 @@ from .part_rows import PartRows
 from .part_timing import when_made
 from .prior import Prior
 
+PART_COMPONENTS = ("normal", "along the contour", "along the tool axis", "about the normal",
+                   "about the contour", "about the tool axis")     # a part row's axes (n, a x n, a)
 REVERSAL_FRACTION = 0.05     # a torque reversal counts once the torque moved back by this share of its range
 
 
@@ -41,7 +44,7 @@ class PartDiagnosis:
     diagnosis: Diagnosis
     parts: list[PartRows]
     data: Dataset
-    where: str = ""                 # "a step at each reversal of joint 1's torque (at 97 and 277 deg ...)"
+    where: str = ""                 # "a step at 104, 290 deg along the contour, where ..."
     marks_deg: list[float] | None = None
 
     @property
@@ -58,30 +61,52 @@ def diagnose_parts(model: StiffnessModel, parts: list[PartRows], prior: Prior, p
         raise DataError(f"{data.source}: {int(data.measured.sum())} points; the diagnosis of a model of "
                         f"{len(model.theta)} parameters and its candidates needs at least {need}")
     d = diagnose(model, data, progress, prior=prior)
+    d.worst = in_part_axes(d.worst)
     out = PartDiagnosis(d, parts, data)
     if d.best is not None:
         out.where, out.marks_deg = where_it_shows(d.best, parts[0], d.fit.model)
     return out
 
 
+def in_part_axes(worst: dict) -> dict:
+    """The diagnosis' "where the model fails" with its components named in a part row's own axes (the normal,
+    along the contour: tool axis x normal, the tool axis; `PartRows.dataset`), not the base's dx, dy, dz; a
+    part measures the normal alone."""
+    name = dict(zip(COMPONENTS, PART_COMPONENTS))
+    scores = dict(worst["scores"], component={name[k]: v for k, v in worst["scores"]["component"].items()})
+    return dict(worst, component=name[worst["component"]], scores=scores)
+
+
 def where_it_shows(c: Candidate, rows: PartRows, model: StiffnessModel) -> tuple[str, list[float]]:
-    """Words for where candidate ``c`` shows along a part's contour, and the angles (deg) to mark there."""
+    """Words for where candidate ``c`` shows along a part's contour, and the angles (deg) to mark there.
+
+    An effect that switches with the direction of the torque (hysteresis) steps where its own loading state
+    passes the middle of its two branches: after the torque turned, by the breakaway and the transition
+    torque, through the low-pass the joint follows (`effects.hysteresis`); the text names both. One at zero
+    torque steps where the joint's total torque crosses zero."""
     e = c.effect
     if e.joint is None or e.location_key != "joint" or e.evidence_plot not in ("axial", "axial_branches"):
         return "a deviation along the whole contour that follows the load", []
     data = rows.dataset(model.robot, model.input_map())
     ctx = model.context(data)
     total = joint_torque(ctx.frame_wrench, e.joint) + ctx.static_torque[:, e.joint - 1]
-    tau = at_points(rows, data, total[ctx.row_reading])
     order = np.argsort(rows.t, kind="stable")
     arc = rows.arc_deg[order]
+    tau = at_points(rows, data, total[ctx.row_reading])[order]
     if e.evidence_plot == "axial_branches":
-        marks, what = _reversals(tau[order], arc), f"a step at each reversal of joint {e.joint}'s torque"
+        state = at_points(rows, data, e.loading(ctx, ctx.frame_wrench, e.theta)[ctx.row_reading])[order]
+        marks = _zero_crossings(state, arc)
+        turns = _angles(_reversals(tau, arc))
+        what = (f"where its loading state switches after each reversal of joint {e.joint}'s torque"
+                + (f" (the torque turns at {turns} deg)" if turns else ""))
     else:
-        marks, what = _zero_crossings(tau[order], arc), f"a step where joint {e.joint}'s total torque crosses zero"
-    at = ", ".join(f"{m:.0f}" for m in sorted(m % 360 for m in marks)[:6])
-    return (f"{what} (at {at} deg along the contour)" if marks else
-            f"{what} (which the measured contour does not hold: its size is uncertain)"), marks
+        marks, what = _zero_crossings(tau, arc), f"where joint {e.joint}'s total torque crosses zero"
+    return (f"a step at {_angles(marks)} deg along the contour, {what}" if marks else
+            f"a step {what}, which the measured contour does not hold (its size is uncertain)"), marks
+
+
+def _angles(marks: list[float]) -> str:
+    return ", ".join(f"{m:.0f}" for m in sorted(m % 360 for m in marks)[:6])
 
 
 def _reversals(tau: np.ndarray, arc: np.ndarray) -> list[float]:
@@ -99,7 +124,8 @@ def _reversals(tau: np.ndarray, arc: np.ndarray) -> list[float]:
     return out
 
 
-def _zero_crossings(tau: np.ndarray, arc: np.ndarray) -> list[float]:
-    s = np.sign(tau)
+def _zero_crossings(x: np.ndarray, arc: np.ndarray) -> list[float]:
+    """Where a series changes sign between two points, interpolated linearly between them."""
+    s = np.sign(x)
     k = np.nonzero(s[1:] * s[:-1] < 0)[0]
-    return [float(arc[i]) for i in k]
+    return [float(arc[i] + (arc[i + 1] - arc[i]) * x[i] / (x[i] - x[i + 1])) for i in k]

@@ -117,6 +117,10 @@ class Learned:
     before_all_mm: float = float("nan")       # the same over every point read, the fit's gross errors too
     after_all_mm: float = float("nan")
     left_out: list[LeftOut] = field(default_factory=list)  # the points no figure holds: the parts' and the fit's
+    data: Dataset | None = None               # the rows fitted (the parts' points and the trace between them)
+    missed_before: np.ndarray | None = None   # (rows,) mm, what the model missed along the normal before learning;
+                                              # after: fit.residual[:, 0]; the text's RMS and the report's plot
+                                              # both read these two
 
     @property
     def points_kept(self) -> int:
@@ -188,7 +192,8 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
     ch.sort(key=lambda c: -abs(c[2] / c[1] - 1))
     notes = [n for p in parts for n in p.notes]
     return Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes,
-                   before_all_mm=before_all, after_all_mm=after_all, left_out=left_out)
+                   before_all_mm=before_all, after_all_mm=after_all, left_out=left_out, data=data,
+                   missed_before=data.deflection[:, 0] - pred_before[:, 0])
 
 
 def _concat(sets: list[Dataset]) -> Dataset:

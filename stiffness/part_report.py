@@ -20,6 +20,10 @@ from .part_rows import plane_basis
 from .plots import legend_below
 from .report import Report
 
+# one legend holds the forces and the joints: nine colours, none shared (matplotlib's ten, without its gray)
+FORCE_COLOURS = ("tab:blue", "tab:orange", "tab:green")
+JOINT_COLOURS = ("tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+
 
 def _sorted(comp: PartComparison):
     o = np.argsort(comp.rows.t, kind="stable")
@@ -71,14 +75,14 @@ def load_figure(comp: PartComparison) -> Figure:
     fig = Figure(figsize=(13, 4.8), layout="constrained")
     ax = fig.add_subplot(1, 2, 1)
     for k, lab in enumerate(("Fx", "Fy", "Fz")):
-        ax.plot(arc, comp.rows.wrench_base[o, k], lw=1.0, label=lab)
+        ax.plot(arc, comp.rows.wrench_base[o, k], lw=1.0, color=FORCE_COLOURS[k], label=lab)
     ax.set_xlabel("position along the contour, deg")
     ax.set_ylabel("force, N (base axes)")
     ax.set_title("the cut's force")
     ax.grid(alpha=0.3)
     bx = fig.add_subplot(1, 2, 2)
     for j in range(6):
-        bx.plot(arc, comp.torque[o, j], lw=1.0, label=f"joint {j + 1}")
+        bx.plot(arc, comp.torque[o, j], lw=1.0, color=JOINT_COLOURS[j], label=f"joint {j + 1}")
     bx.set_xlabel("position along the contour, deg")
     bx.set_ylabel("external joint torque, Nm")
     bx.set_title("the joints' torques")
@@ -87,19 +91,26 @@ def load_figure(comp: PartComparison) -> Figure:
     return fig
 
 
-def learn_figure(before: list[PartComparison], after: list[PartComparison]) -> Figure:
-    """What the model misses along each part's contour, before and after learning."""
-    fig = Figure(figsize=(12, 3.6 * len(before)), layout="constrained")
+def learn_figure(learned) -> Figure:
+    """What the model misses along each part's contour, before and after learning (`part_learn.Learned`): the
+    residuals the learning's text counts, so the legend's RMS is the text's (over the points the fit kept)."""
+    parts, data, fit = learned.parts, learned.data, learned.fit
+    fig = Figure(figsize=(12, 3.6 * len(parts)), layout="constrained")
     axes = []
-    for k, (b, a) in enumerate(zip(before, after)):
-        ax = fig.add_subplot(len(before), 1, k + 1)
-        o, arc = _sorted(b)
-        ax.plot(arc, b.missed_mm[o], color="tab:red", lw=0.9,
-                label=f"before: RMS {np.sqrt(np.mean(b.missed_mm ** 2)):.4f} mm")
-        ax.plot(arc, a.missed_mm[o], color="tab:blue", lw=0.9,
-                label=f"after: RMS {np.sqrt(np.mean(a.missed_mm ** 2)):.4f} mm")
+    for k, rows in enumerate(parts):
+        mine = np.asarray(data.config) == rows.label
+        sub = _subset(data, mine)
+        kept = at_points(rows, sub, ~fit.outlier[mine]).astype(bool)
+        ax = fig.add_subplot(len(parts), 1, k + 1)
+        o = np.argsort(rows.t, kind="stable")
+        arc = rows.arc_deg[o]
+        for values, colour, when in ((learned.missed_before[mine], "tab:red", "before"),
+                                     (fit.residual[mine, 0], "tab:blue", "after")):
+            at = at_points(rows, sub, values)
+            ax.plot(arc, at[o], color=colour, lw=0.9,
+                    label=f"{when}: RMS {np.sqrt(np.mean(at[kept] ** 2)):.4f} mm over the {int(kept.sum())} points kept")
         ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_title(f"{b.rows.label}: what the model misses ({b.rows.part.source})")
+        ax.set_title(f"{rows.label}: what the model misses ({rows.part.source})")
         ax.set_ylabel("mm")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right")
@@ -136,10 +147,10 @@ def compare_report(comp: PartComparison, command: str) -> Report:
     return rep
 
 
-def learn_report(lines: list[str], before: list[PartComparison], after: list[PartComparison], command: str) -> Report:
-    rep = Report("stiffcomp part learn", ", ".join(b.rows.part.source for b in before))
-    rep.verdict("\n".join(lines), "info")
-    rep.figure(learn_figure(before, after), "learned", "What the model misses of each part, before and after")
+def learn_report(learned, command: str) -> Report:
+    rep = Report("stiffcomp part learn", ", ".join(p.part.source for p in learned.parts))
+    rep.verdict("\n".join(learned.lines()), "bad" if learned.problems else "info")
+    rep.figure(learn_figure(learned), "learned", "What the model misses of each part, before and after")
     rep.preformatted(command)
     return rep
 
@@ -155,8 +166,8 @@ def diagnose_report(message: str, verdict_kind: str, comp: PartComparison, pd, c
         rep.figure(diagnosis_figure(comp, contrib, best.effect.label, pd.marks_deg or []), "evidence",
                    "What the model misses along the contour, and the named effect's share")
     rep.figure(part_figure(comp), "part", "The part and the model's account of it")
-    rep.table(["effect", "joint", "CV %", "dBIC", "named"],
-              [[c.name, c.joint, 100 * c.cv_improvement, c.delta_bic, c.named] for c in pd.diagnosis.candidates[:10]])
+    rep.table(["effect", "where", "CV %", "dBIC", "named"],
+              [[c.name, c.where, 100 * c.cv_improvement, c.delta_bic, c.named] for c in pd.diagnosis.candidates[:10]])
     rep.preformatted(command)
     return rep
 

@@ -70,9 +70,16 @@ def repeat_deviation(resid: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, 
         if k < 2:
             continue
         block = resid[rows]
+        seen = np.isfinite(block).sum(axis=0)       # per component, how many rows of the group measure it
         for a, i in enumerate(rows):
             others = np.delete(block, a, axis=0)
-            dev[i] = block[a] - np.nanmedian(others, axis=0) if k > 2 else block[a] - others[0]
+            if k == 2:
+                dev[i] = block[a] - others[0]
+                continue
+            # the median only over components another row measures: a component none of the others measures
+            # (a part's rows measure the normal alone; the load's history rows nothing) has no repeat to differ from
+            shared = seen - np.isfinite(block[a]) > 0
+            dev[i, shared] = block[a, shared] - np.nanmedian(others[:, shared], axis=0)
         factor[rows] = 1.0 + 1.0 / (k - 1)
     return dev, factor
 

@@ -147,11 +147,9 @@ def run_learn(args) -> int:
               "the prior of the next")
     write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.report:
-        from stiffness.part_compare import compare_part
         from stiffness.part_report import learn_report
 
-        rep = learn_report(result.lines(), [compare_part(start, p) for p in parts],
-                           [compare_part(result.model, p) for p in parts], _command())
+        rep = learn_report(result, _command())
         path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
         print(f"report: {path}", file=sys.stderr)
     if args.json:

@@ -108,6 +108,7 @@ def test_the_part_names_a_hidden_hysteresis_and_where_it_shows_and_the_control_n
     found = diagnose_parts(truth, [rows_of(synthetic_cut(with_h, tmp_path, "H"), truth)], prior)
     best = found.diagnosis.best
     assert best is not None and (best.name, best.joint) == ("hysteresis", 1), found.message
-    assert "a step at each reversal of joint 1's torque" in found.message and len(found.marks_deg) == 2
+    assert "where its loading state switches after each reversal of joint 1's torque" in found.message
+    assert len(found.marks_deg) == 2
     control = diagnose_parts(truth, [rows_of(synthetic_cut(truth, tmp_path, "N"), truth)], prior)
     assert control.diagnosis.best is None and control.diagnosis.verdict == "no_missing_effect", control.message
