@@ -237,6 +237,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         the data's at every step, and the standard errors and the covariance include it.
     """
     say = progress or (lambda stage: None)
+    start = model.theta.copy()
     model = model.copy()
     pr = PriorRows(prior, model)
     ctx = data if isinstance(data, Context) else model.context(data)
@@ -296,7 +297,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     if undetermined:
         warnings.append(f"{len(undetermined)} parameter(s) cannot be told from zero by these data "
                         f"(|estimate| < {T_DETERMINED:g} standard errors): " + ", ".join(undetermined))
-    warnings += _compliance_warnings(model, compliance, nonnegative)
+    warnings += _compliance_warnings(model, compliance, nonnegative, start)
     units = noise_warning(model, ctx, np.where(measured, ctx.data.deflection, np.nan))
     if units:
         warnings.append(units)
@@ -349,13 +350,19 @@ def _solve_linear(model, ctx, y, w, theta, lin, lower=None, prior=None):
     return theta
 
 
-def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegative: bool) -> list[str]:
-    """Name the negative compliances (unbounded fit) or those held at the bound of 0 (bounded fit)."""
+def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegative: bool, start) -> list[str]:
+    """Name the negative compliances (unbounded fit) or those held at the bound of 0 (bounded fit): the data
+    pushed them there, or the starting model (its values ``start``) already held them below zero."""
     labels = model.param_labels()
     if nonnegative:
-        held = [lab for lab, c, v in zip(labels, compliance, model.theta) if c and v <= 0]
-        return [f"the non-negative bound is active on {len(held)} compliance(s), held at 0 because the "
-                "data push them below zero: " + ", ".join(held)] if held else []
+        held = {False: [], True: []}
+        for lab, c, v, s in zip(labels, compliance, model.theta, start):
+            if c and v <= 0:
+                held[bool(s < 0)].append(lab)
+        why = {False: "because the data push them below zero", True: "because the starting model already held "
+               "them below zero (not physical; the bound, not the data, set them to 0)"}
+        return [f"the non-negative bound is active on {len(held[k])} compliance(s), held at 0 {why[k]}: "
+                + ", ".join(held[k]) for k in (False, True) if held[k]]
     problem = model.unphysical()
     if not problem:
         return []

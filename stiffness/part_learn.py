@@ -29,6 +29,7 @@ from .measurements import Dataset
 from .model import StiffnessModel
 from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
 from .part_rows import PartRows, plane_basis
+from .part_sanity import problems
 from .part_timing import when_made
 from .prior import Prior, covariance_entry
 from .units import M_TO_MM
@@ -114,6 +115,7 @@ class Learned:
     after_mm: float              # points the fit kept (not its gross errors)
     changes: list[tuple[str, float, float]]      # (label, before, after) SI, largest relative first
     notes: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)     # why it should not be written (`part_sanity`)
     before_all_mm: float = float("nan")       # the same over every point read, the fit's gross errors too
     after_all_mm: float = float("nan")
     left_out: list[LeftOut] = field(default_factory=list)  # the points no figure holds: the parts' and the fit's
@@ -152,6 +154,7 @@ class Learned:
                 f"{lab} {100 * (b1 / b0 - 1):+.0f} %" for lab, b0, b1 in self.changes[:5]))
         out += [f"warning: {w}" for w in self.fit.warnings if "the non-negative bound" in w]
         out += self.notes + left_out_lines([x for x in self.left_out if x.why == GROSS])
+        out += [f"problem: {p}" for p in self.problems]
         return out
 
 
@@ -191,9 +194,12 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
     ch = [(lab, b0, b1) for lab, b0, b1 in zip(labs, model.theta, learned.theta) if b0 != 0 and b1 != b0]
     ch.sort(key=lambda c: -abs(c[2] / c[1] - 1))
     notes = [n for p in parts for n in p.notes]
-    return Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes,
-                   before_all_mm=before_all, after_all_mm=after_all, left_out=left_out, data=data,
-                   missed_before=data.deflection[:, 0] - pred_before[:, 0])
+    out = Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes,
+                  before_all_mm=before_all, after_all_mm=after_all, data=data,
+                  missed_before=data.deflection[:, 0] - pred_before[:, 0],
+                  left_out=left_out)
+    out.problems = problems(out, model, data)
+    return out
 
 
 def _concat(sets: list[Dataset]) -> Dataset:

@@ -29,6 +29,9 @@ def register(sub) -> None:
     _prior_options(ln)
     ln.add_argument("-o", "--output", required=True, help="where to write the learned model YAML")
     ln.add_argument("--report", metavar="DIR", help="write what the model misses before and after into DIR")
+    ln.add_argument("--force", action="store_true",
+                    help="write the model even when the parts do not fit it (a misplaced part, a wrong tool radius), "
+                         "nothing was learned, or the input held negative compliances (docs/part.md)")
     ln.set_defaults(func=run_learn)
     d = ps.add_parser("diagnose", help="name the effect the model misses, from parts (as `diagnose` does from a campaign)")
     _common(d, more=True)
@@ -143,17 +146,12 @@ def run_learn(args) -> int:
     progress, prior, start, parts = _setup(args, "part learn")
     result = learn(start, parts, prior, args.best_fit, progress)
     progress.done()
-    header = (f"# {args.model} learned from {len(parts)} part(s) by `stiffcomp part learn`; its covariance is "
-              "the prior of the next")
-    write_output(args.output, lambda p: result.model.to_yaml(p, header))
-    if args.report:
-        from stiffness.part_report import learn_report
-
-        rep = learn_report(result, _command())
-        path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
-        print(f"report: {path}", file=sys.stderr)
+    written = not result.problems or args.force      # a learning that fails its checks only when asked
+    if written:
+        _write_learned(args, result)
     if args.json:
-        print_json({"output": args.output, "prior": prior.source, "points": result.points_kept,
+        print_json({"output": args.output if written else None, "problems": result.problems,
+                    "prior": prior.source, "points": result.points_kept,
                     "rms_before_mm": result.before_mm, "rms_after_mm": result.after_mm,       # over the points kept
                     "rms_before_with_left_out_mm": result.before_all_mm,           # the fit's gross errors too
                     "rms_after_with_left_out_mm": result.after_all_mm,
@@ -164,10 +162,35 @@ def run_learn(args) -> int:
                                    for c in result.determined],
                     "changes": [{"parameter": lab, "before": b0, "after": b1} for lab, b0, b1 in result.changes],
                     "notes": result.notes})
-        return 0
+        return _refuse_unless(written, args, result)
     print("\n".join(result.lines()))
-    print(f"written: {args.output}")
-    return 0
+    if written:
+        print(f"written: {args.output}" + (" (--force: despite the problem(s) above)" if result.problems else ""))
+    return _refuse_unless(written, args, result)
+
+
+def _write_learned(args, result) -> None:
+    """The learned model to -o, and the report to --report."""
+    header = (f"# {args.model} learned from {len(result.parts)} part(s) by `stiffcomp part learn`; its covariance "
+              "is the prior of the next")
+    write_output(args.output, lambda p: result.model.to_yaml(p, header))
+    if args.report:
+        from stiffness.part_report import learn_report
+
+        rep = learn_report(result, _command())
+        path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
+        print(f"report: {path}", file=sys.stderr)
+
+
+def _refuse_unless(written: bool, args, result) -> int:
+    """0 once the model is written; a learning that failed its checks (`stiffness.part_sanity`) and was not
+    forced is refused in one line naming the output and the first problem (the text lists them all)."""
+    if written:
+        return 0
+    from stiffness.errors import DataError
+
+    more = f" ({len(result.problems) - 1} more listed)" if len(result.problems) > 1 else ""
+    raise DataError(f"{args.output}: not written: {result.problems[0]}{more}; --force writes it")
 
 
 def run_diagnose(args) -> int:
