@@ -79,18 +79,20 @@ def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
     return Record(ev["t"] - ev["t"][0], world.force(ev["t"]), ev["p"] - nominal, "the HIL's uncompensated pass")
 
 
-def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17) -> Record:
-    """A tap test at the circle's centre: a half-sine pulse of `TAP_N` over `TAP_MS` along x, y and z (base
-    axes) in turn, and the stub's TCP deflection, every ms, with `TAP_NOISE_M` of noise (1 sigma)."""
+def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17, axes: tuple[int, ...] = (0, 1, 2),
+               peak_n: float = TAP_N) -> Record:
+    """A tap test at the circle's centre: a half-sine pulse of ``peak_n`` over `TAP_MS` along x, y and z (base
+    axes; those in ``axes``) in turn, and the stub's TCP deflection, every ms, with `TAP_NOISE_M` of noise
+    (1 sigma)."""
     stub = RobotStub(truth, scenario.robot, scenario.payload)
     t = np.arange(0.0, 3 * TAP_EVERY_S + 0.5, RECORD_PERIOD_S)
 
     def force(tt):
         tt = np.atleast_1d(tt)
         out = np.zeros((len(tt), 3))
-        for k in range(3):
+        for k in axes:
             x = (tt - 0.3 - k * TAP_EVERY_S) / (TAP_MS / 1000.0)
-            out[:, k] = np.where((x >= 0) & (x <= 1), TAP_N * np.sin(np.pi * np.clip(x, 0, 1)), 0.0)
+            out[:, k] = np.where((x >= 0) & (x <= 1), peak_n * np.sin(np.pi * np.clip(x, 0, 1)), 0.0)
         return out
 
     q = np.tile(scenario.circle.center_q_deg, (len(t), 1))

@@ -64,6 +64,9 @@ class TlsSettings(Strict):
     roles : access of each role a client certificate names (Modbus role extension,
         OID 1.3.6.1.4.1.50316.802.1): ``read``, ``write`` or ``none`` (closed after the handshake)
     default_access : access of a certificate without the role extension, or with a role not in ``roles``
+    probe_cert, probe_key : a client certificate signed by ``ca`` (a role that may read) and its key, which
+        `stiffcomp health` shows to ask over Modbus/TCP Security where nothing else serves it (TLS alone,
+        HTTP off); the probe checks the server's certificate against ``ca``
     """
 
     enabled: bool = False
@@ -74,17 +77,23 @@ class TlsSettings(Strict):
     plain: bool = True
     roles: dict[str, Access] = Field(default_factory=lambda: {"operator": "write", "viewer": "read"})
     default_access: Access = "read"
+    probe_cert: str | None = None
+    probe_key: str | None = None
 
     @model_validator(mode="after")
     def _files_when_enabled(self) -> TlsSettings:
         missing = [k for k in ("cert", "key", "ca") if getattr(self, k) is None]
         if self.enabled and missing:
             raise ValueError(f"enabled needs {', '.join(missing)} (stiffcomp certs makes a set, docs/security.md)")
+        if (self.probe_cert is None) != (self.probe_key is None):
+            raise ValueError("probe_cert and probe_key go together: a client certificate and its key")
         return self
 
     def files(self) -> dict[str, str]:
-        """The files it names, by key (``cert``, ``key``, ``ca``), when enabled."""
-        return {k: getattr(self, k) for k in ("cert", "key", "ca")} if self.enabled else {}
+        """The files it names, by key (``cert``, ``key``, ``ca``, and ``probe_cert``, ``probe_key`` when
+        set), when enabled."""
+        keys = ("cert", "key", "ca") + (("probe_cert", "probe_key") if self.probe_cert is not None else ())
+        return {k: getattr(self, k) for k in keys} if self.enabled else {}
 
     def access(self, role: str | None) -> Access:
         """What a client whose certificate names ``role`` (None: no role) may do."""
@@ -122,6 +131,17 @@ class PlcSettings(ClientLimits):
             return True
         ip = peer_address(peer_ip)
         return any(ip in ipaddress.ip_network(n) for n in self.writers)
+
+    def served(self) -> str:
+        """What the PLC side serves, as the start-up line names it: ``server 127.0.0.1:5020`` (plain Modbus
+        TCP), ``server 127.0.0.1:5020 and Modbus/TCP Security 127.0.0.1:802``, ``server Modbus/TCP Security
+        127.0.0.1:802 alone``, ``client of 192.168.10.20:502``, ``none``."""
+        if self.role != "server":
+            return f"client of {self.host}:{self.port}" if self.role == "client" else self.role
+        secure = f"Modbus/TCP Security {self.host}:{self.tls.port}"
+        if not self.tls.enabled:
+            return f"server {self.host}:{self.port}"
+        return f"server {self.host}:{self.port} and {secure}" if self.tls.plain else f"server {secure} alone"
 
     def exposure_warning(self) -> str | None:
         """The warning for plain Modbus TCP served beyond this machine with no ``writers``, or None."""

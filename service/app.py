@@ -280,7 +280,7 @@ class Service:
         p = self.cfg.plc
         a = self.cfg.ads
         log.info("service running: %.3f ms cycle, source %s, PLC %s%s", self.period * 1000, self.cfg.source.type,
-                 p.role if self.io is None else f"{p.role} {p.host}:{p.port}",
+                 p.role if self.io is None else p.served(),
                  f", ADS {a.host}:{a.port} ({a.net_id}:{a.ams_port})" if a.enabled else "")
 
     def stop(self) -> None:

@@ -10,10 +10,11 @@ implies live):
 
 It asks the service's I/O process over HTTP (``GET /health``, ``/health/live`` or ``/health/ready`` at
 ``monitoring.host:monitoring.port``), and gives up after 1 s in total. Where the config switches HTTP
-off (``monitoring.enabled: false``) and the service is a Modbus server, it reads the to_plc block
-twice over Modbus instead and judges it as the I/O process would. Exit code 0 when the verdict
-passes, 1 when not (also when nothing answers), 2 when the config is bad or offers neither way; the
-reason is printed in one line.
+off (``monitoring.enabled: false``), it reads the to_plc block twice instead, by what the service
+serves: plain Modbus TCP; else Modbus/TCP Security with the client certificate ``plc.tls.probe_cert``
+names; else ADS; and judges it as the I/O process would. Exit code 0 when the verdict passes, 1 when
+not (also when nothing answers), 2 when the config is bad or offers no way to ask; the reason is
+printed in one line.
 
 A probe runs every few seconds, so this command stays light: it reads the ``monitoring``, ``plc`` and
 ``ads`` sections with the service's own schemas (`plc_interface.endpoints.read_endpoints`), so it
@@ -42,14 +43,16 @@ WORDS = {"health": ("healthy", "unhealthy"), "live": ("live", "not live"), "read
 def register(sub) -> None:
     p = sub.add_parser("health", help="exit 0 if the running service is healthy (--live: alive, --ready: "
                        "ready), 1 with the reason if not")
-    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (its monitoring and plc keys)")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (its monitoring, plc and ads keys)")
     which = p.add_mutually_exclusive_group()
     which.add_argument("--live", dest="probe", action="store_const", const="live",
                        help="liveness: the cycle count rises (what a restart could fix)")
     which.add_argument("--ready", dest="probe", action="store_const", const="ready",
                        help="readiness: healthy, the sensor fresh and the PLC's heartbeat seen")
-    p.add_argument("--host", default=None, help="override monitoring.host (plc.host without HTTP)")
-    p.add_argument("--port", type=int, default=None, help="override monitoring.port (plc.port without HTTP)")
+    p.add_argument("--host", default=None, help="override monitoring.host (without HTTP: the host of the "
+                   "Modbus, Modbus/TCP Security or ADS server it asks)")
+    p.add_argument("--port", type=int, default=None, help="override monitoring.port (without HTTP: the "
+                   "port of the Modbus, Modbus/TCP Security or ADS server it asks)")
     p.set_defaults(func=run, probe="health")
 
 
@@ -57,16 +60,12 @@ def run(args) -> int:
     try:
         check_options(args)
         ep = read_endpoints(args.config, SECTIONS)
+        if ep.monitoring.enabled:
+            passed, reason = check(*address(ep.monitoring.host, ep.monitoring.port, args), probe=args.probe)
+        else:
+            passed, reason = check_block(ep, reader_for(ep, args), probe=args.probe)
     except ConfigError as e:
         print(f"stiffcomp health: error: {e}", file=sys.stderr)
-        return 2
-    if ep.monitoring.enabled:
-        passed, reason = check(*address(ep.monitoring, args), probe=args.probe)
-    elif ep.plc.role == "server":
-        passed, reason = check_modbus(ep, *address(ep.plc, args), probe=args.probe)
-    else:
-        print(f"stiffcomp health: error: {ep.path}: monitoring.enabled is false and plc.role is {ep.plc.role}: "
-              "the service answers no probe (switch monitoring on)", file=sys.stderr)
         return 2
     print(f"{WORDS[args.probe][0 if passed else 1]}: {reason}")
     return 0 if passed else 1
@@ -87,9 +86,9 @@ def check_options(args) -> None:
         raise ConfigError(f"--{key} {given[key]}: {e.errors()[0]['msg']}") from e
 
 
-def address(section, args) -> tuple[str, int]:
-    """(host, port) to ask: the overrides, else the section's, a bind to all interfaces meaning here."""
-    return args.host or ANY_ADDRESS.get(section.host, section.host), args.port or section.port
+def address(host: str, port: int, args) -> tuple[str, int]:
+    """(host, port) to ask: the overrides, else the config's, a bind to all interfaces meaning here."""
+    return args.host or ANY_ADDRESS.get(host, host), args.port or port
 
 
 def check(host: str, port: int, timeout_s: float = TIMEOUT_S, probe: str = "health") -> tuple[bool, str]:
@@ -103,19 +102,56 @@ def check(host: str, port: int, timeout_s: float = TIMEOUT_S, probe: str = "heal
     return answer[PROBES[probe][1]] is True, one_line(answer.get("reason"))
 
 
-def check_modbus(ep: Endpoints, host: str, port: int, probe: str = "health",
-                 gap_s: float = MODBUS_GAP_S) -> tuple[bool, str]:
-    """(passed, reason) of ``probe`` from two readings of the to_plc block ``gap_s`` apart, judged by
-    the I/O process's own `HealthMonitor` (imported here: pymodbus and the register map cost more than
-    the HTTP path, which most configs use)."""
+def reader_for(ep: Endpoints, args):
+    """The reader of the to_plc block by what the service serves without HTTP: plain Modbus TCP, else
+    Modbus/TCP Security with the client certificate ``plc.tls.probe_cert`` names, else ADS (imported here:
+    pymodbus, pyads and the register map cost more than the HTTP path, which most configs use).
+    ConfigError naming the keys when the service serves none of them to this probe."""
     import logging
 
-    from plc_interface.health import HealthMonitor
-
-    from .block_reader import BlockReader
+    from .block_reader import AdsReader, BlockReader
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)     # the reason says it in one line
-    reader = BlockReader(ep.register_map(), host, port, timeout_s=TIMEOUT_S / 2)
+    plc, tls, ads = ep.plc, ep.plc.tls, ep.ads
+    if plc.role == "server" and (not tls.enabled or tls.plain):
+        return BlockReader(ep.register_map(), *address(plc.host, plc.port, args), timeout_s=TIMEOUT_S / 2)
+    if plc.role == "server" and tls.probe_cert is not None:
+        return BlockReader(ep.register_map(), *address(plc.host, tls.port, args), timeout_s=TIMEOUT_S / 2,
+                           sslctx=probe_context(ep))
+    served = (f"plc.role is {plc.role}" if plc.role != "server" else
+              "plc.tls serves Modbus/TCP Security alone (plain: false) and names no probe_cert")
+    if not ads.enabled:
+        hint = ", or name a client certificate in plc.tls.probe_cert and probe_key" if plc.role == "server" else ""
+        raise ConfigError(f"{ep.path}: monitoring.enabled is false, {served}, and ads.enabled is false: the "
+                          f"service answers no probe (switch monitoring on{hint}; docs/deploy.md#health)")
+    try:
+        return AdsReader(ep.register_map(), *address(ads.host, ads.port, args), ads.net_id, ads.ams_port)
+    except ValueError as e:
+        raise ConfigError(f"{ep.path}: monitoring.enabled is false and {served}: only ADS is left to ask, "
+                          f"and {e}") from None
+
+
+def probe_context(ep: Endpoints):
+    """The TLS context of the probe's client certificate (``plc.tls.probe_cert``, ``probe_key``), checking
+    the server against ``plc.tls.ca``; ConfigError naming the keys when the files do not load."""
+    from plc_interface.tls import client_context
+
+    tls = ep.plc.tls
+    files = {k: str(ep.resolve(getattr(tls, k))) for k in ("ca", "probe_cert", "probe_key")}
+    try:
+        return client_context(files["ca"], files["probe_cert"], files["probe_key"], check_hostname=False)
+    except OSError as e:            # ssl.SSLError among them
+        why = f"{e.strerror}: {e.filename}" if e.filename else str(e)
+        raise ConfigError(f"{ep.path}: plc.tls.probe_cert = {files['probe_cert']}, probe_key = "
+                          f"{files['probe_key']}, ca = {files['ca']}: not a client certificate, its key and "
+                          f"a CA that load ({why})") from e
+
+
+def check_block(ep: Endpoints, reader, probe: str = "health", gap_s: float = MODBUS_GAP_S) -> tuple[bool, str]:
+    """(passed, reason) of ``probe`` from two readings of the to_plc block ``gap_s`` apart by ``reader``
+    (`reader_for`), judged by the I/O process's own `HealthMonitor`."""
+    from plc_interface.health import HealthMonitor
+
     # a count that rose between the two readings is live; one that did not has stalled for gap_s
     monitor = HealthMonitor(ep.monitoring.health_max_exceed_rate, stall_s=gap_s / 2)
     try:
@@ -124,11 +160,11 @@ def check_modbus(ep: Endpoints, host: str, port: int, probe: str = "health",
         t = time.monotonic()
         monitor.update(t, reader.read())
     except ConnectionError as e:
-        return False, str(e)
+        return False, one_line(e)
     finally:
         reader.close()
     verdict = monitor.verdicts(t)[probe]
-    return verdict[PROBES[probe][1]] is True, one_line(verdict["reason"]) + f" (Modbus {host}:{port})"
+    return verdict[PROBES[probe][1]] is True, one_line(verdict["reason"]) + f" ({reader.what} {reader.where})"
 
 
 def one_line(reason) -> str:

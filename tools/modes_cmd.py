@@ -2,8 +2,9 @@
 
 DATA is a CSV: t_s, fx_N, fy_N, fz_N (the force at the tool, base axes) and dx_mm, dy_mm, dz_mm (the TCP's
 deflection from its path, base axes): a tap test, a dynamometer and a laser tracker on a test cut, or the
-HIL's (`stiffcomp hil circle --dynamic-compensation --modes-data FILE`). It prints the modes, the arm's own
-lag and how much of the deflection they explain against a static fit alone; ``-o`` writes the
+HIL's (`stiffcomp hil circle --dynamic-compensation --modes-data FILE`). It prints which force directions the
+record excites, the modes (a mode the record does not show is refused, `stiffness.dynamics.excitation`), the
+arm's own lag and how much of the deflection they explain against a static fit alone; ``-o`` writes the
 ``dynamics`` section for the service config, ``--plot`` the identified response over the measured one
 (docs/dynamics.md, "Commissioning").
 """
@@ -12,14 +13,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import print_json
+from .common import check_number, check_output_file, print_json
 
 
 def register(sub) -> None:
     p = sub.add_parser("modes", help="identify the structure's modes from a recorded force and path")
     p.add_argument("data", help="CSV: t_s, fx_N, fy_N, fz_N, dx_mm, dy_mm, dz_mm (base axes)")
     p.add_argument("--modes", type=int, default=2, choices=(1, 2, 3), help="how many modes (default 2)")
-    p.add_argument("--max-lag-ms", type=float, default=30.0, help="the longest lag of the arm tried, ms")
+    p.add_argument("--max-lag-ms", type=float, default=30.0,
+                   help="the longest lag of the arm tried, ms (above 0, at most the config's 100)")
     p.add_argument("-o", "--output", default=None, metavar="FILE.yaml",
                    help="write the dynamics section (the modes, their lag) for the service config")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="the identified response over the measured one")
@@ -32,16 +34,40 @@ def section(found) -> dict:
     return {"dynamics": {"enabled": True, "predictor": {}, "structure": found.to_config()}}
 
 
+def check_options(args) -> None:
+    """Each option's value, refused naming it before the record is read: --max-lag-ms within what the
+    service's ``dynamics.structure.lag_ms`` takes, -o and --plot into folders that exist, --plot with a
+    suffix matplotlib writes."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    from stiffness.dynamics.structure import MAX_LAG_MS
+    from stiffness.errors import OutputError
+
+    check_number("--max-lag-ms", args.max_lag_ms, "ms: the arm's lag is fitted from 0 to it, and "
+                 f"dynamics.structure.lag_ms takes at most {MAX_LAG_MS:g}", above=0.0, at_most=MAX_LAG_MS)
+    if args.output is not None:
+        check_output_file("-o", args.output)
+    if args.plot is not None:
+        kinds = [f".{s}" for s in FigureCanvasBase.get_supported_filetypes()]
+        if Path(args.plot).suffix.lower() not in kinds:
+            raise OutputError(f"--plot {args.plot}: the suffix says the image's format; it must be one of "
+                              f"{', '.join(kinds)}")
+        check_output_file("--plot", args.plot)
+
+
 def run(args) -> int:
     from stiffness.dynamics.identify import figure, identify, read_record
     from stiffness.errors import OutputError
     from stiffness.yamlio import dump_yaml
 
+    check_options(args)
     rec = read_record(args.data)
     found = identify(rec, args.modes, args.max_lag_ms)
     out = {"modes": found.to_config()["modes"], "lag_ms": found.to_config()["lag_ms"],
            "explained": round(found.explained, 5), "explained_static": round(found.explained_static, 5),
-           "residual_rms_mm": round(found.rms_mm, 5), "config": section(found)}
+           "residual_rms_mm": round(found.rms_mm, 5),
+           "excitation": {**found.excitation.to_json(), "modes": [round(e, 1) for e in found.evidence]},
+           "config": section(found)}
     if args.output:
         try:
             Path(args.output).write_text("# the structure identified by `stiffcomp modes " + str(args.data)
@@ -59,9 +85,10 @@ def run(args) -> int:
     if args.json:
         print_json(out)
         return 0
+    print(f"the force {found.excitation.describe()} ({found.excitation.floor()})")
     for k, m in enumerate(out["modes"]):
         print(f"mode {k + 1}: {m['hz']:.3f} Hz, damping {100 * m['damping']:.2f} %, direction "
-              f"[{', '.join(f'{x:+.3f}' for x in m['direction'])}] (base axes)")
+              f"[{', '.join(f'{x:+.3f}' for x in m['direction'])}] (base axes); explains {found.evidence[k]:.3g} P")
     print(f"the arm's own lag: {out['lag_ms']:.2f} ms")
     print(f"explains {100 * found.explained:.2f} % of the deflection (a static fit alone: "
           f"{100 * found.explained_static:.2f} %); residual RMS {found.rms_mm:.4f} mm")

@@ -30,12 +30,10 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
-from plc_interface.ads.symbols import GVL
 from plc_interface.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, read_sections
 
-from .ads_probe import open_ads
-from .block_reader import BlockReader
+from .block_reader import AdsReader, BlockReader
 from .status_view import StatusView
 
 POLL_S = 0.05          # readings for the exec-time samples and the rates
@@ -54,48 +52,6 @@ def register(sub) -> None:
                    help="the register map (default: the config's plc.register_map, else the shipped one)")
     p.add_argument("--watch", action="store_true", help="redraw a few times a second until Ctrl-C")
     p.set_defaults(func=run)
-
-
-class AdsReader:
-    """The to_plc registers over ADS: their ``GVL_Comp`` symbols in one sum read, by name."""
-
-    def __init__(self, rmap: RegisterMap, host: str, port: int, net_id: str, ams_port: int,
-                 timeout_ms: int = 500):
-        try:
-            import pyads  # noqa: F401
-        except ImportError:
-            raise ValueError("reading over ADS needs pyads (pip install -e '.[ads]'); "
-                             "--via modbus reads a Modbus server") from None
-        self.names = rmap.codecs["to_plc"].names
-        self.symbols = [f"{GVL}.{n}" for n in self.names]
-        self.address = (host, net_id, ams_port, port)
-        self.timeout_ms = timeout_ms
-        self.where = f"{host}:{port}"
-        self.conn = None
-
-    def read(self) -> dict[str, float]:
-        """Values by name; ConnectionError naming the address when the service does not answer."""
-        import pyads
-
-        if self.conn is None:
-            self.conn, why = open_ads(*self.address)
-            if self.conn is None:
-                raise ConnectionError(f"no answer from the service over ADS: {why}")
-            self.conn.set_timeout(self.timeout_ms)
-        try:
-            values = self.conn.read_list_by_name(self.symbols)
-        except pyads.ADSError as e:
-            self.close()
-            raise ConnectionError(f"{self.where}: {e}") from e
-        bad = [s for s in self.symbols if not isinstance(values.get(s), (int, float))]
-        if bad:                 # a sum read answers per symbol: an error code string in place of a value
-            raise ConnectionError(f"{self.where} refused {bad[0]}: {values.get(bad[0])}")
-        return {n: float(values[s]) for n, s in zip(self.names, self.symbols)}
-
-    def close(self) -> None:
-        if self.conn is not None:
-            self.conn.close()
-            self.conn = None
 
 
 SHIPPED_MAP = DEFAULT_CONFIG.parent / "registers.yaml"
@@ -128,8 +84,11 @@ def reader_for(cfg, via: str, host: str | None, port: int | None, register_map: 
     local = {"0.0.0.0": "127.0.0.1"}
     if via == "modbus":
         return BlockReader(rmap, host or local.get(cfg.plc.host, cfg.plc.host), port or cfg.plc.port), via
-    return AdsReader(rmap, host or local.get(cfg.ads.host, cfg.ads.host), port or cfg.ads.port,
-                     cfg.ads.net_id, cfg.ads.ams_port), via
+    try:
+        return AdsReader(rmap, host or local.get(cfg.ads.host, cfg.ads.host), port or cfg.ads.port,
+                         cfg.ads.net_id, cfg.ads.ams_port), via
+    except ValueError as e:
+        raise ValueError(f"{e}; --via modbus reads a Modbus server") from None
 
 
 def run(args) -> int:

@@ -18,8 +18,10 @@ with each H_k the mode (f_k, zeta_k) as the service runs it. The fit:
    b solved linearly inside it for each guess (variable projection), the biquads of `Structure.respond`
    simulating the record.
 
-The result says how much of the deflection the identified structure explains, against the static fit
-alone, and `figure` plots the identified response over the measured one. ``to_config`` is the
+A mode the record does not show, and a record whose force excites no direction above its noise, are
+refused (`stiffness.dynamics.excitation`: what each explains against the record's noise floor). The result
+says which force directions the record excites, how much of the deflection the identified structure
+explains, against the static fit alone, and `figure` plots the identified response over the measured one. ``to_config`` is the
 ``dynamics.structure`` section for the service config.
 """
 
@@ -34,13 +36,22 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import DataError
 from ..units import M_TO_MM, MM_TO_M
-from .records import read_columns
+from .excitation import (
+    AXES,
+    BAND_HZ,
+    MIN_RATE_HZ,
+    Excitation,
+    band_top,
+    mode_threshold,
+    noise_floor,
+    zero_phase,
+)
+from .records import check_whole, read_columns
 from .structure import ModeConfig, Structure
 
 FORCE = ("fx_N", "fy_N", "fz_N")
 DEFLECTION = ("dx_mm", "dy_mm", "dz_mm")
 SLOW_HZ = 2.0            # the static fit's low-pass
-BAND_HZ = (3.0, 60.0)    # where modes are looked for
 MIN_SAMPLES = 200
 
 
@@ -59,9 +70,18 @@ class Record:
 
 
 def read_record(path: str | Path) -> Record:
-    """The record CSV (module docstring); resampled to its median step when the steps vary by more than 1 %."""
+    """The record CSV (module docstring); resampled to its median step when the steps vary by more than 1 %.
+    DataError for a file cut off in its last line, or a sample rate below `MIN_RATE_HZ` (t_s in ms?)."""
+    check_whole(path)
     cols = read_columns(path, ("t_s", *FORCE, *DEFLECTION), what="force and path record")
     t = cols["t_s"]
+    step = float(np.median(np.diff(t)))
+    if step * MIN_RATE_HZ > 1.0:
+        hint = ("; is t_s in milliseconds? it is in seconds (1 ms rows: steps of 0.001)"
+                if step * MIN_RATE_HZ <= 1000.0 else "")
+        raise DataError(f"{path}: column t_s: the rows are {step:g} s apart ({1.0 / step:.3g} samples a second); "
+                        f"the modes are looked for at {BAND_HZ[0]:g}-{BAND_HZ[1]:g} Hz, which needs at least "
+                        f"{MIN_RATE_HZ:g} a second{hint}")
     force = np.column_stack([cols[c] for c in FORCE])
     d = np.column_stack([cols[c] for c in DEFLECTION]) * MM_TO_M
     return uniform(Record(t, force, d, str(path)))
@@ -91,6 +111,8 @@ class Identified:
     rms_mm: float                           # the residual's RMS
     model: np.ndarray = field(repr=False)   # the identified response (N, 3), m
     static: np.ndarray = field(repr=False)  # the static fit alone (N, 3), m
+    excitation: Excitation | None = None    # which force directions the record excites (`excitation`)
+    evidence: list[float] = field(default_factory=list)   # per mode: what it explains, in noise-floor units
 
     def to_config(self) -> dict:
         """The service config's ``dynamics.structure`` section."""
@@ -116,6 +138,14 @@ def _late(rec: Record, lag_s: float) -> np.ndarray:
 
 def _solve(rec: Record, st: Structure, lag_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """C, b (least squares) and the model's response for the structure ``st`` and lag, by variable projection."""
+    A = _design(rec, st, lag_s)
+    sol = _lstsq(A, rec.deflection.ravel())
+    return sol[:9].reshape(3, 3), sol[9:], (A @ sol).reshape(-1, 3)
+
+
+def _design(rec: Record, st: Structure, lag_s: float) -> np.ndarray:
+    """The model's columns over the record (3 N, 12): the response to each compliance C_ij (column 3 i + j),
+    then the offset's three."""
     late = _late(rec, lag_s)
     n = len(rec.t)
     cols = []
@@ -128,16 +158,14 @@ def _solve(rec: Record, st: Structure, lag_s: float) -> tuple[np.ndarray, np.nda
         e = np.zeros((n, 3))
         e[:, i] = 1.0
         cols.append(e.ravel())
-    A = np.column_stack(cols)
+    return np.column_stack(cols)
+
+
+def _lstsq(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The least-squares solution of A x = y, its columns scaled first (a zero column solves to 0)."""
     scale = np.abs(A).max(axis=0)
     scale[scale == 0] = 1.0
-    sol = np.linalg.lstsq(A / scale, rec.deflection.ravel(), rcond=None)[0] / scale
-    return sol[:9].reshape(3, 3), sol[9:], (A @ sol).reshape(n, 3)
-
-
-def _zero_phase(x: np.ndarray, period: float, hz, btype: str) -> np.ndarray:
-    sos = signal.butter(2, hz, btype=btype, fs=1.0 / period, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=0)
+    return np.linalg.lstsq(A / scale, y, rcond=None)[0] / scale
 
 
 def _static(rec: Record, lag_s: float) -> np.ndarray:
@@ -151,8 +179,8 @@ def _start(rec: Record, n_modes: int, max_lag_ms: float) -> tuple[np.ndarray, np
     lags = np.arange(0.0, max_lag_ms + 1e-9, 1.0) / 1000.0
     lag = float(lags[np.argmin([np.sum(_static(rec, L) ** 2) for L in lags])])
     resid = _static(rec, lag)
-    top = min(BAND_HZ[1], 0.45 / rec.period)
-    band = _zero_phase(resid, rec.period, (BAND_HZ[0], top), "bandpass")
+    top = band_top(rec.period)
+    band = zero_phase(resid, rec.period, (BAND_HZ[0], top), "bandpass")
     frame = np.linalg.svd(band, full_matrices=False)[2].T
     if np.linalg.det(frame) < 0:
         frame[:, 2] *= -1.0
@@ -165,13 +193,39 @@ def _start(rec: Record, n_modes: int, max_lag_ms: float) -> tuple[np.ndarray, np
 
 
 def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identified:
-    """The structure behind ``rec`` with ``n_modes`` modes (1 - 3; module docstring)."""
+    """The structure behind ``rec`` with ``n_modes`` modes (1 - 3; module docstring). DataError when the force
+    excites no direction above the noise, or a mode found is not in the record (`stiffness.dynamics.excitation`)."""
     if not 1 <= n_modes <= 3:
         raise ValueError(f"n_modes = {n_modes} must be 1, 2 or 3 (modes along orthogonal directions)")
     if len(rec.t) < MIN_SAMPLES:
         raise DataError(f"{rec.source}: {len(rec.t)} samples; the identification needs at least {MIN_SAMPLES}")
     if np.ptp(rec.force, axis=0).max() < 1e-6:
         raise DataError(f"{rec.source}: the force does not change; nothing excites the structure")
+    st, lag = _fit(rec, n_modes, max_lag_ms)
+    A = _design(rec, st, lag)
+    sol = _lstsq(A, rec.deflection.ravel())
+    C, b, model = sol[:9].reshape(3, 3), sol[9:], (A @ sol).reshape(-1, 3)
+    threshold = mode_threshold(len(rec.t), rec.period)
+    exc = _excitation(rec, A, rec.deflection - model, threshold)
+    if not exc.excited():
+        raise DataError(f"{rec.source}: the force {exc.describe()} ({exc.floor()}); nothing can be identified "
+                        "from it (tap harder, or record with a quieter instrument)")
+    evidence = _evidence(rec, st, model)
+    unseen = [k for k, e in enumerate(evidence) if not e > threshold]
+    if unseen:
+        raise DataError(_unseen(rec, st, exc, evidence, unseen))
+    static = rec.force @ np.linalg.lstsq(np.column_stack([rec.force, np.ones(len(rec.t))]), rec.deflection,
+                                          rcond=None)[0][:3]
+    static = static + (rec.deflection - static).mean(axis=0)
+    var = np.sum((rec.deflection - rec.deflection.mean(0)) ** 2)
+    return Identified(st, C, b, 1.0 - np.sum((rec.deflection - model) ** 2) / var,
+                      1.0 - np.sum((rec.deflection - static) ** 2) / var,
+                      float(np.sqrt(np.mean(np.sum((rec.deflection - model) ** 2, axis=1)))) * M_TO_MM, model, static,
+                      exc, evidence)
+
+
+def _fit(rec: Record, n_modes: int, max_lag_ms: float) -> tuple[Structure, float]:
+    """Steps 1-3 of the module docstring: the structure (modes ordered by frequency) and the lag (s)."""
     frame0, hz0, lag0 = _start(rec, n_modes, max_lag_ms)
     rot0 = Rotation.from_matrix(frame0)
     norm = np.sqrt(np.mean((rec.deflection - rec.deflection.mean(0)) ** 2))
@@ -193,15 +247,49 @@ def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identif
     fit = optimize.least_squares(residual, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale="jac", max_nfev=200)
     hz, zeta, frame, lag = unpack(fit.x)
     order = np.argsort(hz)
-    st = _structure(hz[order], zeta[order], frame[:, order], n_modes, lag)
-    C, b, model = _solve(rec, st, lag)
-    static = rec.force @ np.linalg.lstsq(np.column_stack([rec.force, np.ones(len(rec.t))]), rec.deflection,
-                                          rcond=None)[0][:3]
-    static = static + (rec.deflection - static).mean(axis=0)
-    var = np.sum((rec.deflection - rec.deflection.mean(0)) ** 2)
-    return Identified(st, C, b, 1.0 - np.sum((rec.deflection - model) ** 2) / var,
-                      1.0 - np.sum((rec.deflection - static) ** 2) / var,
-                      float(np.sqrt(np.mean(np.sum((rec.deflection - model) ** 2, axis=1)))) * M_TO_MM, model, static)
+    return _structure(hz[order], zeta[order], frame[:, order], n_modes, lag), lag
+
+
+def _excitation(rec: Record, A: np.ndarray, residual: np.ndarray, threshold: float) -> Excitation:
+    """Per base axis, what the force along it explains (its compliance column left out, the rest solved
+    again), in units of the noise floor (`stiffness.dynamics.excitation`)."""
+    y, rss = rec.deflection.ravel(), float(np.sum(residual ** 2))
+    floor = sum(noise_floor(residual, rec.period, e) for e in np.eye(3)) / 3.0
+    ratio: dict[str, float | None] = dict.fromkeys(AXES)
+    for j, axis in enumerate(AXES):
+        if np.ptp(rec.force[:, j]) > 0.0:
+            keep = [c for c in range(A.shape[1]) if not (c < 9 and c % 3 == j)]
+            ratio[axis] = (float(np.sum((y - A[:, keep] @ _lstsq(A[:, keep], y)) ** 2)) - rss) / floor
+    return Excitation(ratio, threshold)
+
+
+def _unseen(rec: Record, st: Structure, exc: Excitation, evidence: list[float], unseen: list[int]) -> str:
+    """The refusal of a mode the record does not show: which, its evidence, what the record excites, what to do."""
+    k, n = unseen[0], len(st.cfg.modes)
+    m = st.cfg.modes[k]
+    missing = [a for a in AXES if a not in exc.excited()]
+    todo = f"ask for {n - len(unseen)} mode(s)" if len(unseen) < n else "no mode can be identified from it"
+    return (f"{rec.source}: mode {k + 1} of {n} ({m.hz:.3f} Hz, damping {100 * m.damping:.2f} %, along "
+            f"[{', '.join(f'{x:+.2f}' for x in m.direction)}]) is not in the record: it explains {evidence[k]:.3g} P "
+            f"({exc.floor()}); the force {exc.describe()}; {todo}"
+            + (f", or tap along {', '.join(missing)} too" if missing else ""))
+
+
+def _evidence(rec: Record, st: Structure, model: np.ndarray) -> list[float]:
+    """Per mode: how much more of the deflection is left without it (the compliance and offset solved again,
+    the other modes and the lag kept), in units of the residual's noise floor along its direction."""
+    residual = rec.deflection - model
+    rss = float(np.sum(residual ** 2))
+    out = []
+    for k, mode in enumerate(st.cfg.modes):
+        rest = [m for i, m in enumerate(st.cfg.modes) if i != k]
+        if rest:
+            left = rec.deflection - _solve(rec, Structure(Structure.Config(modes=rest, lag_ms=st.cfg.lag_ms)),
+                                           st.lag_s())[2]
+        else:
+            left = _static(rec, st.lag_s())
+        out.append((float(np.sum(left ** 2)) - rss) / noise_floor(residual, rec.period, np.array(mode.direction)))
+    return out
 
 
 def figure(found: Identified, rec: Record, window_s: float = 1.0):
@@ -219,8 +307,7 @@ def figure(found: Identified, rec: Record, window_s: float = 1.0):
     for k, m in enumerate(modes):
         phi = np.array(m.direction)
         meas, mod, stat = (x @ phi * M_TO_MM for x in (rec.deflection, found.model, found.static))
-        band = _zero_phase(meas - meas.mean(), rec.period, (BAND_HZ[0], min(BAND_HZ[1], 0.45 / rec.period)),
-                           "bandpass")
+        band = zero_phase(meas - meas.mean(), rec.period, (BAND_HZ[0], band_top(rec.period)), "bandpass")
         start = int(np.argmax(np.convolve(band ** 2, np.ones(n), "valid"))) if len(band) > n else 0
         sl = slice(start, start + n)
         ax = fig.add_subplot(len(modes) + 1, 1, k + 1)

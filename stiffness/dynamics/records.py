@@ -51,6 +51,21 @@ def read_columns(path: str | Path, required: tuple[str, ...], optional: tuple[st
     return {c: data[:, j] for j, c in enumerate(names)}
 
 
+def check_whole(path: str | Path) -> None:
+    """DataError naming ``path``'s last line when the file does not end with a line break: a recorder ends
+    every row with one, so a last row without it was cut off (a copy or a recording that stopped), and its
+    last number may be cut short while still reading as a number. Nothing when the file is missing (the
+    reader says so)."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError:
+        return
+    if data.strip() and not data.endswith((b"\n", b"\r")):
+        raise DataError(f"{path}: line {len(data.splitlines())}: ends without a line break: the file was cut off in "
+                        "this line (a copy or a recording that did not finish); record or copy it again, or delete "
+                        "the line")
+
+
 def _number(text: str) -> bool:
     try:
         float(text)

@@ -47,6 +47,7 @@ from ..yamlio import Strict
 from .base import DynamicsContext, Part, biquad
 
 PER_MODE = 8             # phi (3), b0 b1 b2 a1 a2
+MAX_LAG_MS = 100.0       # the most lag_ms takes
 
 
 class ModeConfig(Strict):
@@ -100,7 +101,7 @@ class Structure(Part):
 
     class Config(Strict):
         modes: list[ModeConfig] = Field(min_length=1, max_length=6)
-        lag_ms: float = Field(0.0, ge=0.0, le=100.0)
+        lag_ms: float = Field(0.0, ge=0.0, le=MAX_LAG_MS)
         added_damping: float = Field(0.0, ge=0.0, le=2.0)
 
         _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))

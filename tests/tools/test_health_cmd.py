@@ -111,10 +111,10 @@ def test_a_bad_config_exits_2_naming_the_key_without_traceback(tmp_path, capsys)
     assert f"{cfg}: monitoring.port = 'http'" in err and "Traceback" not in err
 
 
-def test_a_config_without_http_or_modbus_server_exits_2_saying_so(tmp_path, capsys):
-    cfg = probe_config(tmp_path, {"monitoring": {"enabled": False}, "plc": {"role": "none"}})
+def test_a_config_without_http_modbus_server_or_ads_exits_2_saying_so(tmp_path, capsys):
+    cfg = probe_config(tmp_path, {"monitoring": {"enabled": False}, "plc": {"role": "none"}, "ads": {"enabled": False}})
     assert main(["health", "--live", "--config", str(cfg)]) == 2
-    assert "monitoring.enabled is false and plc.role is none" in capsys.readouterr().err
+    assert "monitoring.enabled is false, plc.role is none, and ads.enabled is false" in capsys.readouterr().err
 
 
 def test_without_http_it_reads_the_modbus_block_and_says_where(tmp_path, capsys):

@@ -1,7 +1,11 @@
 """`stiffcomp modes DATA`: a tap test recorded in the HIL (its robot stub rings at 10 and 16 Hz, 3 %, along x
 and y at the circle's centre) gives the modes back; ``-o`` writes a dynamics section the service config
 takes; ``--plot`` draws the identified response over the measured one; ``--json`` carries what the text
-advises; a bad record is a user error (exit 2, the file and the line)."""
+advises; a bad record is a user error (exit 2, the file and the line).
+
+What a record does not excite is not identified: tapped along x only, it says so and refuses a second mode
+(one mode it gives back); a tap too weak for the noise, a file cut off in its last line, t_s in milliseconds
+and a bad option are each refused in one line, exit 2, nothing written (an option before the record is read)."""
 
 from __future__ import annotations
 
@@ -18,12 +22,24 @@ from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 from tools.cli import main
 
 
+def tapped(folder, name, **kw):
+    sc = load_scenario()
+    path = folder / name
+    write_record(tap_record(sc, StiffnessModel.from_yaml(sc.resolve(sc.truth)), **kw), path)
+    return path
+
+
 @pytest.fixture(scope="module")
 def record(tmp_path_factory):
-    sc = load_scenario()
-    path = tmp_path_factory.mktemp("modes") / "tap.csv"
-    write_record(tap_record(sc, StiffnessModel.from_yaml(sc.resolve(sc.truth))), path)
-    return path
+    return tapped(tmp_path_factory.mktemp("modes"), "tap.csv")
+
+
+def refused(argv, capsys) -> str:
+    """The one line `stiffcomp modes ARGV` refuses with (exit 2, no traceback)."""
+    assert main(["modes", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
 
 
 def test_the_tap_test_gives_the_stubs_modes_and_a_config_the_service_takes(record, tmp_path, capsys):
@@ -47,6 +63,75 @@ def test_the_tap_test_gives_the_stubs_modes_and_a_config_the_service_takes(recor
     cfg = load_config(tmp_path / "service.yaml")
     assert cfg.dynamics.enabled and len(cfg.dynamics.structure.modes) == 2
     assert got["config"]["dynamics"]["structure"] == read_yaml(out)["dynamics"]["structure"]
+    exc = got["excitation"]                                      # tapped along x, y and z: all three excited
+    assert exc["excited"] == ["x", "y", "z"] and min(exc["explains"].values()) > exc["threshold"] > 10
+    assert min(exc["modes"]) > 100 * exc["threshold"]
+
+
+def test_a_record_tapped_along_x_only_says_so_and_gives_one_mode(tmp_path, capsys):
+    """The stub tapped along x alone: its 16 Hz mode along y does not move; two modes are refused (the
+    second is noise the fit made up), nothing is written; one mode comes back as the 10 Hz along x."""
+    rec, out = tapped(tmp_path, "x.csv", axes=(0,)), tmp_path / "modes.yaml"
+    err = refused([str(rec), "-o", str(out)], capsys)
+    assert f"{rec}: mode 2 of 2" in err and "is not in the record" in err, err
+    assert "excites x (" in err and "not y, z (no force along them)" in err and "ask for 1 mode(s)" in err, err
+    assert not out.exists()
+    assert main(["modes", str(rec), "--modes", "1", "--json", "-o", str(out)]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["modes"][0]["hz"] == pytest.approx(10.0, rel=0.01) and abs(got["modes"][0]["direction"][0]) > 0.999
+    exc = got["excitation"]
+    assert exc["excited"] == ["x"] and exc["explains"]["y"] is None and exc["explains"]["z"] is None
+    assert exc["modes"][0] > 100 * exc["threshold"] and out.exists()
+
+
+def test_a_tap_too_weak_for_the_noise_is_refused(tmp_path, capsys):
+    """1 N taps move the stub by a fraction of the tracker's 1 um noise: no direction is excited."""
+    rec, out = tapped(tmp_path, "weak.csv", peak_n=1.0), tmp_path / "modes.yaml"
+    err = refused([str(rec), "--modes", "1", "-o", str(out)], capsys)
+    assert f"{rec}: the force excites no direction; not x (" in err and "nothing can be identified" in err, err
+    assert not out.exists()
+
+
+def test_a_record_cut_off_in_its_last_line_is_refused_naming_it(record, tmp_path, capsys):
+    """Cut inside the last number of a row: the row still has its seven numbers, but no line break."""
+    text = record.read_text()
+    cut = text[:text.index("\n", len(text) // 3) + 1]
+    last = cut.count("\n") + 1
+    row = text[len(cut):text.index("\n", len(cut))]
+    bad = tmp_path / "cut.csv"
+    bad.write_text(cut + row[:-3])
+    assert len(row[:-3].split(",")) == 7
+    err = refused([str(bad), "-o", str(tmp_path / "modes.yaml")], capsys)
+    assert f"{bad}: line {last}: ends without a line break: the file was cut off" in err, err
+    assert not (tmp_path / "modes.yaml").exists()
+
+
+def test_t_s_in_milliseconds_is_refused_naming_the_column(record, tmp_path, capsys):
+    lines = record.read_text().splitlines()
+    rows = [f"{1000.0 * float(x.split(',', 1)[0]):.1f},{x.split(',', 1)[1]}" for x in lines[1:]]
+    bad = tmp_path / "ms.csv"
+    bad.write_text("\n".join([lines[0], *rows]) + "\n")
+    err = refused([str(bad)], capsys)
+    assert f"{bad}: column t_s: the rows are 1 s apart" in err and "is t_s in milliseconds?" in err, err
+
+
+@pytest.mark.parametrize("option, message", [
+    (["--max-lag-ms", "-5"], "--max-lag-ms -5: must be a finite number above 0 and at most 100 \\(ms: the arm's lag"),
+    (["--max-lag-ms", "0"], "--max-lag-ms 0: must be a finite number above 0 and at most 100"),
+    (["--max-lag-ms", "1e6"], "--max-lag-ms 1e\\+06: must be a finite number above 0 and at most 100"),
+    (["--max-lag-ms", "nan"], "--max-lag-ms nan: must be a finite number"),
+    (["--plot", "{tmp}/m.txt"], "--plot {tmp}/m.txt: the suffix says the image's format; it must be one of .*\\.png"),
+    (["--plot", "{tmp}/missing/m.png"], "--plot {tmp}/missing/m.png: the folder {tmp}/missing does not exist"),
+    (["-o", "{tmp}/missing/m.yaml"], "-o {tmp}/missing/m.yaml: the folder {tmp}/missing does not exist"),
+], ids=["lag<0", "lag=0", "lag=1e6", "lag=nan", "plot-suffix", "plot-folder", "o-folder"])
+def test_a_bad_option_is_refused_before_the_record_is_read(option, message, tmp_path, capsys):
+    """The record does not exist: the refusal names the option, so the option was checked first."""
+    import re
+
+    option = [o.replace("{tmp}", str(tmp_path)) for o in option]
+    err = refused([str(tmp_path / "missing.csv"), *option], capsys)
+    assert re.search(message.replace("{tmp}", re.escape(str(tmp_path))), err), err
+    assert "missing.csv" not in err and list(tmp_path.iterdir()) == []
 
 
 def test_a_bad_record_is_a_user_error_naming_the_line(record, tmp_path, capsys):
