@@ -63,6 +63,20 @@ def svc(tmp_path_factory):
         yield s
 
 
+def live(config, capsys, timeout_s: float = 30.0) -> tuple[int, str]:
+    """``health --live`` until it exits 0 or ``timeout_s`` passes: its last exit code and output. On a busy
+    machine the cycle may stall past the probe's 0.2 s window once; a probe that cannot reach the
+    service never says live."""
+    got = []
+
+    def asked() -> bool:
+        got[:] = [main(["health", "--live", "--config", str(config)]), capsys.readouterr().out]
+        return got[0] == 0
+
+    wait_for(asked, timeout_s, every=0.5)
+    return got[0], got[1]
+
+
 def nothing_listens(port: int) -> bool:
     with socket.socket() as s:
         return s.connect_ex(("127.0.0.1", port)) != 0
@@ -75,7 +89,7 @@ def test_the_start_line_names_modbus_tls_alone_and_no_plain_server(svc):
 
 
 def test_live_over_modbus_tls_with_the_probe_certificate_the_config_names(svc, capsys):
-    code, out = main(["health", "--live", "--config", str(svc.config)]), capsys.readouterr().out
+    code, out = live(svc.config, capsys)
     assert code == 0, out
     assert out.startswith("live: the cycle count rose ")
     assert out.endswith(f"(Modbus/TCP Security 127.0.0.1:{svc.tls_port})\n") and out.count("\n") == 1
@@ -83,7 +97,7 @@ def test_live_over_modbus_tls_with_the_probe_certificate_the_config_names(svc, c
 
 def test_without_a_probe_certificate_it_asks_over_ads(svc, capsys):
     cfg = svc.variant("no_probe_cert", tls={"probe_cert": None, "probe_key": None})
-    code, out = main(["health", "--live", "--config", str(cfg)]), capsys.readouterr().out
+    code, out = live(cfg, capsys)
     assert code == 0, out
     assert out.startswith("live: ") and out.endswith(f"(ADS 127.0.0.1:{svc.ads_port})\n")
 
