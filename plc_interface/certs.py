@@ -22,6 +22,7 @@ from .errors import PlcError
 from .tls import ROLE_OID
 
 KEY_TYPES = ("rsa", "ec")
+CA_DAYS = 3650          # a new CA's validity: the longest a certificate it signs is made for
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,7 @@ def _builder(subject: str, issuer, public_key, days: float):
             .add_extension(x509.SubjectKeyIdentifier.from_public_key(public_key), critical=False))
 
 
-def make_ca(folder: Path, name: str = "stiffcomp cell CA", days: float = 3650, key_type: str = "rsa") -> Issued:
+def make_ca(folder: Path, name: str = "stiffcomp cell CA", days: float = CA_DAYS, key_type: str = "rsa") -> Issued:
     """A self-signed CA (``ca.pem``, ``ca.key``) in ``folder``."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes

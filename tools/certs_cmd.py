@@ -28,7 +28,8 @@ def register(sub) -> None:
     p.add_argument("--client", action="append", default=[], metavar="NAME[:ROLE]",
                    help="a client certificate NAME.pem with the Modbus role ROLE (default operator; "
                         "plc.tls.roles says what each role may do); repeat it")
-    p.add_argument("--days", type=float, default=825, help="validity of the server and client certificates")
+    p.add_argument("--days", type=float, default=825, help="validity of the server and client certificates, "
+                   "1 to the CA's 3650 days")
     p.add_argument("--key-type", choices=("rsa", "ec"), default="rsa",
                    help="rsa (2048 bit, what every Modbus/TCP Security client supports) or ec (P-256)")
     p.add_argument("--json", action="store_true", help="print what was made, and the config, as JSON")
@@ -36,30 +37,58 @@ def register(sub) -> None:
 
 
 def _client(spec: str) -> tuple[str, str]:
-    name, _, role = spec.partition(":")
+    name, colon, role = spec.partition(":")
     if not NAME.fullmatch(name) or name in ("ca", "server"):
         raise PlcError(f"--client {spec}: NAME must be letters, digits, '.', '_' or '-', and not ca or server")
+    if colon and (not role.strip() or ":" in role):
+        raise PlcError(f"--client {spec}: the ROLE after NAME: must not be empty or hold ':' (e.g. plc:operator; "
+                       "without :ROLE the role is operator)")
     return name, role or "operator"
+
+
+def checked(args) -> tuple[Path, list[str] | None, list[tuple[str, str]]]:
+    """DIR, the hosts and the clients, every option checked before anything is written; PlcError or
+    ConfigError naming the option otherwise."""
+    from plc_interface.certs import CA_DAYS
+
+    from .common import check_number
+
+    check_number("--days", args.days, "days the certificates are valid; the CA's own are "
+                 f"{CA_DAYS}", at_least=1, at_most=CA_DAYS)
+    folder = Path(args.folder)
+    if folder.exists() and not folder.is_dir():
+        raise PlcError(f"DIR {folder}: is a file, not a folder (the certificates go into a folder)")
+    for host in args.host or []:
+        if not host.strip():
+            raise PlcError(f"--host {host!r}: empty; name a host name or an IP address clients reach the service by")
+    clients = [_client(c) for c in args.client]
+    names = [n for n, _ in clients]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise PlcError(f"--client {twice[0]}: given twice (one certificate per NAME)")
+    return folder, args.host, clients
 
 
 def run(args) -> int:
     from plc_interface import certs
 
-    folder = Path(args.folder)
-    clients = [_client(c) for c in args.client]
+    folder, hosts, clients = checked(args)
     folder.mkdir(parents=True, exist_ok=True)
     made: dict = {"folder": str(folder), "clients": []}
     ca = certs.existing_ca(folder)
     made["ca"] = {"cert": str(folder / "ca.pem"), "new": ca is None}
     if ca is None:
         ca = certs.make_ca(folder, key_type=args.key_type)
-    if args.host or not (folder / "server.pem").exists():
-        hosts = args.host or ["localhost", "127.0.0.1", socket.gethostname()]
+    if hosts or not (folder / "server.pem").exists():
+        hosts = hosts or ["localhost", "127.0.0.1", socket.gethostname()]
+        replaced = (folder / "server.pem").exists()
         server = certs.make_server(ca, folder, list(dict.fromkeys(hosts)), args.days, args.key_type)
-        made["server"] = {"cert": str(server.cert), "key": str(server.key), "hosts": hosts}
+        made["server"] = {"cert": str(server.cert), "key": str(server.key), "hosts": hosts, "replaced": replaced}
     for name, role in clients:
+        replaced = (folder / f"{name}.pem").exists()
         c = certs.make_client(ca, folder, name, role, args.days, args.key_type)
-        made["clients"].append({"name": name, "role": role, "cert": str(c.cert), "key": str(c.key)})
+        made["clients"].append({"name": name, "role": role, "cert": str(c.cert), "key": str(c.key),
+                                "replaced": replaced})
     tls = {"enabled": True, "cert": str((folder / "server.pem").resolve()),
            "key": str((folder / "server.key").resolve()), "ca": str((folder / "ca.pem").resolve())}
     made["config"] = {"plc": {"tls": tls}}
@@ -68,13 +97,22 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(made, indent=2))
         return 0
+    report(made, tls)
+    return 0
+
+
+REPLACED = " (replaced the one that was there: its holder needs this one)"
+
+
+def report(made: dict, tls: dict) -> None:
+    """What was made, and the config's lines, as text."""
     print(f"CA: {made['ca']['cert']} ({'new' if made['ca']['new'] else 'kept'}; ca.key signs: keep it off the cell)")
     if "server" in made:
-        print(f"server: {made['server']['cert']} for {', '.join(made['server']['hosts'])}")
+        s = made["server"]
+        print(f"server: {s['cert']} for {', '.join(s['hosts'])}{REPLACED if s['replaced'] else ''}")
     for c in made["clients"]:
-        print(f"client {c['name']} (role {c['role']}): {c['cert']}, {c['key']}")
+        print(f"client {c['name']} (role {c['role']}): {c['cert']}, {c['key']}{REPLACED if c['replaced'] else ''}")
     print("\nin the service config (docs/security.md):\nplc:\n  tls:")
     for k, v in tls.items():
         print(f"    {k}: {json.dumps(v)}")
     print(f"\n{made['next']}")
-    return 0
