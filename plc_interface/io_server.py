@@ -150,7 +150,10 @@ class _Ads:
         try:
             await self.server.start()
         except OSError as e:
-            raise PlcError(f"cannot serve ADS on {self.settings.host}:{self.settings.port}: {e}") from e
+            from .listen import explain
+
+            h, p = self.settings.host, self.settings.port
+            raise PlcError(f"cannot serve ADS on {h}:{p}: {explain(e, h, p, 'ads.port')}") from e
         log.info("ADS server on %s:%d, AMS Net ID %s, port %d", self.settings.host, self.settings.port,
                  self.settings.net_id, self.settings.ams_port)
 

@@ -38,6 +38,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from .client_table import ClientTable
 from .errors import PlcError
 from .image import ProcessImage
+from .listen import why_not_listening
 from .ratelog import RateLimitedLog
 from .settings import ClientLimits, PlcSettings
 
@@ -131,12 +132,15 @@ class ModbusServer:
     async def start(self) -> None:
         """Bind and serve in the background; PlcError if the address is not available."""
         self._server = _TcpServer(self, self._device(), address=(self.host, self.port))
+        key = "plc.tls.port" if self.tls is not None else "plc.port"
         try:
             await self._server.serve_forever(background=True)
-        except (OSError, RuntimeError) as e:
-            raise PlcError(f"cannot serve {self.what} on {self.host}:{self.port}: {e}") from e
+        except (OSError, RuntimeError) as e:        # pymodbus: "Could not start listen", the reason swallowed
+            raise PlcError(f"cannot serve {self.what} on {self.host}:{self.port}: "
+                           f"{why_not_listening(self.host, self.port, key, e)}") from e
         if not self._server.is_active():
-            raise PlcError(f"cannot serve {self.what} on {self.host}:{self.port}: address not available")
+            raise PlcError(f"cannot serve {self.what} on {self.host}:{self.port}: "
+                           f"{why_not_listening(self.host, self.port, key)}")
         self._sweeper = asyncio.create_task(self._sweep(), name="modbus-clients")
         log.info("%s server on %s:%d", self.what, self.host, self.port)
 

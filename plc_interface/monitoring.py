@@ -80,7 +80,10 @@ class Monitor:
         try:
             self._http = make_server(s.host, s.port, self._app, handler_class=_Quiet)
         except OSError as e:
-            raise PlcError(f"cannot serve monitoring HTTP on {s.host}:{s.port}: {e}") from e
+            from .listen import explain
+
+            raise PlcError(f"cannot serve monitoring HTTP on {s.host}:{s.port}: "
+                           f"{explain(e, s.host, s.port, 'monitoring.port')}") from e
         self._thread = threading.Thread(target=self._http.serve_forever, kwargs={"poll_interval": 0.2},
                                         name="stiffcomp-monitoring", daemon=True)
         self._thread.start()

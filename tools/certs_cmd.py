@@ -3,7 +3,9 @@
 For commissioning (docs/security.md): the CA in DIR is made once and then reused, so clients added
 later are signed by the same CA; the server's certificate is made when DIR has none or ``--host`` is
 given; each ``--client NAME[:ROLE]`` makes NAME.pem and NAME.key with the Modbus role ROLE (default
-operator). It prints the ``plc.tls`` lines for the service config, and with ``--json`` the same as data.
+operator). It prints the ``plc.tls`` lines for a service config beside DIR (paths relative to the config's
+folder, as the service reads them, so they also hold in a container that mounts that folder), and with
+``--json`` the same as data.
 """
 
 from __future__ import annotations
@@ -89,9 +91,13 @@ def run(args) -> int:
         c = certs.make_client(ca, folder, name, role, args.days, args.key_type)
         made["clients"].append({"name": name, "role": role, "cert": str(c.cert), "key": str(c.key),
                                 "replaced": replaced})
-    tls = {"enabled": True, "cert": str((folder / "server.pem").resolve()),
-           "key": str((folder / "server.key").resolve()), "ca": str((folder / "ca.pem").resolve())}
+    # relative to a config beside DIR, as the service reads them: the same lines hold on this machine and
+    # in a container that mounts the config's folder (/etc/stiffcomp), where a path of this machine does not
+    beside = folder.resolve().parent
+    tls = {"enabled": True, **{k: (Path(folder.resolve().name) / f).as_posix()
+                               for k, f in (("cert", "server.pem"), ("key", "server.key"), ("ca", "ca.pem"))}}
     made["config"] = {"plc": {"tls": tls}}
+    made["config_folder"] = str(beside)
     made["next"] = ("give each client its NAME.pem and NAME.key, and ca.pem to verify the server; with the "
                     "tls lines in the service config, restart it (docs/security.md)")
     if args.json:
@@ -112,7 +118,9 @@ def report(made: dict, tls: dict) -> None:
         print(f"server: {s['cert']} for {', '.join(s['hosts'])}{REPLACED if s['replaced'] else ''}")
     for c in made["clients"]:
         print(f"client {c['name']} (role {c['role']}): {c['cert']}, {c['key']}{REPLACED if c['replaced'] else ''}")
-    print("\nin the service config (docs/security.md):\nplc:\n  tls:")
+    print(f"\nin a service config in {made['config_folder']}/ (paths relative to the config's folder, so they hold "
+          "where that folder is mounted, /etc/stiffcomp in the image; a config elsewhere names them relative to "
+          "its own folder; docs/security.md):\nplc:\n  tls:")
     for k, v in tls.items():
         print(f"    {k}: {json.dumps(v)}")
     print(f"\n{made['next']}")

@@ -6,8 +6,11 @@ from __future__ import annotations
 import json
 
 import pytest
+import yaml
 from cryptography import x509
 
+from hil.testing import write_config
+from service.config import load_config
 from tools.cli import main
 
 BAD = {   # the options, and what the refusal names
@@ -69,3 +72,23 @@ def test_a_client_certificate_made_again_is_said_to_be_replaced(tmp_path, capsys
     assert main(["certs", str(folder), "--client", "hmi", "--host", "cell-pc", "--json", "--key-type", "ec"]) == 0
     made = json.loads(capsys.readouterr().out)
     assert made["server"]["replaced"] is True and [c["replaced"] for c in made["clients"]] == [True]
+
+
+def test_the_config_lines_hold_where_the_site_folder_is_mounted(tmp_path, capsys):
+    """The printed plc.tls lines, pasted into a config beside DIR, name the files after the folder has
+    moved (as a container sees it at /etc/stiffcomp): paths relative to the config's folder."""
+    site = tmp_path / "site"
+    assert main(["certs", str(site / "certs"), "--key-type", "ec"]) == 0
+    out = capsys.readouterr().out
+    start = out.index("plc:\n")
+    lines = yaml.safe_load(out[start:out.index("\n\n", start)])
+    assert f"in a service config in {site}/" in out
+    assert main(["certs", str(site / "certs"), "--json"]) == 0
+    made = json.loads(capsys.readouterr().out)
+    assert made["config"] == lines and made["config_folder"] == str(site)
+    mounted = tmp_path / "mounted"
+    site.rename(mounted)                        # this machine's paths are gone, as in the container
+    cfg = load_config(write_config(mounted, lines))
+    files = {k: cfg.resolve(v) for k, v in cfg.plc.tls.files().items()}
+    certs = mounted / "certs"
+    assert files == {"cert": certs / "server.pem", "key": certs / "server.key", "ca": certs / "ca.pem"}

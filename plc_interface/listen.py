@@ -1,0 +1,44 @@
+"""Why a server cannot listen on an address, in words and with what to do: pymodbus only says "Could not
+start listen, please check address", and an OS error names neither the key nor the remedy.
+
+`why_not_listening` binds a socket to the address itself and reads the operating system's answer: a
+port below 1024 that needs privilege, an address in use, an address this machine does not have.
+"""
+
+from __future__ import annotations
+
+import errno
+import socket
+
+PRIVILEGED_BELOW = 1024     # Linux' default net.ipv4.ip_unprivileged_port_start
+
+
+def why_not_listening(host: str, port: int, key: str, error: BaseException | None = None) -> str:
+    """What keeps a server from listening on ``host:port`` (the config's ``key`` names the port), said
+    as the operating system says it when this process binds the address now; ``error`` (the server's own
+    failure) is the answer when the bind succeeds here."""
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except (socket.gaierror, UnicodeError) as e:
+        return f"{host} is not an address of this machine ({getattr(e, 'strerror', None) or e})"
+    with socket.socket(family, kind, proto) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)        # as servers bind: TIME_WAIT is no reason
+        try:
+            s.bind(address)
+        except OSError as e:
+            return explain(e, host, port, key)
+    return str(error) if error is not None else "the address could not be listened on"
+
+
+def explain(e: OSError, host: str, port: int, key: str) -> str:
+    """An OS error of binding ``host:port`` in words, with what to do."""
+    if e.errno in (errno.EACCES, errno.EPERM) and port < PRIVILEGED_BELOW:
+        return (f"port {port} is a privileged port (below {PRIVILEGED_BELOW}): binding it needs root or the "
+                f"capability CAP_NET_BIND_SERVICE; set {key} to a port of {PRIVILEGED_BELOW} or above, or give "
+                "the service the capability (systemd: AmbientCapabilities=CAP_NET_BIND_SERVICE; docs/security.md)")
+    if e.errno == errno.EADDRINUSE:
+        return (f"port {port} is in use by another process (ss -ltnp 'sport = :{port}' shows which); stop it "
+                f"or set {key} to a free port")
+    if e.errno == errno.EADDRNOTAVAIL:
+        return f"{host} is not an address of this machine: listen on one of its addresses (or 0.0.0.0), {key} {port}"
+    return f"{e.strerror or e} ({key})"
