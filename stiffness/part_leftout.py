@@ -27,7 +27,7 @@ GAP_MARGIN_MM = 3.0      # a point this close along the path to rows the trace l
                          # deflected tool passes a point up to its deflection along the path from the commanded
                          # one, and the path's curve is read over 2 mm either side
 JUMP_FACTOR = 10.0       # a step between two rows this many times the typical one, and JUMP_MM or more, is a jump
-JUMP_MM = 2.0            # the trace did not see (a chord of 2 mm on a 35 mm circle is 14 um off the arc)
+JUMP_MM = 3.0            # the trace did not see; a shorter chord stays within 0.03 mm of a 35 mm circle's arc
 TWICE, IN_GAP, JUMP, GROSS = "passed_twice", "trace_gap", "trace_jump", "gross_error"      # why, in the JSON
 REASONS = {TWICE: "the tool passed them twice (a closed contour's entry and exit overlap), so which pass made "
                   "them cannot be told",
