@@ -10,9 +10,10 @@
 # Without registry access, build from a local base made of Debian packages (docs/deploy.md):
 #   docker build --network=host --build-arg BASE=stiffcomp-base:bookworm -t stiffcomp .
 #
-# Two stages: the build stage trusts the site's CA certificates and runs pip; the runtime stage starts
-# again from the base and takes only the virtual environment and the project, so the build's
-# certificates, pip, setuptools and the packages' test folders never reach the shipped image.
+# Two stages: the build stage trusts the site's CA certificates, runs pip and compiles the cycle; the
+# runtime stage starts again from the base and takes only the virtual environment, the project and the
+# compiled cycle, so the build's certificates, pip, setuptools and the packages' test folders never
+# reach the shipped image (nor does the base's own pip, where it has one: it is uninstalled).
 ARG BASE=python:3.11-slim
 
 # -- build ------------------------------------------------------------------------------------------
@@ -25,8 +26,7 @@ ARG PIP_TRUSTED_HOST=
 # optional extras of the project, e.g. "parquet" (pyarrow, for .parquet measurement files)
 ARG EXTRAS=parquet
 
-ENV PYTHONDONTWRITEBYTECODE=1 VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH \
-    STIFFCOMP_KERNEL_CACHE=/opt/stiffcomp/.kernels
+ENV PYTHONDONTWRITEBYTECODE=1 VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH
 WORKDIR /opt/stiffcomp
 
 # Site CA certificates (*.crt) for a TLS-inspecting proxy between the build and the index: `make image`
@@ -58,19 +58,22 @@ RUN python3 -m venv "$VIRTUAL_ENV" \
  && pip uninstall -y -q pip setuptools wheel \
  && rm -rf ./*.egg-info \
  && find "$VIRTUAL_ENV" -depth -type d -name tests -path "*/site-packages/*" -exec rm -rf {} + \
- && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil \
- && python3 -m service.kernel.warm
+ && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil
 
-# The compiled cycle (numba) of every shipped model is compiled above into its disk cache: the generated
-# modules in $STIFFCOMP_KERNEL_CACHE, the kernel's own beside service/kernel/; both go into the runtime
-# stage as they are, so the service's first cycle never waits for a compiler (a model of the site's with
-# other laws compiles at its first start into a temporary folder, docs/deploy.md).
+# The compiled cycle (numba) of every shipped model, compiled into one folder: the generated modules
+# ($STIFFCOMP_KERNEL_CACHE) and numba's cache of every compiled function, the kernel's own included
+# ($NUMBA_CACHE_DIR; by default numba writes beside the source, which the service's user cannot). The
+# runtime stage takes the folder as it is, owned by that user, so the service's first cycle loads what was
+# compiled here and never waits for a compiler (docs/deploy.md#the-compiled-cycle).
+ENV STIFFCOMP_KERNEL_CACHE=/var/cache/stiffcomp/kernels NUMBA_CACHE_DIR=/var/cache/stiffcomp/numba
+RUN python3 -m service.kernel.warm
 
 # -- runtime ----------------------------------------------------------------------------------------
 FROM ${BASE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
-    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH STIFFCOMP_KERNEL_CACHE=/opt/stiffcomp/.kernels
+    VIRTUAL_ENV=/opt/venv PATH=/opt/venv/bin:$PATH \
+    STIFFCOMP_KERNEL_CACHE=/var/cache/stiffcomp/kernels NUMBA_CACHE_DIR=/var/cache/stiffcomp/numba
 WORKDIR /opt/stiffcomp
 
 # pinocchio's wheels need OpenMP's runtime; python:3.11-slim lacks it (a Debian base made as in
@@ -78,17 +81,23 @@ WORKDIR /opt/stiffcomp
 RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
       apt-get update && apt-get install -y --no-install-recommends libgomp1 && rm -rf /var/lib/apt/lists/*; \
     fi
+# no pip in the shipped image: python:3.11-slim's own Python carries one (the Debian base of docs/deploy.md
+# has none); run before the venv arrives, so python3 is the base's
+RUN if python3 -m pip --version >/dev/null 2>&1; then python3 -m pip uninstall -y -q pip setuptools wheel; fi
 
+RUN useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
 COPY --from=build /opt/venv /opt/venv
 COPY --from=build /opt/stiffcomp /opt/stiffcomp
+# the warmed cycle, the user's: numba opens its cache only where it may write (a CPU other than the
+# build machine's, or a site model with other laws, compiles at the first start and is kept there)
+COPY --from=build --chown=stiffcomp:stiffcomp /var/cache/stiffcomp /var/cache/stiffcomp
 
 # The starting config: servers on all interfaces, and the Prometheus endpoint on (docs/deploy.md#metrics:
 # it is served by the I/O process, never by the cycle, on the HTTP port the health probes open anyway)
 RUN mkdir -p /etc/stiffcomp \
  && python3 -c "from pathlib import Path; from hil.testing import write_config; \
 write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, \
-  'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020, 'metrics': True}})" \
- && useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
+  'ads': {'host': '0.0.0.0', 'port': 48898}, 'monitoring': {'host': '0.0.0.0', 'port': 9020, 'metrics': True}})"
 USER stiffcomp
 
 # Modbus TCP, ADS (AMS/TCP), HTTP health + metrics, Modbus/TCP Security (plc.tls, off until the site's
@@ -97,7 +106,7 @@ EXPOSE 5020 48898 9020 802
 VOLUME ["/etc/stiffcomp"]
 # Liveness: the cycle count rises and the I/O process answers (/health/live). Not /health, whose exceed
 # bound a busy host can cross for a while: a restart would lose the tare, the hysteresis state and the
-# PLC session for nothing. The probe costs tens of milliseconds (docs/deploy.md#health).
+# PLC session for nothing. The probe takes tenths of a second in the image (docs/deploy.md#the-probes-cost).
 HEALTHCHECK --interval=5s --timeout=3s --start-period=30s --retries=3 \
     CMD ["stiffcomp", "health", "--live", "--config", "/etc/stiffcomp/service.yaml"]
 # `docker stop` sends SIGTERM: the service ramps the correction to zero and exits with code 0
