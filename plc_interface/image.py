@@ -26,6 +26,7 @@ is refused (False) and changes nothing.
 from __future__ import annotations
 
 import time
+import weakref
 from multiprocessing.shared_memory import SharedMemory
 
 import numpy as np
@@ -122,6 +123,8 @@ class ProcessImage:
         self._timing_at, self._mem = off + 8, self.shm.buf
         # the whole image as bytes, for the compiled service's packer (`publish_with`) and its steady call
         self.bytes = np.ndarray((n_bytes,), dtype=np.uint8, buffer=self.shm.buf)
+        # `close`, or the image's collection without it: the memoryviews first, then the memory (`release`)
+        self._release = weakref.finalize(self, release, self.shm, self._owner, (self._h, self._n_timing))
         if self._owner:
             self._n_timing[0] = 0
             for k in range(_HEADER):
@@ -319,18 +322,20 @@ class ProcessImage:
 
     # -- life cycle -----------------------------------------------------------------------------
     def close(self) -> None:
-        """Detach; the creating process also frees the memory."""
-        for view in (self._h, self._n_timing):
-            if view is not None:
-                view.release()
+        """Detach; the creating process also frees the memory. The arrays over it go first: after this they
+        would point at memory no longer mapped. An image collected without `close` is closed then."""
         self._h = self._n_timing = self._timing = self._mem = self.bytes = None
         self._buf = {}
-        release(self.shm, self._owner)
+        self._release()
 
 
-def release(shm: SharedMemory, owner: bool) -> None:
-    """Detach from a shared memory block; its creator (``owner``) also frees the name. The process image and
-    the trace ring (`service.trace`) let theirs go so."""
+def release(shm: SharedMemory, owner: bool, views=()) -> None:
+    """Detach from a shared memory block; its creator (``owner``) also frees the name. ``views``: the
+    memoryviews over its buffer (slices, casts), released first: one left alive keeps the mapping, and
+    SharedMemory's own finalizer then fails on it ("cannot close exported pointers exist"). The process image
+    and the trace ring (`service.trace`) let theirs go so, on `close` or when collected without it."""
+    for view in views:
+        view.release()
     if owner:               # first: a view still alive (BufferError below) must not keep the name
         try:
             shm.unlink()

@@ -304,6 +304,8 @@ class Service:
             self.trace_counts = self.trace_writer.stop()
         if self.trace is not None:
             self.trace.close()
+        if self._steady is not None:        # its call holds arrays over the image's memory, unmapped by close
+            self._steady.call = None
         self.image.close()
         self.source.close()
         log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)

@@ -27,6 +27,7 @@ import multiprocessing
 import os
 import struct
 import time
+import weakref
 from dataclasses import dataclass
 from multiprocessing.shared_memory import SharedMemory
 from pathlib import Path
@@ -91,6 +92,7 @@ class TraceRing:
         self._bytes = np.ndarray((self.shm.size,), dtype=np.uint8, buffer=self.shm.buf)
         self._put_count = self.shm.buf[:8].cast("q")     # the cycle's own store of its count (cheaper than NumPy's)
         self._n = int(self.h[0])
+        self._release = weakref.finalize(self, release, self.shm, self._owner, (self._put_count,))
 
     def __reduce__(self):
         return (TraceRing, (self.rows, self.shm.name))
@@ -143,12 +145,10 @@ class TraceRing:
         return {"cycles": int(self.h[0]), "written": int(self.h[3]), "lost": int(self.h[2])}
 
     def close(self) -> None:
+        """Detach (the creator also frees the memory), as `ProcessImage.close`; so also when collected without."""
         self.h = self.table = None
-        self._buf = self._bytes = None
-        if self._put_count is not None:
-            self._put_count.release()
-            self._put_count = None
-        release(self.shm, self._owner)
+        self._buf = self._bytes = self._put_count = None
+        self._release()
 
 
 def _writer_main(ring: TraceRing, options: TraceOptions, log_level: int, log_format: str, stop, ready) -> None:

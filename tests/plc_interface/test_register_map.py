@@ -105,9 +105,11 @@ def test_service_accepts_a_map_without_optional_registers_and_refuses_unknown_on
                                    if r["name"] not in ("task_state", "cycle_time_us", "period_jitter_us")]
     (tmp_path / "small.yaml").write_text(yaml.safe_dump(data))
     s = Service(load_config(write_config(tmp_path, {"plc": {"register_map": str(tmp_path / "small.yaml")}})))
-    s.work(0.0, False)
-    assert s.image.outputs()["cycle_count"] == 1
-    s.source.close()
+    try:
+        s.work(0.0, False)
+        assert s.image.outputs()["cycle_count"] == 1
+    finally:
+        s.stop()
     data["to_plc"]["registers"].append({"name": "spindle_speed", "address": 0x8050, "type": "float32"})
     (tmp_path / "extra.yaml").write_text(yaml.safe_dump(data))
     with pytest.raises(ServiceConfigError, match="'spindle_speed' is not a value the service produces"):
