@@ -159,11 +159,26 @@ def structure_section(found: Identified, opts: DynamicOptions) -> dict:
 
 
 def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicOptions) -> Identified:
-    """Steps 1 and 2: the record (written to ``opts.record`` when given) and the modes found in it."""
+    """Steps 1 and 2: the record (written to ``opts.record`` when given) and the modes found in it; HilError
+    when the modes, their frequencies scaled by 1 + ``opts.mode_error``, are not a structure the service takes
+    (found before any pass starts, not when the service refuses its config)."""
+    from pydantic import ValidationError
+
+    from stiffness.dynamics.structure import Structure
+    from stiffness.yamlio import format_validation_error
+
     rec = tap_record(scenario, truth) if opts.commissioning == "tap" else commissioning_record(scenario, truth)
     if opts.record is not None:
         write_record(rec, Path(opts.record))
-    return identify(rec, opts.n_modes)
+    found = identify(rec, opts.n_modes)
+    try:
+        Structure.Config.model_validate(structure_section(found, opts))
+    except ValidationError as e:
+        why = "; ".join(line.removeprefix("-: ") for line in format_validation_error("-", e, prefix="dynamics.structure")
+                        .splitlines())
+        raise HilError(f"--mode-error {opts.mode_error:g}: the identified modes' frequencies times 1 + it are not what "
+                       f"the service takes: {why}") from e
+    return found
 
 
 def figures(world: World, ev: dict) -> dict:

@@ -67,7 +67,10 @@ class CirclePath:
         q = np.empty((len(self.phi), 6))
         guess = q_c
         for k, phi in enumerate(self.phi):
-            guess = solve_ik(robot, pin.SE3(self.R_tool, self.point(phi)), guess)
+            try:
+                guess = solve_ik(robot, pin.SE3(self.R_tool, self.point(phi)), guess)
+            except IkError as e:
+                raise IkError(f"{e} at {np.degrees(phi):.0f} deg along the circle") from e
             q[k] = guess
         self.q_table_deg = np.degrees(q)
 

@@ -11,6 +11,8 @@ from pathlib import Path
 
 from hil.scenario import DEFAULT_SCENARIO, load_scenario
 
+from .common import check_number, check_output_file
+
 
 def register(sub) -> None:
     p = sub.add_parser("hil", help="hardware-in-the-loop runs with virtual devices")
@@ -71,9 +73,29 @@ _DYNAMIC = {"--mode-error": lambda a: a.mode_error != 0.0, "--added-damping": la
             "--delay-ms": lambda a: a.delay_ms is not None, "--modes-data": lambda a: a.modes_data is not None}
 
 
+def _service_value(option: str, schema, key: str, value, prefix: str):
+    """``value`` checked as the service config's ``prefix.key`` (``schema``'s field) is; ConfigError naming
+    the option, the key and the bound."""
+    from typing import Annotated
+
+    from pydantic import TypeAdapter, ValidationError
+
+    from stiffness.errors import ConfigError
+    from stiffness.yamlio import format_validation_error
+
+    field = schema.model_fields[key]
+    try:
+        return TypeAdapter(Annotated[field.annotation, field]).validate_python(value)
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(option, e, prefix=f"{prefix}.{key}")) from e
+
+
 def _check_dynamic_options(args) -> None:
     """An option of the dynamic pass without it, or the dynamic pass without the static one it builds on, is
-    refused (it would be ignored); --delay-ms is checked against the service's dynamics.delay_ms."""
+    refused (it would be ignored); --delay-ms and --added-damping are checked as the service's config checks
+    dynamics.delay_ms and dynamics.structure.added_damping, --mode-error keeps the frequencies above 0."""
+    from service.dynamics import DynamicsConfig
+    from stiffness.dynamics.structure import Structure
     from stiffness.errors import ConfigError
 
     given = [o for o, is_given in _DYNAMIC.items() if is_given(args)]
@@ -82,15 +104,32 @@ def _check_dynamic_options(args) -> None:
     if args.dynamic_compensation and args.no_compensation:
         raise ConfigError("--dynamic-compensation builds on the compensated pass (its delay): drop --no-compensation")
     if args.delay_ms is not None:
-        from pydantic import ValidationError
+        _service_value("--delay-ms", DynamicsConfig, "delay_ms", args.delay_ms, "dynamics")
+    _service_value("--added-damping", Structure.Config, "added_damping", args.added_damping, "dynamics.structure")
+    check_number("--mode-error", args.mode_error, "the service's mode frequencies are the identified ones times "
+                 "1 + F, which must stay above 0", above=-1.0)
 
-        from service.dynamics import DynamicsConfig
-        from stiffness.yamlio import format_validation_error
 
-        try:
-            DynamicsConfig.model_validate({"delay_ms": args.delay_ms})
-        except ValidationError as e:
-            raise ConfigError(format_validation_error("--delay-ms", e, prefix="dynamics")) from e
+def _check_outputs_and_reach(args, scenario) -> None:
+    """The files the run writes at its end go into folders that exist, and the circle can be followed from
+    its centre's pose (the inverse kinematics of its points): each checked before any pass starts."""
+    from hil.path import CirclePath, IkError
+    from stiffness.errors import ConfigError
+    from stiffness.model import StiffnessModel
+
+    for option, path in (("--cmm", args.cmm), ("--modes-data", args.modes_data)):
+        if path is not None:
+            check_output_file(option, path)
+    robot = StiffnessModel.from_yaml(args.truth or scenario.resolve(scenario.truth)).robot
+    try:
+        CirclePath(robot, scenario.circle)
+    except IkError as e:
+        where = (f"--center-q {' '.join(f'{q:g}' for q in args.center_q)}" if args.center_q is not None else
+                 f"{args.scenario}: circle.center_q_deg")
+        own = " ".join(f"{q:g}" for q in load_scenario(args.scenario).circle.center_q_deg)
+        raise ConfigError(f"{where}: the circle of {scenario.circle.radius_mm:g} mm about the tool at this pose cannot "
+                          f"be followed: {e} (a point out of the arm's reach, or a singular pose such as a stretched "
+                          f"arm); put its centre where the arm reaches all round (the scenario's: {own})") from e
 
 
 def run(args) -> int:
@@ -106,6 +145,7 @@ def run(args) -> int:
         from service.trace import TraceOptions
 
         TraceOptions(Path(args.trace)).check()          # a bad name fails now, not after the first pass
+    _check_outputs_and_reach(args, scenario)
     dynamic = None
     if args.dynamic_compensation:
         from hil.dynamics import DynamicOptions
