@@ -138,8 +138,12 @@ def test_the_units_of_deploy_md_restart_only_a_service_that_is_not_live(tmp_path
     try:
         assert wait_for(lambda: service.poll() is not None or check("127.0.0.1", http, probe="live")[0], 90.0)
         assert service.poll() is None, f"the service unit's command ended with code {service.returncode}"
-        code, out, calls = probe.run(cfg)
-        assert (code, calls) == (0, []) and out.startswith("live: "), (code, out, calls)
+        # a machine with both cores busy may stall the cycle for a second now and then, which the probe
+        # rightly calls not live: probe until it says live, and every run must restart exactly when not live
+        runs = []
+        assert wait_for(lambda: runs.append(probe.run(cfg)) or runs[-1][0] == 0, 60.0, every=0.2), runs
+        assert runs[-1][1].startswith("live: "), runs[-1]
+        assert all(calls == ([] if code == 0 else [f"try-restart {SERVICE}"]) for code, _, calls in runs), runs
     finally:
         service.send_signal(signal.SIGTERM)
         assert service.wait(timeout=20) == 0             # the unit's TimeoutStopSec
