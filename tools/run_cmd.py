@@ -43,8 +43,12 @@ def add_trace_options(p) -> None:
     from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB
 
     p.add_argument("--trace", default=None, metavar="FILE",
-                   help="record every cycle (joints, wrench, prediction, correction, state) to FILE, .csv or "
-                        ".parquet; off by default")
+                   help="record every cycle to FILE, .csv or .parquet (off by default), one row a cycle with the "
+                        "columns: time_s, unix_time_s, cycle, q1_deg..q6_deg (the joints the PLC reported), "
+                        "fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm (the wrench the cycle used, base axes), "
+                        "c1_deg..c6_deg (the correction sent), status_word, fault_word, task_state. The "
+                        "predicted deflection is not recorded: stiffcomp part recomputes it from its model "
+                        "(docs/part_format.md)")
     p.add_argument("--trace-max-mb", type=float, default=DEFAULT_MAX_MB, metavar="MB",
                    help=f"rotate the trace at this size (default {DEFAULT_MAX_MB:g})")
     p.add_argument("--trace-keep", type=int, default=DEFAULT_KEEP, metavar="N",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -64,3 +65,31 @@ def test_sigterm_and_ctrl_c_stop_cleanly_with_exit_0(tmp_path):
                 p.communicate()
         assert p.returncode == 0, err
         assert json.loads(stats.read_text())["status"] == "stopped"
+
+
+def help_trace_columns(text: str) -> list[str]:
+    """The columns `stiffcomp run --help` lists for --trace, ``q1_deg..q6_deg`` spelled out."""
+    text = " ".join(text.split())
+    listed = re.search(r"with the columns: (.*?)\. ", text)
+    assert listed, f"run --help lists no trace columns: {text}"
+    out = []
+    for name in re.sub(r"\([^)]*\)", "", listed.group(1)).split(","):
+        first, _, last = name.strip().partition("..")
+        if last:
+            (a, lo, unit), (_, hi, _) = (re.fullmatch(r"([a-z]+)(\d+)(_\w+)", x).groups() for x in (first, last))
+            out += [f"{a}{k}{unit}" for k in range(int(lo), int(hi) + 1)]
+        else:
+            out.append(first)
+    return out
+
+
+def test_run_help_lists_the_columns_a_trace_has(tmp_path):
+    """--help says what the trace records: the header of a trace `stiffcomp run --trace` wrote, in its order."""
+    cfg = write_config(tmp_path, {"plc": {"port": free_port()}})
+    trace = tmp_path / "trace.csv"
+    p = subprocess.run(stiffcomp("run", "--config", str(cfg), "--duration", "0.2", "--trace", str(trace)),
+                       cwd=ROOT, check=False, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    header = trace.read_text().splitlines()[0].split(",")
+    shown = subprocess.run(stiffcomp("run", "--help"), cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    assert help_trace_columns(shown) == header
