@@ -190,4 +190,4 @@ def test_the_preload_keys_of_the_kr125_do_not_depend_on_rounding(robot):
 
     keys = [column_key(k) for k in base_columns(robot, 2)]
     assert keys == [f"m{a}{link}_kgm" for link in range(2, 7) for a in "xy"]
-    assert [column_key(k) for k in base_columns(robot, 3)][0] == "mx3_kgm"
+    assert column_key(base_columns(robot, 3)[0]) == "mx3_kgm"

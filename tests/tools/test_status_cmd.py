@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import pyte
+from stiffcomp_testlib import wait_for
 
 from hil.testing import constant_log, free_port, wait_for_port, write_config
 from service.app import Service
@@ -158,9 +159,17 @@ def test_status_reads_over_ads_when_the_service_serves_no_modbus(tmp_path, capsy
                                stderr=subprocess.DEVNULL)
     try:
         wait_for_port(ads_port, service)
-        assert main(["status", "--config", str(cfg)]) == 0
-        out = capsys.readouterr().out
-        assert f"ads 127.0.0.1:{ads_port}" in out and "RUN" in out and (cycles(out) or 0) > 0
+        # the ADS port answers while the cycle may not have run yet (a loaded machine): ask until it has
+        outs = []
+
+        def ran() -> bool:
+            assert main(["status", "--config", str(cfg)]) == 0
+            outs.append(capsys.readouterr().out)
+            return (cycles(outs[-1]) or 0) > 0
+
+        assert wait_for(ran, timeout=60.0, every=0.2), outs[-1]
+        out = outs[-1]
+        assert f"ads 127.0.0.1:{ads_port}" in out and "RUN" in out
         assert re.search(r"rate [\d,]+ /s", out) and all(f"q{i}" in out for i in range(1, 7))
     finally:
         service.send_signal(signal.SIGTERM)
