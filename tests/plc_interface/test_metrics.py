@@ -78,3 +78,21 @@ def test_each_instance_has_its_own_registry():
     a, b = ServiceMetrics(), ServiceMetrics()
     a.update_values({"cycle_count": 7})
     assert samples(b)[("stiffcomp_cycles_total", ())] == 0
+
+
+def test_every_metric_the_service_registers_is_in_deploy_md_with_its_type():
+    """docs/deploy.md's table of what /metrics exports: each metric the service registers, by the name a
+    scrape shows (a counter's with _total), and its type; and no row for a metric that does not exist."""
+    import re
+    from pathlib import Path
+
+    registered = {f"{m.name}_total" if m.type == "counter" else m.name: m.type
+                  for m in ServiceMetrics().registry.collect()}
+    text = (Path(__file__).resolve().parents[2] / "docs" / "deploy.md").read_text(encoding="utf-8")
+    table = text.split("What it exports", 1)[1].split("\n\n", 2)[1]
+    documented = {}
+    for row in table.splitlines()[2:]:
+        cells = re.split(r"(?<!\\)\|", row)
+        for name in re.findall(r"`(stiffcomp_\w+)`", cells[1]):
+            documented[name] = cells[2].strip()
+    assert documented == registered
