@@ -228,6 +228,54 @@ def folds_by_configuration(ctx: Context) -> np.ndarray:
     return np.repeat(fold_of_reading[ctx.row_reading], 6)
 
 
+@dataclass
+class _Base:
+    """What every candidate is weighed against: the fitted model's residual and weights, its Jacobian, its
+    residual sum of squares and cross-validated one, the rows used and the base parameters' count."""
+
+    resid: np.ndarray
+    wt: np.ndarray
+    J0: np.ndarray
+    rss0: float
+    sse0: float
+    n: int
+    p0: int
+    use: np.ndarray
+
+
+def _evaluate(group, fitted: StiffnessModel, ctx: Context, gram: _Gram, base: _Base, alpha: float) -> Candidate:
+    """The best variant of one candidate effect (`group`, by cross-validated error), with its evidence: what it
+    explains with the base parameters re-adjusted, the F test, delta BIC and the cross-validation."""
+    n_rows = base.resid.shape[0] * base.resid.shape[1]
+    best = None
+    for effect in group:
+        X = candidate_columns(fitted, ctx, effect)
+        Xw = (X * base.wt[:, :, None]).reshape(n_rows, -1)
+        norm = _norms(Xw)
+        M, v = gram.blocks(Xw / norm)
+        rss1, sse1, x, cov = gram.rss_and_cv(M, v)
+        if best is None or sse1 < best[1]:
+            best = (effect, sse1, rss1, x, cov, X, norm)
+    effect, sse1, rss1, x, cov, X, norm = best
+    n, p0, pc = base.n, base.p0, X.shape[2]
+    s2 = rss1 / max(n - p0 - pc, 1)
+    est = x[p0:] / norm
+    se = np.sqrt(np.clip(np.diag(cov)[p0:], 0, None) * s2) / norm
+    # the deflection this effect explains, with the base parameters re-adjusted
+    step0 = (x[:p0] / gram.norm0)
+    contribution = np.einsum("nap,p->na", X, est) + np.einsum("nap,p->na", base.J0, step0)
+    after = base.resid - contribution
+    drop = max(base.rss0 - rss1, 0.0)
+    fstat = (drop / pc) / (rss1 / max(n - p0 - pc, 1)) if rss1 > 0 else np.inf
+    p_value = float(f_dist.sf(fstat, pc, max(n - p0 - pc, 1)))
+    dbic = float(n * np.log(max(rss1, 1e-300) / base.rss0) + pc * np.log(n))
+    cv_imp = float(np.clip(1.0 - sse1 / base.sse0, 0.0, 1.0)) if base.sse0 > 0 else 0.0
+    criteria = {"cross_validation": cv_imp >= CV_MIN, "bic": dbic < -BIC_MIN, "f_test": p_value < alpha}
+    use = base.use
+    return Candidate(effect, pc, rms(after[use, :3]), rms(after[use, 3:]), cv_imp, dbic, p_value, criteria, est, se,
+                     contribution, preload=preload_entry(fitted, ctx, effect))
+
+
 def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool = True,
              prior: Prior | None = None) -> Diagnosis:
     """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks.
@@ -263,41 +311,15 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
         R, c = prior.rows(fitted.param_labels())
         rows = (R[:, ~held], -(R @ fitted.theta - c))
     gram = _Gram(A0, y_w, folds_by_configuration(ctx), rows)
-    M0, v0 = gram.G00, gram.b0
-    rss0, sse0, _, _ = gram.rss_and_cv(M0, v0)
-    n, p0 = int(np.count_nonzero(wt)), A0.shape[1]
-    use = result.inlier
+    rss0, sse0, _, _ = gram.rss_and_cv(gram.G00, gram.b0)
+    base = _Base(resid, wt, J0, rss0, sse0, int(np.count_nonzero(wt)), A0.shape[1], result.inlier)
+    use = base.use
     variants = candidate_variants(fitted, ctx)
     alpha = ALPHA / max(len(variants), 1)
     candidates = []
     for k, group in enumerate(variants):
         say(f"trying {group[0].label} ({k + 1}/{len(variants)})")
-        best = None
-        for effect in group:
-            X = candidate_columns(fitted, ctx, effect)
-            Xw = (X * wt[:, :, None]).reshape(len(y_w), -1)
-            norm = _norms(Xw)
-            M, v = gram.blocks(Xw / norm)
-            rss1, sse1, x, cov = gram.rss_and_cv(M, v)
-            if best is None or sse1 < best[1]:
-                best = (effect, sse1, rss1, x, cov, X, norm)
-        effect, sse1, rss1, x, cov, X, norm = best
-        pc = X.shape[2]
-        s2 = rss1 / max(n - p0 - pc, 1)
-        est = x[p0:] / norm
-        se = np.sqrt(np.clip(np.diag(cov)[p0:], 0, None) * s2) / norm
-        # the deflection this effect explains, with the base parameters re-adjusted
-        step0 = (x[:p0] / gram.norm0)
-        contribution = np.einsum("nap,p->na", X, est) + np.einsum("nap,p->na", J0, step0)
-        after = resid - contribution
-        drop = max(rss0 - rss1, 0.0)
-        fstat = (drop / pc) / (rss1 / max(n - p0 - pc, 1)) if rss1 > 0 else np.inf
-        p_value = float(f_dist.sf(fstat, pc, max(n - p0 - pc, 1)))
-        dbic = float(n * np.log(max(rss1, 1e-300) / rss0) + pc * np.log(n))
-        cv_imp = float(np.clip(1.0 - sse1 / sse0, 0.0, 1.0)) if sse0 > 0 else 0.0
-        criteria = {"cross_validation": cv_imp >= CV_MIN, "bic": dbic < -BIC_MIN, "f_test": p_value < alpha}
-        candidates.append(Candidate(effect, pc, rms(after[use, :3]), rms(after[use, 3:]), cv_imp, dbic, p_value,
-                                    criteria, est, se, contribution, preload=preload_entry(fitted, ctx, effect)))
+        candidates.append(_evaluate(group, fitted, ctx, gram, base, alpha))
     noise = pure_error(ctx, np.where(use[:, None], data.deflection, np.nan))
     lof = _lack_of_fit(result, noise, model, ctx)
     structure_left = lof["worst_body"] > lof["threshold"]
