@@ -7,10 +7,12 @@
 * A tracker plan names joint 6's axial compliance (TCP on its axis) and writes a TCP-position campaign.
 """
 
+import re
+
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import MODELS
+from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
@@ -47,6 +49,15 @@ def test_plan_beats_random_configurations(model, planned):
     assert ours < 0.8 * np.median(random), (ours, np.median(random))
     lo, hi = robot.limits_deg[:, 0] + 10.0 - 1e-9, robot.limits_deg[:, 1] - 10.0 + 1e-9
     assert ((p.q_deg >= lo) & (p.q_deg <= hi)).all()
+
+
+def test_plan_md_states_the_ratio_to_random_sets_the_plan_gives(planned):
+    """docs/plan.md's figure: the plan's criterion over the median of random sets of N, to two digits."""
+    _, p = planned
+    said = re.search(r"is (?:about )?([\d.]+) × the median of random sets of (\d+) configurations",
+                     " ".join((ROOT / "docs" / "plan.md").read_text().split()))
+    assert said and int(said.group(2)) == N
+    assert float(said.group(1)) == round(p.criterion / p.random_median, 2), (p.criterion, p.random_median)
 
 
 def test_simulated_plan_fits_with_the_predicted_std_errors(model, planned):
