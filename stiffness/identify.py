@@ -27,13 +27,13 @@ gross errors (`robust`) get weight zero in the next round and are reported by li
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares, lsq_linear
 
 from .context import Context
+from .fit_result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
 from .identifiability import IDENT_TOL, unidentifiable_information
 from .measurements import Dataset
 from .model import StiffnessModel
@@ -48,92 +48,6 @@ from .sanity import noise_warning
 
 T_DETERMINED = 3.0  # |estimate| / standard error below this: the data cannot tell it from zero
 ROBUST_EXTRA_ROUNDS = 3   # rounds a robust fit may add while its set of gross errors still changes
-
-
-@dataclass
-class FitResult:
-    """The outcome of a fit. ``converged`` is False when the optimiser stopped without converging.
-
-    The RMS properties are over the rows used (not the gross errors) and the measured components.
-    """
-
-    model: StiffnessModel
-    residual: np.ndarray                   # (N, 6) measured - predicted, mm / deg; NaN where not measured
-    sigma: np.ndarray                      # (6,) noise used as weights
-    std_error: np.ndarray                  # (P,) SI
-    t_value: np.ndarray                    # (P,)
-    undetermined: list[str]
-    converged: bool = True
-    message: str = ""
-    warnings: list[str] = field(default_factory=list)
-    unidentifiable: list[str] = field(default_factory=list)   # the data cannot determine these at all
-    outlier: np.ndarray | None = None      # (N,) bool: rows judged gross errors, weight zero
-    lines: np.ndarray | None = None        # (N,) the file line of each row
-    preload: list[str] = field(default_factory=list)   # per identified static torque: what the data determine
-    preload_evidence: list = field(default_factory=list)   # per identified static torque: `preload_fit.Evidence`
-    covariance: np.ndarray | None = None   # (P, P) SI: the estimate's covariance (inf where not determined)
-
-    def __post_init__(self) -> None:
-        if self.outlier is None:
-            self.outlier = np.zeros(len(self.residual), dtype=bool)
-
-    @property
-    def inlier(self) -> np.ndarray:
-        return ~self.outlier
-
-    @property
-    def weights(self) -> np.ndarray:
-        """(N, 6) the weight of each residual entry: 1 / sigma where measured and not a gross error."""
-        return weights(np.isfinite(self.residual), self.inlier, self.sigma)
-
-    @property
-    def outlier_lines(self) -> list[int]:
-        rows = np.nonzero(self.outlier)[0]
-        return [int(v) for v in (self.lines[rows] if self.lines is not None else rows + 2)]
-
-    def outliers(self) -> dict:
-        """The rows judged gross errors by file line: ``{"count": N, "lines": [...]}`` (the JSON form)."""
-        return {"count": int(self.outlier.sum()), "lines": self.outlier_lines}
-
-    def outlier_text(self, limit: int = 30) -> str:
-        """One line naming the rows judged gross errors by file line."""
-        o = self.outliers()
-        if not o["count"]:
-            return "outliers: none"
-        more = f" and {o['count'] - limit} more" if o["count"] > limit else ""
-        return (f"outliers: {o['count']} row(s) judged gross errors and left out, at line(s) "
-                + ", ".join(map(str, o["lines"][:limit])) + more)
-
-    def rms_text(self) -> str:
-        """'0.0301 mm, 0.00201 deg' (a kind not measured: 'rotation not measured')."""
-        return rms_text(self.rms_position_mm, self.rms_rotation_deg)
-
-    @property
-    def rms_position_mm(self) -> float:
-        return rms(self.residual[self.inlier, :3])
-
-    @property
-    def rms_rotation_deg(self) -> float:
-        return rms(self.residual[self.inlier, 3:])
-
-
-def rms(x: np.ndarray) -> float:
-    """Root mean square over the measured (finite) entries (per component, not of the 3-D norm)."""
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
-
-
-def rms_text(mm: float, deg: float) -> str:
-    """Position and rotation RMS for a sentence; a kind not measured (NaN) says so."""
-    pos = "position not measured" if np.isnan(mm) else f"{mm:.4f} mm"
-    rot = "rotation not measured" if np.isnan(deg) else f"{deg:.5f} deg"
-    return f"{pos}, {rot}"
-
-
-def weights(measured: np.ndarray, inlier: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """(N, 6) residual weights: 1 / sigma for measured entries of rows in use, else 0."""
-    return (measured & inlier[:, None]) / np.asarray(sigma, dtype=float)[None, :]
 
 
 def solve_ls(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -248,9 +162,43 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     sigma = stated if sigma is None else np.asarray(sigma, dtype=float)
     scale = np.array([p.scale for e in model.effects for p in e.params])
     lin = linear_index(model)
-    nl = np.setdiff1d(np.arange(len(scale)), lin)
     compliance = np.array([p.compliance for e in model.effects for p in e.params], dtype=bool)
     lower = np.where(compliance & nonnegative, 0.0, -np.inf)
+    theta, resid, sigma, inlier, converged, message = _rounds(model, ctx, y, sigma, stated, scale, lin, lower, pr,
+                                                              rounds, max_nfev, robust, say)
+    model.theta = theta
+    w = weights(measured, inlier, sigma)
+    J = jacobian(model, ctx, theta)
+    Jw = _weighted(J, w) * scale
+    blind = unidentifiable_information(Jw.T @ Jw + pr.information(scale))
+    se, t, cov = _standard_errors(J, resid, w, scale, theta, blind, pr)
+    model.covariance = covariance_entry(model, cov, _source_text(ctx, prior))
+    labels = model.param_labels()
+    own = held_preload(model)      # an identified preload's unseen combinations are named by its own lines
+    undetermined = [lab for lab, tv, o in zip(labels, t, own) if not tv >= T_DETERMINED and not o]
+    for e, sl in zip(model.effects, model.param_slices()):
+        e.std_error = se[sl]
+    unident = [lab for lab, b, o in zip(labels, blind, own) if b and not o]
+    warnings = _warnings(model, ctx, unident, undetermined, compliance, nonnegative, start)
+    say("checking each identified preload against the noise")
+    found = evidence(model, ctx, y, w, resid, lambda m, th: _solve_linear(m, ctx, y, w, th, linear_index(m)))
+    result = FitResult(model=model, residual=resid, sigma=sigma, std_error=se, t_value=t, undetermined=undetermined,
+                       converged=converged, message=str(message), warnings=warnings, unidentifiable=unident,
+                       outlier=~inlier, lines=ctx.data.line, preload=preload_notes(model, ctx, found),
+                       preload_evidence=found, covariance=cov)
+    if result.outlier.any():
+        warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
+                        + ", ".join(map(str, result.outlier_lines[:20]))
+                        + (" ..." if result.outlier.sum() > 20 else ""))
+    return result
+
+
+def _rounds(model, ctx, y, sigma, stated, scale, lin, lower, pr, rounds, max_nfev, robust, say):
+    """The fit's rounds: solve (closed form, or variable projection over the nonlinear parameters), take the
+    exact Gauss-Newton step, judge the gross errors, re-estimate the noise. Returns theta, the residual, the
+    noise, the rows used, whether the solver converged and its message."""
+    measured = ctx.data.measured
+    nl = np.setdiff1d(np.arange(len(scale)), lin)
     converged, message = True, "closed-form least squares"
     theta = model.theta.copy()
     inlier = np.ones(len(y), dtype=bool)
@@ -277,20 +225,12 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
                 inlier = keep
         sigma = _noise_from_residual(resid[inlier], sigma)
         k += 1
-    model.theta = theta
-    w = weights(measured, inlier, sigma)
-    J = jacobian(model, ctx, theta)
-    Jw = _weighted(J, w) * scale
-    blind = unidentifiable_information(Jw.T @ Jw + pr.information(scale))
-    se, t, cov = _standard_errors(J, resid, w, scale, theta, blind, pr)
-    model.covariance = covariance_entry(model, cov, _source_text(ctx, prior))
-    labels = model.param_labels()
-    own = held_preload(model)      # an identified preload's unseen combinations are named by its own lines
-    undetermined = [lab for lab, tv, o in zip(labels, t, own) if not tv >= T_DETERMINED and not o]
-    for e, sl in zip(model.effects, model.param_slices()):
-        e.std_error = se[sl]
+    return theta, resid, sigma, inlier, converged, message
+
+
+def _warnings(model, ctx, unident, undetermined, compliance, nonnegative, start) -> list[str]:
+    """The fit's warnings: what the data cannot determine, compliances below zero, the noise's units."""
     warnings = []
-    unident = [lab for lab, b, o in zip(labels, blind, own) if b and not o]
     if unident:
         warnings.append(f"{len(unident)} parameter(s) cannot be determined by the measured components at all "
                         "(kept at their starting values): " + ", ".join(unident))
@@ -298,18 +238,11 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         warnings.append(f"{len(undetermined)} parameter(s) cannot be told from zero by these data "
                         f"(|estimate| < {T_DETERMINED:g} standard errors): " + ", ".join(undetermined))
     warnings += _compliance_warnings(model, compliance, nonnegative, start)
+    measured = ctx.data.measured
     units = noise_warning(model, ctx, np.where(measured, ctx.data.deflection, np.nan))
     if units:
         warnings.append(units)
-    say("checking each identified preload against the noise")
-    found = evidence(model, ctx, y, w, resid, lambda m, th: _solve_linear(m, ctx, y, w, th, linear_index(m)))
-    result = FitResult(model, resid, sigma, se, t, undetermined, converged, str(message), warnings, unident,
-                       ~inlier, ctx.data.line, preload_notes(model, ctx, found), found, cov)
-    if result.outlier.any():
-        warnings.append(f"{int(result.outlier.sum())} row(s) judged gross errors and left out, at line(s) "
-                        + ", ".join(map(str, result.outlier_lines[:20]))
-                        + (" ..." if result.outlier.sum() > 20 else ""))
-    return result
+    return warnings
 
 
 def _repeat_key(ctx: Context) -> np.ndarray:
