@@ -32,7 +32,7 @@ from service.pipeline import Cycle
 from service.reload import Prepared, prepare
 from service.sources import make_source
 from service.sources.replay import write_log
-from stiffness.yamlio import deep_update, dump_yaml, read_yaml
+from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 
 LOAD = np.array([300.0, -200.0, 400.0, 15.0, 10.0, 5.0])
 Q0 = np.array([10.0, -80.0, 100.0, 20.0, 40.0, 30.0])

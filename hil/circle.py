@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stiffness.files.yaml_schema import deep_update
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import deep_update
 
 from .cmm import CmmResult, measure
 from .dynamics import (

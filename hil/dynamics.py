@@ -24,9 +24,9 @@ import numpy as np
 
 from plc_interface.endpoints import SHIPPED_CONFIG
 from stiffness.dynamics.identify import DEFLECTION, FORCE, Identified, Record, identify
+from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.model import StiffnessModel
 from stiffness.units import M_TO_MM
-from stiffness.yamlio import dump_yaml, read_yaml
 
 from .report import end_to_end_delay, errors, evaluate_pass, evaluate_uncompensated, window_errors
 from .robot_stub import RobotStub
@@ -165,7 +165,7 @@ def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicO
     from pydantic import ValidationError
 
     from stiffness.dynamics.structure import Structure
-    from stiffness.yamlio import format_validation_error
+    from stiffness.files.yaml_schema import format_validation_error
 
     rec = tap_record(scenario, truth) if opts.commissioning == "tap" else commissioning_record(scenario, truth)
     if opts.record is not None:

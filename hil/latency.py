@@ -27,7 +27,7 @@ from hil.testing import free_port
 from hil.virtual_sensor import VirtualAtiSensor
 from service.ati import AtiProtocol
 from service.config import load_config
-from stiffness.yamlio import deep_update
+from stiffness.files.yaml_schema import deep_update
 
 from .plc_process import plc_main
 from .run import ServiceProcess, _end, _wait, free_udp_port, write_service_config

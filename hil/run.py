@@ -33,9 +33,9 @@ from plc_interface.contract import TaskState
 from plc_interface.endpoints import read_probe
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
+from stiffness.files.yaml_schema import deep_update
 from stiffness.model import StiffnessModel
 from stiffness.robot import load_robot
-from stiffness.yamlio import deep_update
 
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario

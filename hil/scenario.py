@@ -8,8 +8,8 @@ from typing import Literal
 from pydantic import Field
 
 from service.gravity import GravityConfig
+from stiffness.files.yaml_schema import Strict, read_yaml, validate
 from stiffness.robot import PoseConfig
-from stiffness.yamlio import Strict, read_yaml, validate
 
 from .structure import StructureConfig
 

@@ -31,7 +31,7 @@ from pydantic import Field, field_validator
 from scipy import signal
 
 from stiffness.dynamics.structure import ModeConfig, orthogonal
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 GRID_S = 5e-4            # the structure's time step
 

@@ -23,8 +23,8 @@ from service.config import load_config
 from service.sources.replay import write_log
 from stiffness.effects import EFFECTS
 from stiffness.effects.joint_spring import JointSpring
+from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"

@@ -1,7 +1,7 @@
 """Where the running service answers and how to ask it, for the light commands (the health probe).
 
 A probe that an orchestrator runs every few seconds must cost little, so this module imports the
-standard library, pyyaml (through `stiffness.yamlread`), and, to read a config, pydantic and the I/O
+standard library, pyyaml (through `stiffness.files.yaml_syntax`), and, to read a config, pydantic and the I/O
 process's own schemas; never NumPy, the model code or the cycle's schemas. It owns
 
 * the probes of the I/O process's HTTP endpoint, `PROBES` (served by `plc_interface.monitoring`);
@@ -9,7 +9,7 @@ process's own schemas; never NumPy, the model code or the cycle's schemas. It ow
 
 `read_endpoints` validates ``monitoring``, ``plc`` and ``ads`` with the very schemas the service
 composes into its config (`MonitoringSettings`, `PlcSettings`, `AdsSettings`, through
-`stiffness.yamlio.validate`), so each refusal is the service's, word for word, and refuses a top-level
+`stiffness.files.yaml_schema.validate`), so each refusal is the service's, word for word, and refuses a top-level
 key outside the service config's sections as the service does. The other sections' values and the
 files the config names (the model, the replay: paths inside an image) are the service's to check at
 its start; the probe reads none of them.
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from stiffness.errors import ConfigError
-from stiffness.yamlread import read_yaml
+from stiffness.files.yaml_syntax import read_yaml
 
 # probe -> (HTTP path, the verdict's key in its JSON); `plc_interface.health` explains each verdict
 PROBES: dict[str, tuple[str, str]] = {
@@ -92,7 +92,7 @@ def endpoints_from(data: dict, path: Path, sections: Collection[str] = ()) -> En
     """``monitoring``, ``plc`` and ``ads`` of a config's mapping ``data`` (read from ``path``, for the
     messages), validated by the service's own schemas; with ``sections``, the service config's top-level
     names, a top-level key outside them is refused in the words the service refuses it with."""
-    from stiffness.yamlio import validate
+    from stiffness.files.yaml_schema import validate
 
     from .ads.settings import AdsSettings
     from .settings import MonitoringSettings, PlcSettings

@@ -26,7 +26,7 @@ from typing import Literal
 from pydantic import Field, ValidationError
 
 from stiffness.errors import StiffnessError, quote
-from stiffness.yamlio import Strict, format_validation_error, read_yaml
+from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
 
 from .contract import REQUIRED, VALUES
 from .errors import RegisterMapError

@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
 Access = Literal["none", "read", "write"]

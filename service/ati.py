@@ -19,7 +19,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from pydantic import Field
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from .errors import CanFrameError
 

@@ -46,11 +46,11 @@ import pinocchio as pin
 from pydantic import Field
 
 from stiffness.errors import StiffnessError, quote
+from stiffness.files.yaml_schema import Strict
 from stiffness.model import StiffnessModel
 from stiffness.robot import BODIES
 from stiffness.spatial import damped_pinv_solve
 from stiffness.statics import PayloadConfig, statics_for
-from stiffness.yamlio import Strict
 
 from .errors import ServiceConfigError
 from .fast_effects import fast_terms

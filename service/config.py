@@ -29,7 +29,7 @@ from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError, quote
-from stiffness.yamlio import Strict, format_validation_error, read_yaml
+from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
 
 from .compensation import ModelConfig
 from .dynamics import DynamicsConfig

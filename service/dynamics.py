@@ -22,7 +22,7 @@ from pydantic import Field, create_model
 from stiffness.dynamics import PARTS, DynamicsContext, Part
 from stiffness.effects.realtime import Term
 from stiffness.errors import StiffnessError
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from .errors import ServiceConfigError
 

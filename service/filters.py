@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import Field
 from scipy import signal
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 
 class SpikeConfig(Strict):

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field, field_validator
 
-from stiffness.yamlio import Strict, items_by_key
+from stiffness.files.yaml_schema import Strict, items_by_key
 
 # the bodies the sensor carries (the robot's frames are `stiffness.robot.BODIES`)
 PAYLOAD_BODIES = ("sensor", "tool", "fixture", "workpiece")

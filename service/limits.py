@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pydantic import Field, field_validator
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 
 def _six_or_one(v: float | list[float]) -> list[float]:

@@ -18,9 +18,9 @@ import numpy as np
 from pydantic import Field
 
 from plc_interface.contract import Fault
+from stiffness.files.yaml_schema import Strict
 from stiffness.model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
-from stiffness.yamlio import Strict
 
 from .ati import Reading
 from .compensation import FastPredictor, ModelConfig

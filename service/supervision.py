@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import Field
 
 from plc_interface.contract import COMMAND_BITS, Command, Fault
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from .errors import SensorError
 from .faults import FaultMonitor

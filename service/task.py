@@ -33,7 +33,7 @@ import numpy as np
 from pydantic import Field
 
 from plc_interface.deadlines import Deadlines
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 log = logging.getLogger("stiffcomp.task")
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DataError, Problems, quote
-from .parquet import read_parquet
+from .files.parquet import read_parquet
 from .robot import BODIES, Robot
 
 Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))

@@ -22,6 +22,7 @@ from .context import Context
 from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
+from .files.yaml_schema import FlowList, dump_yaml, read_yaml, validate
 from .measurements import Dataset
 from .preload import PreloadTerm
 from .prior import read_covariance
@@ -29,7 +30,6 @@ from .robot import Robot, load_robot
 from .spatial import log_so3, twist_transform
 from .statics import PayloadConfig, Statics, statics_for
 from .units import M_TO_MM, RAD_TO_DEG
-from .yamlio import FlowList, dump_yaml, read_yaml, validate
 
 TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects", "covariance"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}

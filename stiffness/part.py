@@ -32,10 +32,10 @@ import numpy as np
 import yaml
 from pydantic import Field
 
-from .csvtable import read_table
 from .errors import DataError, Problems, quote
+from .files.csv_table import read_table
+from .files.yaml_schema import NoAliasLoader, Strict, format_validation_error
 from .robot import PoseConfig
-from .yamlio import NoAliasLoader, Strict, format_validation_error
 
 POINT_COLS = ("x_mm", "y_mm", "z_mm")
 

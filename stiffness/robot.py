@@ -21,8 +21,8 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from .errors import ConfigError, quote
+from .files.yaml_schema import Strict, deep_update, items_numbered, read_yaml, validate
 from .spatial import rot_x, rot_z, rpy_matrix, trans_x, trans_z, transform
-from .yamlio import Strict, deep_update, items_numbered, read_yaml, validate
 
 N_JOINTS = 6
 BODIES = ("A1", "A2", "A3", "A4", "A5", "A6", "TCP")

@@ -33,11 +33,11 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from .errors import ConfigError, quote
+from .files.yaml_schema import Strict, read_yaml, validate
 from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 from .robot import BODIES, N_JOINTS, Robot
 from .spatial import transform, transport_wrench
-from .yamlio import Strict, read_yaml, validate
 
 AXES = ("x", "y", "z")
 MAX_ROWS = 5_000_000  # refuse campaigns that would not fit in memory comfortably

@@ -33,8 +33,8 @@ import numpy as np
 from pydantic import Field
 
 from .errors import quote
+from .files.yaml_schema import Strict
 from .robot import Robot
-from .yamlio import Strict
 
 PARTS = ("m", "mx", "my", "mz")          # pinocchio's dynamic parameters 0..3 of each link
 N_COLUMNS = 6 * len(PARTS)

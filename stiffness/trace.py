@@ -43,7 +43,7 @@ from typing import Self
 import numpy as np
 
 from .errors import DataError, OutputError
-from .parquet import read_parquet
+from .files.parquet import read_parquet
 
 log = logging.getLogger("stiffcomp.trace")
 

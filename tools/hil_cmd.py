@@ -59,7 +59,7 @@ def _validated(section, name: str, key: str, value, option: str):
     from pydantic import ValidationError
 
     from stiffness.errors import ConfigError
-    from stiffness.yamlio import format_validation_error
+    from stiffness.files.yaml_schema import format_validation_error
 
     try:
         return type(section).model_validate({**section.model_dump(), key: value})
@@ -81,7 +81,7 @@ def _service_value(option: str, schema, key: str, value, prefix: str):
     from pydantic import TypeAdapter, ValidationError
 
     from stiffness.errors import ConfigError
-    from stiffness.yamlio import format_validation_error
+    from stiffness.files.yaml_schema import format_validation_error
 
     field = schema.model_fields[key]
     try:

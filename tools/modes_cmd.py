@@ -58,7 +58,7 @@ def check_options(args) -> None:
 def run(args) -> int:
     from stiffness.dynamics.identify import figure, identify, read_record
     from stiffness.errors import OutputError
-    from stiffness.yamlio import dump_yaml
+    from stiffness.files.yaml_schema import dump_yaml
 
     check_options(args)
     rec = read_record(args.data)

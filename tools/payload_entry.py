@@ -21,7 +21,7 @@ from ruamel.yaml.tokens import CommentToken
 from service.config import load_config
 from service.errors import ServiceConfigError
 from stiffness.errors import quote
-from stiffness.yamlio import read_yaml
+from stiffness.files.yaml_schema import read_yaml
 
 
 def write_entry(config: str | Path, entry: dict, replace: bool = False) -> str:

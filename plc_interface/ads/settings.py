@@ -6,7 +6,7 @@ import ipaddress
 
 from pydantic import Field, field_validator
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from ..settings import ClientLimits, peer_address
 from .ams import SYSTEM_SERVICE_PORT, net_id_bytes

@@ -8,7 +8,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from ..ati import AtiConfig
 from .base import FtSource

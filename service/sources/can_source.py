@@ -15,7 +15,7 @@ import can
 from pydantic import Field
 
 from stiffness.errors import quote
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from ..errors import SourceError
 from .base import Frame, FtSource

@@ -17,7 +17,7 @@ import can
 import numpy as np
 
 from stiffness.errors import quote
-from stiffness.yamlio import Strict
+from stiffness.files.yaml_schema import Strict
 
 from ..ati import AtiProtocol
 from ..errors import SourceError

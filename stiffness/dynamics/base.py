@@ -24,7 +24,7 @@ import numpy as np
 from scipy import signal
 
 from ..effects.realtime import Term
-from ..yamlio import Strict
+from ..files.yaml_schema import Strict
 
 
 @dataclass(frozen=True)

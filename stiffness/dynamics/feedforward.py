@@ -49,7 +49,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..effects.realtime import WrenchTerm
-from ..yamlio import Strict
+from ..files.yaml_schema import Strict
 from .base import DynamicsContext, Part
 from .records import read_columns
 

@@ -45,7 +45,7 @@ import numpy as np
 from pydantic import Field
 
 from ..effects.realtime import WrenchTerm
-from ..yamlio import Strict
+from ..files.yaml_schema import Strict
 from .base import DynamicsContext, Part, biquad
 
 

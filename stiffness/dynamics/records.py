@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..csvtable import read_table
 from ..errors import DataError, Problems, quote
+from ..files.csv_table import read_table
 
 
 def read_columns(path: str | Path, required: tuple[str, ...], optional: tuple[str, ...] = (),

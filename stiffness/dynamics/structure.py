@@ -43,7 +43,7 @@ from pydantic import Field, field_validator
 from scipy import signal
 
 from ..effects.realtime import TwistTerm
-from ..yamlio import Strict
+from ..files.yaml_schema import Strict
 from .base import DynamicsContext, Part, biquad
 
 PER_MODE = 8             # phi (3), b0 b1 b2 a1 a2

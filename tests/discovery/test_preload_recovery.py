@@ -21,10 +21,10 @@ from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import to_dict
 from stiffness.edit import add_effect
 from stiffness.errors import ConfigError
+from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.identify import fit
 from stiffness.model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
-from stiffness.yamlio import dump_yaml, read_yaml
 from tools.common import to_jsonable
 
 ROBOTS = ROOT / "config" / "robots"

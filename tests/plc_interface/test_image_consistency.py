@@ -168,7 +168,7 @@ def test_a_writer_taking_over_after_one_killed_mid_write_leaves_every_write_read
 
 def test_a_map_without_payload_index_reads_it_as_0(tmp_path):
     """payload_index is optional in a map: a site map from before the payload table selects set 0."""
-    from stiffness.yamlio import dump_yaml, read_yaml
+    from stiffness.files.yaml_schema import dump_yaml, read_yaml
 
     data = read_yaml(CONFIG / "registers.yaml")
     data["from_plc"]["registers"] = [r for r in data["from_plc"]["registers"] if r["name"] != "payload_index"]

@@ -23,7 +23,7 @@ from hil.testing import ROOT, free_port, scaled_model_file, write_config
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from service.sources.replay import write_log
-from stiffness.yamlio import deep_update, dump_yaml, read_yaml
+from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from tools.cli import main
 
 CODEC = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml").codecs["to_plc"]

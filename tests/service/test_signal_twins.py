@@ -10,8 +10,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from service.filters import SosLowPass, SpikeRejector
-from service.kernel.signal import (HAVE_LAST, HELD, LIMITER_STATE, MAX_DT, MAX_HELD, RAMP_S, RATE, REJECTED,
-                                   SAFE_BEFORE, SPIKE_STATE, condition, limit)
+from service.kernel.signal import (
+    HAVE_LAST,
+    HELD,
+    LIMITER_STATE,
+    MAX_DT,
+    MAX_HELD,
+    RAMP_S,
+    RATE,
+    REJECTED,
+    SAFE_BEFORE,
+    SPIKE_STATE,
+    condition,
+    limit,
+)
 from service.limits import CorrectionLimiter
 
 finite = st.floats(-2000.0, 2000.0, allow_nan=False)

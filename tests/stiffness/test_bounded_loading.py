@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.errors import ConfigError, DataError, Problems, quote
+from stiffness.files.yaml_schema import read_yaml
 from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import read_yaml
 
 REF = DATA / "reference_campaign.csv"
 
@@ -181,7 +181,7 @@ def test_a_csv_with_a_utf8_bom_loads(tmp_path, robot):
 
 def test_what_stiffcomp_writes_it_reads_again_even_with_shared_values(tmp_path):
     """Aliases are refused on reading, so stiffcomp never writes one: a value shared twice is written twice."""
-    from stiffness.yamlio import dump_yaml
+    from stiffness.files.yaml_schema import dump_yaml
     q = [0.0, -90.0, 90.0, 0.0, 45.0, 0.0]
     data = {"a": {"q_deg": q}, "b": {"q_deg": q}}
     assert "*id001" in yaml.safe_dump(data)                # PyYAML itself would write an alias

@@ -6,11 +6,11 @@ import yaml
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.errors import ConfigError
+from stiffness.files.yaml_schema import dump_yaml
 from stiffness.identify import fit
 from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign, simulate
-from stiffness.yamlio import dump_yaml
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -11,11 +11,11 @@ from stiffcomp_testlib import ROOT
 
 from stiffness.context import Context
 from stiffness.effects.axial import joint_torque
+from stiffness.files.yaml_schema import dump_yaml
 from stiffness.measurements import Dataset
 from stiffness.robot import Robot, read_extended
 from stiffness.spatial import transform, transport_wrench
 from stiffness.statics import G_STANDARD, Statics, independent_columns
-from stiffness.yamlio import dump_yaml
 
 KR125 = ROOT / "config" / "robots" / "kr125_masses.yaml"
 G = np.array(G_STANDARD)

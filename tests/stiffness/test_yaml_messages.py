@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stiffness.errors import ConfigError
-from stiffness.yamlio import read_yaml
+from stiffness.files.yaml_schema import read_yaml
 
 keys = st.lists(st.from_regex(r"[a-z][a-z_]{0,8}", fullmatch=True), min_size=2, max_size=12, unique=True)
 

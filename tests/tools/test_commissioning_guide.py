@@ -24,7 +24,7 @@ from stiffcomp_testlib import ROOT
 
 from service.config import load_config
 from service.errors import ServiceConfigError
-from stiffness.yamlio import read_yaml
+from stiffness.files.yaml_schema import read_yaml
 from tools.cli import main
 
 GUIDE = ROOT / "docs" / "commissioning.md"

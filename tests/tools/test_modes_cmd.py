@@ -17,8 +17,8 @@ from stiffcomp_testlib import ROOT
 from hil.dynamics import tap_record, write_record
 from hil.scenario import load_scenario
 from service.config import load_config
+from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import deep_update, dump_yaml, read_yaml
 from tools.cli import main
 
 

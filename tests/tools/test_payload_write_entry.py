@@ -18,8 +18,8 @@ from service.compensation import FastPredictor
 from service.config import load_config
 from service.gravity import GravityConfig
 from service.pipeline import Cycle
+from stiffness.files.yaml_schema import read_yaml
 from stiffness.model import StiffnessModel
-from stiffness.yamlio import read_yaml
 from tools import payload_cmd
 from tools.cli import main
 

@@ -1,7 +1,7 @@
 """Reading YAML: the one loader of every config, model and data file, without pydantic.
 
-Kept apart from `stiffness.yamlio` (the schemas) so that a light command, such as the health probe,
-reads a config without importing pydantic; `stiffness.yamlio` re-exports both names.
+Kept apart from `stiffness.files.yaml_schema` (the schemas) so that a light command, such as the health probe,
+reads a config without importing pydantic; `stiffness.files.yaml_schema` re-exports both names.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-from .errors import ConfigError, quote
+from ..errors import ConfigError, quote
 
 
 class NoAliasLoader(yaml.SafeLoader):

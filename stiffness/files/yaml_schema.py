@@ -9,8 +9,8 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from .errors import ConfigError, quote
-from .yamlread import NoAliasLoader, kind_of, read_yaml, syntax_error  # noqa: F401 - re-exported: reading lives in yamlread
+from ..errors import ConfigError, quote
+from .yaml_syntax import NoAliasLoader, kind_of, read_yaml, syntax_error  # noqa: F401 - re-exported: reading lives in yamlread
 
 M = TypeVar("M", bound=BaseModel)
 
