@@ -44,8 +44,8 @@ from plc_interface.contract import Command
 from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle
+from stiffness.kinematics.robot import load_robot
 from stiffness.model import StiffnessModel
-from stiffness.robot import load_robot
 
 C_BLOCK = r"""
 #include <time.h>

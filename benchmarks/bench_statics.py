@@ -2,7 +2,7 @@
 
 Side by side in one process, in alternating blocks (so the machine's drift falls on all alike):
 
-* ``total_at``    `stiffness.statics.Statics.total_at` with one q (arm + 80 kg payload + balancer),
+* ``total_at``    `stiffness.kinematics.statics.Statics.total_at` with one q (arm + 80 kg payload + balancer),
                   the call the next step will make when the joints move;
 * ``statics``     the batched `Statics.__call__` given one q (all parts, (1, 6) arrays each);
 * ``pinocchio``   the two pinocchio calls inside it alone (generalized gravity, the payload centre's
@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from service.compensation import FastPredictor
+from stiffness.kinematics.statics import Statics
 from stiffness.model import StiffnessModel
-from stiffness.statics import Statics
 
 
 def main() -> int:

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stiffness.kinematics.robot import PoseConfig
 from stiffness.part import write_part
-from stiffness.robot import PoseConfig
 
 from .scenario import Scenario
 from .world import World

@@ -69,7 +69,7 @@ def _sensor_entry(bus_kw: dict, ati: dict, out_file: str, ready, stop) -> None:
 
 
 def _plc_entry(scenario, robot_path, rmap, port, out_file, go, ready) -> None:
-    from stiffness.robot import load_robot
+    from stiffness.kinematics.robot import load_robot
 
     plc_main(scenario, load_robot(robot_path), rmap, port, False, out_file, go, ready)
 

@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from stiffness.robot import Robot
-from stiffness.spatial import damped_pinv_solve
+from stiffness.kinematics.robot import Robot
+from stiffness.kinematics.spatial import damped_pinv_solve
 
 from .scenario import CircleConfig
 

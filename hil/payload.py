@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.gravity import PAYLOAD_BODIES  # the keys only: the physics below is the HIL's own
-from stiffness.statics import PayloadConfig
+from stiffness.kinematics.statics import PayloadConfig
 
 
 class TruePayload:

@@ -19,11 +19,11 @@ A drift in the truth grows from the pass's first cycle as a thermal drift does; 
 drift, so it stays in the compensated path error.
 
 Static torque. The truth's backlash, nonlinear stiffness and hysteresis act at the joint's total
-torque tau_s(q) + tau_ext (`stiffness.statics`): tau_s from the truth's robot (its masses and balancer)
+torque tau_s(q) + tau_ext (`stiffness.kinematics.statics`): tau_s from the truth's robot (its masses and balancer)
 and the payload the sensor carries in this run (the scenario's ``payload``, `TruePayload.carried`, in
 its gravity ``g_mps2``), the same bodies whose weight the virtual sensor reports. Not the truth model's
 own ``payload`` key (what a campaign's sensor carried): the HIL's world decides what the arm holds. A
-truth robot without masses has tau_s = 0 (`stiffness.statics.statics_for`), as before robots had masses.
+truth robot without masses has tau_s = 0 (`stiffness.kinematics.statics.statics_for`), as before robots had masses.
 The deflection is loaded minus unloaded, f(tau_s + tau) - f(tau_s): the path was taught under the
 arm's own weight.
 
@@ -38,10 +38,10 @@ from __future__ import annotations
 import numpy as np
 
 from stiffness.context import Context
+from stiffness.kinematics.spatial import transform, transport_wrench
+from stiffness.kinematics.statics import statics_for
 from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
-from stiffness.spatial import transform, transport_wrench
-from stiffness.statics import statics_for
 
 from .payload import TruePayload
 from .structure import GRID_S, Structure, StructureConfig

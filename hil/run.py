@@ -34,8 +34,8 @@ from plc_interface.endpoints import read_probe
 from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update
+from stiffness.kinematics.robot import load_robot
 from stiffness.model import StiffnessModel
-from stiffness.robot import load_robot
 
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario

@@ -9,7 +9,7 @@ from pydantic import Field
 
 from service.gravity import GravityConfig
 from stiffness.files.yaml_schema import Strict, read_yaml, validate
-from stiffness.robot import PoseConfig
+from stiffness.kinematics.robot import PoseConfig
 
 from .structure import StructureConfig
 

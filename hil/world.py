@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffness.robot import Robot
+from stiffness.kinematics.robot import Robot
 
 from .milling import MillingForce
 from .path import CirclePath

@@ -4,7 +4,7 @@ the service compensates it only with a model that knows the preload.
 The truth is the reference truth plus a backlash at joint 2 on config/robots/kr125_masses.yaml: the
 KR 125's approximate masses with its balancer carrying 0.6 of joint 2's static torque, and the
 scenario's 12 kg spindle at the sensor. Its backlash steps where the *total* torque tau_s(q) + tau_ext
-crosses zero (`stiffness.statics`); the stub takes tau_s from the truth's robot and the payload the
+crosses zero (`stiffness.kinematics.statics`); the stub takes tau_s from the truth's robot and the payload the
 virtual sensor carries (`hil.robot_stub.RobotStub`). The preload-aware model is the truth itself (the
 service forms tau_s from the model's robot and its ``gravity`` section); the preload-blind model is the
 same springs and backlash on config/robots/kr125.yaml, a robot without masses, so its play sits at
@@ -36,7 +36,7 @@ from hil.preload import MASSES, PRELOADED_BACKLASH, UPRIGHT_Q_DEG, preload_model
 from hil.robot_stub import RobotStub
 from hil.testing import truth_with
 from service.gravity import PAYLOAD_BODIES, GravityConfig
-from stiffness.statics import Statics
+from stiffness.kinematics.statics import Statics
 
 
 @settings(max_examples=60, deadline=None)

@@ -47,10 +47,10 @@ from pydantic import Field
 
 from stiffness.errors import StiffnessError, quote
 from stiffness.files.yaml_schema import Strict
+from stiffness.kinematics.robot import BODIES
+from stiffness.kinematics.spatial import damped_pinv_solve
+from stiffness.kinematics.statics import PayloadConfig, statics_for
 from stiffness.model import StiffnessModel
-from stiffness.robot import BODIES
-from stiffness.spatial import damped_pinv_solve
-from stiffness.statics import PayloadConfig, statics_for
 
 from .errors import ServiceConfigError
 from .fast_effects import fast_terms

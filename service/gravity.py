@@ -1,4 +1,4 @@
-"""Gravity compensation of the sensor wrench (the real-time part; `stiffness.payload` identifies the payload).
+"""Gravity compensation of the sensor wrench (the real-time part; `stiffness.kinematics.payload_identification` identifies the payload).
 
 A static payload of mass m with centre of gravity c (sensor frame) loads the sensor with
 
@@ -19,7 +19,7 @@ linear in m and m c: F_g = m R_s^T g, T_g = (m c) x (R_s^T g). Blending m, m c a
 therefore blends the gravity term exactly (`service.payloads` ramps a switch that way). A tare's
 offset belongs to the sensor (its drift), not to a set: it stays across a switch.
 
-The offline identification of m, c and b from static poses is `stiffness.payload`.
+The offline identification of m, c and b from static poses is `stiffness.kinematics.payload_identification`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from pydantic import Field, field_validator
 
 from stiffness.files.yaml_schema import Strict, items_by_key
 
-# the bodies the sensor carries (the robot's frames are `stiffness.robot.BODIES`)
+# the bodies the sensor carries (the robot's frames are `stiffness.kinematics.robot.BODIES`)
 PAYLOAD_BODIES = ("sensor", "tool", "fixture", "workpiece")
 
 

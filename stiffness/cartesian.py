@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kinematics.robot import BODIES
+from .kinematics.spatial import transform, transport_wrench
 from .measurements import Dataset
 from .model import StiffnessModel
-from .robot import BODIES
-from .spatial import transform, transport_wrench
 
 TCP = BODIES.index("TCP")
 UNIT = 1.0  # N or Nm per probe: small enough that the composed chain is linear to 1e-9

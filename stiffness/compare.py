@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 
 from .identify import rms
+from .kinematics.robot import BODIES
 from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
-from .robot import BODIES
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z", "none")
 NONE_FRACTION = 0.05

@@ -15,9 +15,9 @@ from functools import cached_property
 
 import numpy as np
 
+from .kinematics.robot import Robot
+from .kinematics.spatial import skew, transport_wrench
 from .measurements import Dataset
-from .robot import Robot
-from .spatial import skew, transport_wrench
 from .units import M_TO_MM, RAD_TO_DEG
 
 N_SITES = 12
@@ -41,7 +41,7 @@ class Context:
     robot : Robot
     data : Dataset
     statics : Statics, optional
-        tau_s(q) of the robot's weight and the payload (`stiffness.statics`); None: tau_s = 0.
+        tau_s(q) of the robot's weight and the payload (`stiffness.kinematics.statics`); None: tau_s = 0.
     """
 
     def __init__(self, robot: Robot, data: Dataset, statics=None):

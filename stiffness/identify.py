@@ -35,6 +35,7 @@ from scipy.optimize import least_squares, lsq_linear
 from .context import Context
 from .fit_result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
 from .identifiability import IDENT_TOL, unidentifiable_information
+from .kinematics.robot import BODIES
 from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import directions, held_preload
@@ -42,7 +43,6 @@ from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
 from .prior import Prior, PriorRows, covariance_entry
 from .residuals import repeat_groups
-from .robot import BODIES
 from .robust import gross_errors, robust_scale
 from .sanity import noise_warning
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from .errors import DataError, Problems, quote
 from .files.parquet import read_parquet
-from .robot import BODIES, Robot
+from .kinematics.robot import BODIES, Robot
 
 Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH_COLS = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")

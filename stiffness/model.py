@@ -23,12 +23,12 @@ from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
 from .files.yaml_schema import FlowList, dump_yaml, read_yaml, validate
+from .kinematics.robot import Robot, load_robot
+from .kinematics.spatial import log_so3, twist_transform
+from .kinematics.statics import PayloadConfig, Statics, statics_for
 from .measurements import Dataset
 from .preload import PreloadTerm
 from .prior import read_covariance
-from .robot import Robot, load_robot
-from .spatial import log_so3, twist_transform
-from .statics import PayloadConfig, Statics, statics_for
 from .units import M_TO_MM, RAD_TO_DEG
 
 TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects", "covariance"}
@@ -246,7 +246,7 @@ class StiffnessModel:
         return [(e.joint, e.columns, e.theta) for e in self.effects if isinstance(e, PreloadTerm)]
 
     def statics(self) -> Statics | None:
-        """tau_s(q) of this model's robot, payload and identified preload (`stiffness.statics`); None when
+        """tau_s(q) of this model's robot, payload and identified preload (`stiffness.kinematics.statics`); None when
         nothing weighs."""
         return statics_for(self.robot, self.payload, preloads=self.preloads())
 

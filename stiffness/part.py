@@ -35,7 +35,7 @@ from pydantic import Field
 from .errors import DataError, Problems, quote
 from .files.csv_table import read_table
 from .files.yaml_schema import NoAliasLoader, Strict, format_validation_error
-from .robot import PoseConfig
+from .kinematics.robot import PoseConfig
 
 POINT_COLS = ("x_mm", "y_mm", "z_mm")
 

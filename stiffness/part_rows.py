@@ -55,10 +55,10 @@ from scipy import signal
 from scipy.spatial import cKDTree
 
 from .errors import DataError, Problems
+from .kinematics.robot import Robot
 from .measurements import Dataset
 from .part import PartMeasurement
 from .part_leftout import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
-from .robot import Robot
 from .trace import Gap, Trace
 
 TASK_RUN = 1

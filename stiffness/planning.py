@@ -33,8 +33,8 @@ import numpy as np
 
 from .identifiability import unidentifiable_information
 from .identify import jacobian
+from .kinematics.robot import BODIES
 from .model import StiffnessModel
-from .robot import BODIES
 from .simulate import Campaign, CampaignSpec, LoadSpec, random_configurations
 
 DEVICES = {

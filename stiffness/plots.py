@@ -11,8 +11,8 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from .kinematics.robot import BODIES
 from .measurements import COMPONENTS, Dataset
-from .robot import BODIES
 
 UNITS = {c: ("mm" if k < 3 else "deg") for k, c in enumerate(COMPONENTS)}
 LINESTYLES = ("--", "-", ":", "-.")

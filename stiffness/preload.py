@@ -1,6 +1,6 @@
 """The static torque identified from the data: where each configuration crosses a joint's nonlinearity.
 
-A gearbox's play or soft zone sits at zero *total* torque tau_s(q) + tau_ext (`stiffness.statics`). When
+A gearbox's play or soft zone sits at zero *total* torque tau_s(q) + tau_ext (`stiffness.kinematics.statics`). When
 the robot's masses are approximate or missing, tau_s is wrong, and the fit identifies it:
 
     tau_s_j(q) = prior_j(q) + sum_k phi_jk(q) beta_k,
@@ -26,7 +26,7 @@ Example: joint 2 of the KR 125 sees a few base columns of the 24 (m, mc of six l
 
 >>> from pathlib import Path
 >>> import stiffness
->>> from stiffness.robot import load_robot
+>>> from stiffness.kinematics.robot import load_robot
 >>> robot = load_robot(Path(stiffness.__file__).parents[1] / "config" / "robots" / "kr125.yaml")
 >>> t = PreloadTerm(robot, 2)
 >>> len(t.params) < 24 and all(p.key.endswith(("_kg", "_kgm")) for p in t.params)
@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from .effects.base import Effect, Param, read_location, read_values
-from .statics import Statics, base_columns, column_key
+from .kinematics.statics import Statics, base_columns, column_key
 
 BEYOND = 1.3                             # a start puts an unseen crossing this far beyond the load range
 RIDGE = 1e-3                             # the start's pull toward the prior, relative to the data

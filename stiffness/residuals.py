@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from .context import Context
+from .kinematics.robot import BODIES
 from .measurements import COMPONENTS
-from .robot import BODIES
 
 LOAD_BINS = 4
 MIN_PURE_ERROR_DOF = 200

@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from .context import Context
+from .kinematics.robot import BODIES
 from .measurements import Dataset
 from .model import StiffnessModel
 from .residuals import pure_error
-from .robot import BODIES
 
 NOISE_RATIO = 10.0
 SHOW_LINES = 20

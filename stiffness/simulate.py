@@ -34,10 +34,10 @@ from pydantic import Field, field_validator
 
 from .errors import ConfigError, quote
 from .files.yaml_schema import Strict, read_yaml, validate
+from .kinematics.robot import BODIES, N_JOINTS, Robot
+from .kinematics.spatial import transform, transport_wrench
 from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
-from .robot import BODIES, N_JOINTS, Robot
-from .spatial import transform, transport_wrench
 
 AXES = ("x", "y", "z")
 MAX_ROWS = 5_000_000  # refuse campaigns that would not fit in memory comfortably

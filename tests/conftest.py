@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
+from stiffness.kinematics.robot import Robot
 from stiffness.model import StiffnessModel
-from stiffness.robot import Robot
 
 
 @pytest.fixture(scope="session")

@@ -16,10 +16,10 @@ import numpy as np
 
 from hil.path import CirclePath
 from hil.scenario import CircleConfig
+from stiffness.kinematics.robot import PoseConfig
 from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.part import write_part
-from stiffness.robot import PoseConfig
 from stiffness.trace import COLUMNS, TraceFile
 
 CENTER_Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]

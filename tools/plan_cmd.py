@@ -10,9 +10,9 @@ import numpy as np
 
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
+from stiffness.kinematics.robot import BODIES
 from stiffness.model import StiffnessModel
 from stiffness.planning import DEVICES, Device, Plan, plan
-from stiffness.robot import BODIES
 from stiffness.simulate import LoadSpec, NoiseSpec, ReadingSpec
 
 from .common import print_json, write_output

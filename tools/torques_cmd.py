@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from stiffness.errors import ConfigError
+from stiffness.kinematics.statics import Statics, StaticTorques, models_static_load
 from stiffness.model import StiffnessModel
-from stiffness.statics import Statics, StaticTorques, models_static_load
 
 from .common import load, print_json
 

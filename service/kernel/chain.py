@@ -2,7 +2,7 @@
 pseudo-inverse and the Newton refinement (numba, no allocation: every result goes into a given buffer).
 
 The same equations as the Python path (`service.compensation.FastPredictor`, which calls pinocchio, and
-`stiffness.statics.Statics`), for a serial chain of revolute joints (joint j's parent is joint j-1):
+`stiffness.kinematics.statics.Statics`), for a serial chain of revolute joints (joint j's parent is joint j-1):
 
     oMi_j = oMi_{j-1} * M_j * Rot(a_j, q_j)          M_j the joint's placement, a_j its axis (joint frame)
     oMf   = oMi_{parent(f)} * M_f                    a frame (DH frames, sensor, TCP, the payload's centre)
@@ -109,7 +109,7 @@ def _moment_about_axis(w, o, c, f):
 
 @njit(cache=True)
 def statics(axis, oR, op, st, lever, c_pay, pre_rows, pre_w, tau_s, w, c, f):
-    """tau_s (6,) Nm, signed like the external joint torque (`stiffness.statics.Statics.total_at`).
+    """tau_s (6,) Nm, signed like the external joint torque (`stiffness.kinematics.statics.Statics.total_at`).
 
     st: [on, arm_loaded, g (3), payload mass, masses of links 1..6 (6), balancer gains (6)]; lever (6, 3)
     the links' centres of gravity in their joint frames; c_pay (3,) the payload's centre in base axes;

@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def models():
     """(label, model) of every shipped combination."""
     from stiffness.effects import EFFECTS
+    from stiffness.kinematics.robot import load_robot
     from stiffness.model import StiffnessModel
-    from stiffness.robot import load_robot
 
     springs = StiffnessModel.from_yaml(ROOT / "config" / "models" / "kr125_6dof.yaml")
 

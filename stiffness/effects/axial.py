@@ -2,7 +2,7 @@
 
 Each adds to joint i's axial spring twist rz (site i-1) a function of the joint's axial torque. A
 gearbox's play and its soft zone sit at zero *total* torque: the static torque tau_s(q) of the arm's
-weight, its balancer and the payload (`Context.static_torque`, `stiffness.statics`) plus the external
+weight, its balancer and the payload (`Context.static_torque`, `stiffness.kinematics.statics`) plus the external
 tau_i = W_i[rz] (Nm). A campaign measures loaded minus unloaded, so the deflection an effect adds is
 
     delta_rz = f(tau_s + tau_i) - f(tau_s)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..context import Context
-from ..spatial import exp_so3
+from ..kinematics.spatial import exp_so3
 from ..units import RAD_TO_DEG
 from .base import Effect, Param, read_values
 

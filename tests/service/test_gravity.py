@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from service.config import load_config
 from service.gravity import GravityCompensator
-from stiffness.payload import identify_payload
+from stiffness.kinematics.payload_identification import identify_payload
 
 G = np.array([0.0, 0.0, -9.81])
 

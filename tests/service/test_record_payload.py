@@ -13,8 +13,8 @@ from service.ati import AtiProtocol
 from service.config import load_config
 from service.gravity import GravityCompensator
 from service.sources.replay import ReplaySource, read_log
+from stiffness.kinematics.spatial import exp_so3
 from stiffness.model import StiffnessModel
-from stiffness.spatial import exp_so3
 from tools.cli import main
 
 

@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from stiffness.errors import ConfigError
-from stiffness.robot import BODIES, Robot
+from stiffness.kinematics.robot import BODIES, Robot
 
 
 def test_batched_frames_match_pinocchio(robot):

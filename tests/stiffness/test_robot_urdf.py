@@ -10,9 +10,9 @@ from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
-from stiffness.robot import BODIES, Robot, read_extended
-from stiffness.statics import Statics
-from stiffness.urdf import urdf_text
+from stiffness.kinematics.robot import BODIES, Robot, read_extended
+from stiffness.kinematics.statics import Statics
+from stiffness.kinematics.urdf import urdf_text
 from tools.cli import main
 
 ROBOTS = ROOT / "config" / "robots"

@@ -3,7 +3,7 @@
 import numpy as np
 import pinocchio as pin
 
-from stiffness.spatial import exp_so3, log_so3, transform, transport_wrench, wrench_action_matrix
+from stiffness.kinematics.spatial import exp_so3, log_so3, transform, transport_wrench, wrench_action_matrix
 
 
 def random_pose(rng):

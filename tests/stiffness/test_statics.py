@@ -12,10 +12,10 @@ from stiffcomp_testlib import ROOT
 from stiffness.context import Context
 from stiffness.effects.axial import joint_torque
 from stiffness.files.yaml_schema import dump_yaml
+from stiffness.kinematics.robot import Robot, read_extended
+from stiffness.kinematics.spatial import transform, transport_wrench
+from stiffness.kinematics.statics import G_STANDARD, Statics, independent_columns
 from stiffness.measurements import Dataset
-from stiffness.robot import Robot, read_extended
-from stiffness.spatial import transform, transport_wrench
-from stiffness.statics import G_STANDARD, Statics, independent_columns
 
 KR125 = ROOT / "config" / "robots" / "kr125_masses.yaml"
 G = np.array(G_STANDARD)
@@ -186,7 +186,7 @@ def test_the_preload_keys_of_the_kr125_do_not_depend_on_rounding(robot):
     """Joint 2 feels link 3's mass m3 exactly as link 2's first moment m c_x (equal columns): the first key,
     mx2_kgm, is kept and m3_kg never, however the rounding falls (QR with pivoting kept m3_kg on one numpy
     and m5_kg on the next)."""
-    from stiffness.statics import base_columns, column_key
+    from stiffness.kinematics.statics import base_columns, column_key
 
     keys = [column_key(k) for k in base_columns(robot, 2)]
     assert keys == [f"m{a}{link}_kgm" for link in range(2, 7) for a in "xy"]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
+from stiffness.kinematics.statics import Statics
 from stiffness.model import StiffnessModel
-from stiffness.statics import Statics
 from tools.cli import main
 
 Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]

@@ -51,7 +51,7 @@ def test_a_link_of_no_length_does_not_bend(tmp_path):
     from stiffcomp_testlib import ROOT, random_dataset
 
     from stiffness.context import Context
-    from stiffness.robot import Robot
+    from stiffness.kinematics.robot import Robot
 
     d = yaml.safe_load((ROOT / "config/robots/kr125.yaml").read_text())
     d["dh"]["d_mm"][5] = 0.0

@@ -5,7 +5,7 @@ from effect_helpers import context
 
 from hil.testing import model_with
 from stiffness.effects.sensor_misalignment import SensorMisalignment
-from stiffness.spatial import exp_so3
+from stiffness.kinematics.spatial import exp_so3
 
 
 def test_rotates_force_and_moment(robot):

@@ -16,10 +16,10 @@ from stiffcomp_testlib import MODELS, ROOT
 from service.compensation import FastPredictor
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
+from stiffness.kinematics.statics import PayloadConfig, Statics, static_regressor
 from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.preload import PreloadTerm
-from stiffness.statics import PayloadConfig, Statics, static_regressor
 from stiffness.units import RAD_TO_DEG
 
 ROBOTS = ROOT / "config" / "robots"
@@ -147,7 +147,7 @@ def test_the_model_payload_round_trips_and_bad_values_name_the_key(tmp_path):
 
 
 def test_a_robot_extends_another_and_a_loop_or_a_missing_base_is_named(tmp_path):
-    from stiffness.robot import Robot
+    from stiffness.kinematics.robot import Robot
 
     assert Robot.from_yaml(MASSES).has_masses and not Robot.from_yaml(ROBOTS / "kr125.yaml").has_masses
     (tmp_path / "a.yaml").write_text("extends: b.yaml\n")

@@ -32,8 +32,8 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field
 
-from .errors import quote
-from .files.yaml_schema import Strict
+from ..errors import quote
+from ..files.yaml_schema import Strict
 from .robot import Robot
 
 PARTS = ("m", "mx", "my", "mz")          # pinocchio's dynamic parameters 0..3 of each link

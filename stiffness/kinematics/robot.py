@@ -3,7 +3,7 @@ links' masses and a gravity balancer, read from YAML.
 
 Kinematics are built with pinocchio from the DH table (`Robot.pin_model`). For whole measurement
 campaigns the same chain is evaluated batched in NumPy (`Robot.frames`), and the tests check the two
-agree. A robot YAML may instead name a URDF (``urdf: {file: ...}``); `stiffness.urdf` reads its
+agree. A robot YAML may instead name a URDF (``urdf: {file: ...}``); `stiffness.kinematics.urdf` reads its
 joints, limits and inertials with pinocchio's parser and turns them into the same DH table, so every
 robot is a DH robot from here on (docs/model_format.md, "Robot").
 
@@ -20,8 +20,8 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, field_validator
 
-from .errors import ConfigError, quote
-from .files.yaml_schema import Strict, deep_update, items_numbered, read_yaml, validate
+from ..errors import ConfigError, quote
+from ..files.yaml_schema import Strict, deep_update, items_numbered, read_yaml, validate
 from .spatial import rot_x, rot_z, rpy_matrix, trans_x, trans_z, transform
 
 N_JOINTS = 6

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .errors import ConfigError, quote
+from ..errors import ConfigError, quote
+from ..units import M_TO_MM
 from .spatial import rot_x, rot_z, trans_x, trans_z
-from .units import M_TO_MM
 
 TOLERANCE = 1e-9      # m and rad: how close a placement must be to its DH form
 
@@ -57,9 +57,9 @@ def read_urdf(path: str | Path, flange: str, where: str) -> tuple[dict, list, li
 
     Returns
     -------
-    dh : dict of a_mm, alpha_deg, d_mm, offset_deg (six each), for `stiffness.robot.DHConfig`
+    dh : dict of a_mm, alpha_deg, d_mm, offset_deg (six each), for `stiffness.kinematics.robot.DHConfig`
     limits : six [min, max] in deg
-    links : six dicts of mass_kg and com_mm (DH frame i), for `stiffness.robot.LinkInertialConfig`
+    links : six dicts of mass_kg and com_mm (DH frame i), for `stiffness.kinematics.robot.LinkInertialConfig`
     """
     import pinocchio as pin
 
@@ -146,7 +146,7 @@ def check_masses(path: Path) -> None:
 
 
 def urdf_text(robot) -> str:
-    """The robot (a `stiffness.robot.Robot`) as a URDF in the form `read_urdf` accepts.
+    """The robot (a `stiffness.kinematics.robot.Robot`) as a URDF in the form `read_urdf` accepts.
 
     Links ``base_link``, ``link1`` .. ``link6`` and ``flange`` (DH frame 6, a fixed joint); each link's
     mass is a point mass at its centre; effort and velocity limits are 0 (stiffcomp does not use them).
@@ -154,7 +154,7 @@ def urdf_text(robot) -> str:
 
     L = [rot_z(o) @ trans_z(d) @ trans_x(a) @ rot_x(al) for o, d, a, al in zip(robot.offset, robot.d, robot.a, robot.alpha)]
     lines = ['<?xml version="1.0"?>',
-             (f"<!-- {robot.name}: written by stiffness.urdf.urdf_text from {Path(robot.source).name}; "
+             (f"<!-- {robot.name}: written by stiffness.kinematics.urdf.urdf_text from {Path(robot.source).name}; "
               "DH frame i is joint i's frame moved by the next joint's origin (docs/robot_format.md) -->"),
              f'<robot name="{robot.name.replace(" ", "_")}">', '  <link name="base_link"/>']
     for i in range(6):

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from stiffness.errors import DataError
-from stiffness.spatial import skew
+from stiffness.kinematics.spatial import skew
 
 COLUMNS = [f"q{i}_deg" for i in range(1, 7)] + ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
 
