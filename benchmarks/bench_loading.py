@@ -35,7 +35,7 @@ try:
         from stiffness.model import StiffnessModel
         StiffnessModel.from_yaml(path)
     else:
-        from stiffness.measurements import read_measurements
+        from stiffness.data.measurements import read_measurements
         read_measurements(path)
     out = "loaded"
 except Exception as e:

@@ -24,8 +24,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.identify import fit
-from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
 
 

@@ -33,14 +33,14 @@ sys.path.insert(0, str(ROOT))
 from hil.circle import cut, timing_verdict
 from hil.scenario import load_scenario
 from hil.testing import ROTATIONAL, scaled_model_file
+from stiffness.data.part_points import read_part
+from stiffness.data.trace_file import read_trace
 from stiffness.effects.hysteresis import Hysteresis
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part
 from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
 from stiffness.part_rows import read_against
 from stiffness.prior import Prior
-from stiffness.trace import read_trace
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 PLACES = {"A": [0.0, -60.0, 90.0, 0.0, 60.0, 0.0], "B": [25.0, -45.0, 75.0, 0.0, 60.0, 30.0],

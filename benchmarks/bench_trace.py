@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 from service.app import Service
 from service.config import load_config
 from service.trace import TraceOptions, TraceWriter
-from stiffness.trace import read_trace
+from stiffness.data.trace_file import read_trace
 
 
 def block(service: Service, t0: float, cycles: int, out: list[float]) -> float:

@@ -11,7 +11,7 @@ to the tool: a tilted tool cuts a tilted wall), ``points`` angles equally spaced
 ``noise_um`` (1 sigma) on each axis. Points within ``entry_exit_mask_deg`` of the start are left out, as
 the paper leaves out the entry and exit (the tool passes there twice). The points are written in the part
 frame of the scenario's ``cmm.part_frame`` (default: at the circle's nominal centre, the base's axes), in
-the part format (`stiffness.part`).
+the part format (`stiffness.data.part_points`).
 
 The part's error is each point's normal deviation from the nominal wall, the nominal path offset the same
 way (Fig. 8b): ``part_error_mm`` is its mean absolute value.
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stiffness.data.part_points import write_part
 from stiffness.kinematics.robot import PoseConfig
-from stiffness.part import write_part
 
 from .scenario import Scenario
 from .world import World

@@ -28,8 +28,8 @@ from service.app import Service
 from service.config import load_config
 from service.sources.base import FtSource
 from service.trace import TraceOptions
+from stiffness.data.trace_file import TraceFile
 from stiffness.model import StiffnessModel
-from stiffness.trace import TraceFile
 
 from .run import PassResult, write_service_config
 from .scenario import Scenario

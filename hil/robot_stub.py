@@ -37,10 +37,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffness.context import Context
+from stiffness.data.campaign import Context
+from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
 from stiffness.kinematics.statics import statics_for
-from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 
 from .payload import TruePayload

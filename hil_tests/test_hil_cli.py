@@ -14,10 +14,10 @@ from hil_lib import ROOT
 
 from hil.scenario import load_scenario
 from hil.testing import BEYOND_SPRINGS, truth_with
+from stiffness.data.part_points import read_part
+from stiffness.data.trace_file import read_trace
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part
 from stiffness.part_rows import read_against
-from stiffness.trace import read_trace
 from tools.cli import main
 
 WINDOWS = {f"{w}_{k}_mm" for w in ("entry", "exit", "steady") for k in ("peak", "mean")}   # issue 26

@@ -18,13 +18,13 @@ from hil_lib import ROOT
 from hil.circle import cut
 from hil.scenario import load_scenario
 from hil.testing import ROTATIONAL, scaled_model_file
+from stiffness.data.part_points import read_part
+from stiffness.data.trace_file import COLUMNS, read_trace
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part
 from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
 from stiffness.part_rows import read_against
 from stiffness.prior import Prior
-from stiffness.trace import COLUMNS, read_trace
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -3,7 +3,7 @@
     cycle process                               trace writer (a process of its own)
     ┌────────────────────────────┐   shared     ┌──────────────────────────────────────────┐
     │ each cycle: one row, one   │   memory     │ every DRAIN_S: the rows since the last,   │
-    │ struct copy, count += 1  ──┼─▶ TraceRing ◀┼─ written by stiffness.trace.TraceFile     │
+    │ struct copy, count += 1  ──┼─▶ TraceRing ◀┼─ written by stiffness.data.trace_file.TraceFile     │
     └────────────────────────────┘              │ (CSV or Parquet, rotated at a size limit) │
                                                 └──────────────────────────────────────────┘
 
@@ -37,8 +37,8 @@ import numpy as np
 from plc_interface.image import release
 from plc_interface.io_process import describe_exit, ignore_cycle_signals, spawn_child
 from plc_interface.log_format import configure_logging, current_format
+from stiffness.data.trace_file import DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
 from stiffness.errors import StiffnessError
-from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
 
 from .errors import TraceError
 

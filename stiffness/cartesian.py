@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .data.measurements import Dataset
 from .kinematics.robot import BODIES
 from .kinematics.spatial import transform, transport_wrench
-from .measurements import Dataset
 from .model import StiffnessModel
 
 TCP = BODIES.index("TCP")

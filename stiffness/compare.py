@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from .data.measurements import COMPONENTS, Dataset
 from .identify import rms
 from .kinematics.robot import BODIES
-from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z", "none")

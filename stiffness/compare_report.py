@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .compare import METRICS, Comparison
-from .measurements import COMPONENTS
+from .data.measurements import COMPONENTS
 from .report import Report
 
 GROUPS = (("by_body", "body"), ("by_config", "configuration"), ("by_load_direction", "load direction"))

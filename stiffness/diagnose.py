@@ -32,16 +32,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import f as f_dist
 
-from .context import Context
+from .data.campaign import Context
+from .data.measurements import Dataset
+from .data.residuals import pure_error, worst
 from .effects import EFFECTS, Effect
 from .errors import DataError
 from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
-from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import PreloadTerm, held_preload, start_from_centres
 from .prior import Prior
-from .residuals import pure_error, worst
 
 CV_MIN = 0.005
 BIC_MIN = 10.0

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .context import Context
+from .data.campaign import Context
+from .data.residuals import axial_residual
 from .plots import legend_below
-from .residuals import axial_residual
 from .units import RAD_TO_DEG
 
 

@@ -32,17 +32,17 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares, lsq_linear
 
-from .context import Context
+from .data.campaign import Context
+from .data.measurements import Dataset
+from .data.residuals import repeat_groups
 from .fit_result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
 from .identifiability import IDENT_TOL, unidentifiable_information
 from .kinematics.robot import BODIES
-from .measurements import Dataset
 from .model import StiffnessModel
 from .preload import directions, held_preload
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
 from .prior import Prior, PriorRows, covariance_entry
-from .residuals import repeat_groups
 from .robust import gross_errors, robust_scale
 from .sanity import noise_warning
 

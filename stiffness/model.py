@@ -1,7 +1,7 @@
 """A stiffness model: a robot plus a list of effects, read from and written to plain YAML.
 
 Prediction (Eq. 5-7): the external wrench is transported to every DH frame with the unloaded
-geometry (Eq. 4); each effect contributes twists at the sites of `stiffness.context`; the loaded chain
+geometry (Eq. 4); each effect contributes twists at the sites of `stiffness.data.campaign`; the loaded chain
 
     0T'_k = prod_{s<k} [ E(delta_spring_s) T(s, s+1)(q) E(delta_tip_{s+1}) ]
 
@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from .context import Context
+from .data.campaign import Context
+from .data.measurements import Dataset
 from .effects import EFFECTS, Effect
 from .effects.joint_spring import JointSpring
 from .errors import ConfigError, quote
@@ -26,7 +27,6 @@ from .files.yaml_schema import FlowList, dump_yaml, read_yaml, validate
 from .kinematics.robot import Robot, load_robot
 from .kinematics.spatial import log_so3, twist_transform
 from .kinematics.statics import PayloadConfig, Statics, statics_for
-from .measurements import Dataset
 from .preload import PreloadTerm
 from .prior import read_covariance
 from .units import M_TO_MM, RAD_TO_DEG

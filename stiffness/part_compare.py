@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .context import Context
+from .data.campaign import Context
 from .effects.axial import joint_torque
 from .model import StiffnessModel
 from .part_rows import PartRows

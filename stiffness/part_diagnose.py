@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .data.measurements import COMPONENTS, Dataset
 from .diagnose import Candidate, Diagnosis, diagnose
 from .effects.axial import joint_torque
 from .errors import DataError
-from .measurements import COMPONENTS, Dataset
 from .model import StiffnessModel
 from .part_compare import at_points
 from .part_learn import _concat

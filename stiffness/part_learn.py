@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from .context import Context
+from .data.campaign import Context
+from .data.measurements import Dataset
 from .effects.base import Effect, Param
 from .errors import ConfigError, StiffnessError
 from .identify import FitResult, fit, jacobian
-from .measurements import Dataset
 from .model import StiffnessModel
 from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
 from .part_rows import PartRows, plane_basis

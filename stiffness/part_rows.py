@@ -54,12 +54,12 @@ import numpy as np
 from scipy import signal
 from scipy.spatial import cKDTree
 
+from .data.measurements import Dataset
+from .data.part_points import PartMeasurement
+from .data.trace_file import Gap, Trace
 from .errors import DataError, Problems
 from .kinematics.robot import Robot
-from .measurements import Dataset
-from .part import PartMeasurement
 from .part_leftout import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
-from .trace import Gap, Trace
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more

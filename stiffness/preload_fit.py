@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .crossings import centre_search, centres, crossing_text
+from .data.crossings import centre_search, centres, crossing_text
 from .effects.axial import AxialEffect
 from .model import StiffnessModel
 from .preload import PreloadTerm, start_from_centres

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .context import Context
+from .data.campaign import Context
+from .data.measurements import Dataset
+from .data.residuals import pure_error
 from .kinematics.robot import BODIES
-from .measurements import Dataset
 from .model import StiffnessModel
-from .residuals import pure_error
 
 NOISE_RATIO = 10.0
 SHOW_LINES = 20

@@ -16,11 +16,11 @@ import numpy as np
 
 from hil.path import CirclePath
 from hil.scenario import CircleConfig
+from stiffness.data.measurements import Dataset
+from stiffness.data.part_points import write_part
+from stiffness.data.trace_file import COLUMNS, TraceFile
 from stiffness.kinematics.robot import PoseConfig
-from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
-from stiffness.part import write_part
-from stiffness.trace import COLUMNS, TraceFile
 
 CENTER_Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]
 TOOL_RADIUS_MM = 4.0

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stiffness.data.measurements import Dataset
 from stiffness.kinematics.robot import Robot
-from stiffness.measurements import Dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"

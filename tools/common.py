@@ -12,8 +12,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.errors import ConfigError, OutputError
-from stiffness.measurements import Dataset, read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.sanity import resolve_duplicates
 

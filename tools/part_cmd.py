@@ -78,9 +78,9 @@ def _check_options(args) -> None:
 
 
 def _parts(args, model) -> list:
-    from stiffness.part import read_part
+    from stiffness.data.part_points import read_part
+    from stiffness.data.trace_file import read_trace
     from stiffness.part_rows import read_against
-    from stiffness.trace import read_trace
 
     pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
     out = []
@@ -92,8 +92,8 @@ def _parts(args, model) -> list:
 
 def _prior(args, model, say):
     """The prior and the model to start from: the YAML's covariance, a campaign's fit, or the catalogue's."""
+    from stiffness.data.measurements import read_measurements
     from stiffness.identify import fit
-    from stiffness.measurements import read_measurements
     from stiffness.prior import Prior
 
     if args.campaign:

@@ -40,7 +40,7 @@ def register(sub) -> None:
 
 def add_trace_options(p) -> None:
     """--trace FILE and its size limit: every cycle recorded outside the cycle (docs/part_format.md)."""
-    from stiffness.trace import DEFAULT_KEEP, DEFAULT_MAX_MB
+    from stiffness.data.trace_file import DEFAULT_KEEP, DEFAULT_MAX_MB
 
     p.add_argument("--trace", default=None, metavar="FILE",
                    help="record every cycle to FILE, .csv or .parquet (off by default), one row a cycle with the "

@@ -20,8 +20,8 @@ import copy
 
 import numpy as np
 
-from .. import crossings
-from ..context import Context
+from ..data import crossings
+from ..data.campaign import Context
 from .base import Effect
 from .realtime import AxialTerm
 

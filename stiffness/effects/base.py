@@ -4,7 +4,7 @@ An effect is one named entry in a model YAML (``effect: NAME`` plus its paramete
 of two places:
 
 * ``input`` effects change the sensor wrench before it is transported (e.g. sensor misalignment);
-* ``site`` effects add twists at the sites of `stiffness.context` (springs, backlash, bending ...).
+* ``site`` effects add twists at the sites of `stiffness.data.campaign` (springs, backlash, bending ...).
 
 Parameters are held in SI units in ``theta``; ``Param.unit``/``Param.yaml_factor`` convert to the
 units a person reads in the YAML. A site effect that is linear in its parameters provides
@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..context import N_SITES, Context
+from ..data.campaign import N_SITES, Context
 from ..errors import ConfigError, quote
 from .realtime import InputTerm, Term
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
+from ..data.campaign import Context
 from ..units import M_TO_MM, RAD_TO_DEG
 from .base import Effect, Param, read_values
 from .realtime import Ignored

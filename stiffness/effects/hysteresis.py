@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
+from ..data.campaign import Context
 from ..errors import ConfigError, quote
 from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque, torque_range

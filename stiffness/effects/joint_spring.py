@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
+from ..data.campaign import Context
 from ..errors import ConfigError
 from .base import Effect, Param, read_location, read_values
 from .realtime import JointCompliance

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..context import Context
+from ..data.campaign import Context
 from .base import Effect, Param, read_location, read_values
 from .realtime import FrameCompliance
 

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..context import Context
+from ..data.campaign import Context
 from ..kinematics.spatial import exp_so3
 from ..units import RAD_TO_DEG
 from .base import Effect, Param, read_values

@@ -5,9 +5,9 @@ import pytest
 
 from discovery.campaigns import campaign, start_model
 from hil.testing import truth_with
+from stiffness.data.residuals import pure_error, repeat_groups
 from stiffness.diagnose import diagnose
 from stiffness.errors import DataError
-from stiffness.residuals import pure_error, repeat_groups
 
 
 def test_repeats_of_fine_load_steps_are_not_chained_together():

@@ -14,9 +14,9 @@ from stiffcomp_testlib import MODELS
 from discovery.campaigns import campaign, start_model, tracker
 from hil.testing import truth_with
 from stiffness.compare import compare
+from stiffness.data.measurements import read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.identify import fit
-from stiffness.measurements import read_measurements
 from tools.cli import main
 
 J6_AXIAL = "joint_spring@joint6.rz_rad_per_Nm"

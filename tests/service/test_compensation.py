@@ -9,7 +9,7 @@ from stiffcomp_testlib import pose_error
 from hil.testing import CONFIG
 from service.compensation import FastPredictor
 from service.errors import ModelUnsupportedError
-from stiffness.measurements import Dataset
+from stiffness.data.measurements import Dataset
 from stiffness.model import StiffnessModel
 
 MODELS = CONFIG / "models"

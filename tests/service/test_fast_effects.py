@@ -27,8 +27,8 @@ from stiffcomp_testlib import pose_error
 
 from hil.testing import CONFIG, model_with
 from service.compensation import FastPredictor
+from stiffness.data.measurements import Dataset
 from stiffness.effects import EFFECTS, Effect
-from stiffness.measurements import Dataset
 
 # one or more entries per library effect, sized so each matters against the springs
 EXAMPLES: dict[str, list[dict]] = {

@@ -14,7 +14,7 @@ import numpy as np
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.contract import TaskState
 from service.config import load_config
-from stiffness.trace import read_trace
+from stiffness.data.trace_file import read_trace
 
 STATS_KEYS = {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
 

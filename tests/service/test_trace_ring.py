@@ -17,7 +17,7 @@ from service.config import load_config
 from service.errors import TraceError
 from service.signals import Signals
 from service.trace import TraceOptions, TraceRing
-from stiffness.trace import COLUMNS
+from stiffness.data.trace_file import COLUMNS
 
 
 @settings(max_examples=25, deadline=None)

@@ -15,9 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
+from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError, DataError, Problems, quote
 from stiffness.files.yaml_schema import read_yaml
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 
 REF = DATA / "reference_campaign.csv"

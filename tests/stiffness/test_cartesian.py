@@ -4,8 +4,8 @@ import numpy as np
 from stiffcomp_testlib import with_deflection
 
 from stiffness.cartesian import identify_cartesian, tcp_compliance, tcp_stiffness, tcp_wrench_and_deflection
+from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
-from stiffness.measurements import Dataset
 
 Q = np.array([10.0, -75.0, 90.0, 0.0, 75.0, 0.0])
 

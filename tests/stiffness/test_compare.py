@@ -9,7 +9,7 @@ import yaml
 from stiffcomp_testlib import ROOT
 
 from stiffness.compare import by_component, compare, load_direction, r2, summary
-from stiffness.measurements import Dataset
+from stiffness.data.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign
 from tools.cli import main

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
+from stiffness.data.measurements import COMPONENTS, read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report
 from stiffness.identify import rms
-from stiffness.measurements import COMPONENTS, read_measurements
 from stiffness.model import StiffnessModel
 
 WALK = ROOT / "examples" / "campaign_backlash.csv"

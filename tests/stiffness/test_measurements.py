@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from stiffcomp_testlib import DATA
 
+from stiffness.data.measurements import COLUMNS, read_measurements
 from stiffness.errors import DataError
-from stiffness.measurements import COLUMNS, read_measurements
 
 REF = DATA / "reference_campaign.csv"
 

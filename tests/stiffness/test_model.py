@@ -7,9 +7,9 @@ import pytest
 import yaml
 from stiffcomp_testlib import DATA, MODELS, random_dataset, with_deflection
 
+from stiffness.data.measurements import read_measurements
 from stiffness.effects.joint_spring import COMPONENTS
 from stiffness.identify import fit
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 
 

@@ -12,14 +12,14 @@ from hypothesis import strategies as st
 from part_testlib import synthetic_cut
 from stiffcomp_testlib import ROOT
 
+from stiffness.data.part_points import read_part, write_part
+from stiffness.data.trace_file import COLUMNS, TraceFile, read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part, write_part
 from stiffness.part_compare import compare_part
 from stiffness.part_rows import read_against
 from stiffness.part_timing import when_made
-from stiffness.trace import COLUMNS, TraceFile, read_trace
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

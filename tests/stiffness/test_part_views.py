@@ -14,9 +14,10 @@ from matplotlib.colors import to_hex
 from part_testlib import synthetic_cut
 from stiffcomp_testlib import ROOT
 
+from stiffness.data.part_points import read_part
+from stiffness.data.trace_file import read_trace
 from stiffness.diagnose_report import to_dict
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part
 from stiffness.part_compare import at_points, compare_part
 from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
@@ -24,7 +25,6 @@ from stiffness.part_report import diagnose_report, learn_figure, load_figure
 from stiffness.part_rows import read_against
 from stiffness.prior import Prior
 from stiffness.robust import repeat_deviation
-from stiffness.trace import read_trace
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -5,8 +5,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.identifiability import unidentifiable, unidentifiable_information
-from stiffness.measurements import Dataset, read_measurements
 
 
 def _masks(n):

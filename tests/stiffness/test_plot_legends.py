@@ -8,9 +8,9 @@ import pytest
 from matplotlib.figure import Figure
 from stiffcomp_testlib import MODELS, ROOT
 
+from stiffness.data.measurements import read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_plots import evidence, residual_vs_force, residual_vs_time
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.plots import rms_bars
 

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 from stiffcomp_testlib import DATA
 
+from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.prior import Prior
 

@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
+from stiffness.data.measurements import read_measurements
 from stiffness.identify import fit
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.sanity import duplicate_rows, noise_warning, resolve_duplicates
 

@@ -5,10 +5,10 @@ import pytest
 import yaml
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
+from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.identify import fit
-from stiffness.measurements import read_measurements
 from stiffness.model import StiffnessModel
 from stiffness.simulate import Campaign, simulate
 from tools.cli import main

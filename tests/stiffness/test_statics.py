@@ -9,13 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from stiffcomp_testlib import ROOT
 
-from stiffness.context import Context
+from stiffness.data.campaign import Context
+from stiffness.data.measurements import Dataset
 from stiffness.effects.axial import joint_torque
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.kinematics.robot import Robot, read_extended
 from stiffness.kinematics.spatial import transform, transport_wrench
 from stiffness.kinematics.statics import G_STANDARD, Statics, independent_columns
-from stiffness.measurements import Dataset
 
 KR125 = ROOT / "config" / "robots" / "kr125_masses.yaml"
 G = np.array(G_STANDARD)

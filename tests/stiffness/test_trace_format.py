@@ -1,4 +1,4 @@
-"""The trace file (`stiffness.trace`): round trips through CSV and Parquet, rotation at the size limit, and
+"""The trace file (`stiffness.data.trace_file`): round trips through CSV and Parquet, rotation at the size limit, and
 bad files named by line (issue 29, item 1)."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from stiffness.data.trace_file import COLUMNS, INTEGER, TraceFile, check_path, read_trace
 from stiffness.errors import DataError, OutputError
-from stiffness.trace import COLUMNS, INTEGER, TraceFile, check_path, read_trace
 
 
 def _rows(values: np.ndarray) -> np.ndarray:

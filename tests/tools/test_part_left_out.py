@@ -13,8 +13,8 @@ from part_testlib import synthetic_cut
 from stiffcomp_testlib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
+from stiffness.data.part_points import read_part, write_part
 from stiffness.model import StiffnessModel
-from stiffness.part import read_part, write_part
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

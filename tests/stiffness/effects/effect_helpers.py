@@ -5,7 +5,7 @@ from stiffcomp_testlib import random_dataset
 
 
 def context(robot, n=40, seed=0):
-    from stiffness.context import Context
+    from stiffness.data.campaign import Context
     return Context(robot, random_dataset(robot, n, seed))
 
 

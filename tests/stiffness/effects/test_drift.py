@@ -3,7 +3,7 @@
 import numpy as np
 
 from hil.testing import model_with
-from stiffness.measurements import Dataset
+from stiffness.data.measurements import Dataset
 
 
 def test_offset_grows_with_time_in_each_configuration(robot):

@@ -14,10 +14,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from stiffness.context import Context
+from stiffness.data.campaign import Context
+from stiffness.data.measurements import Dataset
 from stiffness.effects.hysteresis import Hysteresis, LoadingState, loading_state
 from stiffness.errors import ConfigError
-from stiffness.measurements import Dataset
 
 torques = st.lists(st.floats(-2000, 2000, allow_nan=False), min_size=1, max_size=60)
 

@@ -50,7 +50,7 @@ def test_a_link_of_no_length_does_not_bend(tmp_path):
     import yaml
     from stiffcomp_testlib import ROOT, random_dataset
 
-    from stiffness.context import Context
+    from stiffness.data.campaign import Context
     from stiffness.kinematics.robot import Robot
 
     d = yaml.safe_load((ROOT / "config/robots/kr125.yaml").read_text())

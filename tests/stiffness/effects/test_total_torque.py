@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 from stiffcomp_testlib import MODELS, ROOT
 
 from service.compensation import FastPredictor
+from stiffness.data.measurements import Dataset
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
 from stiffness.kinematics.statics import PayloadConfig, Statics, static_regressor
-from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.preload import PreloadTerm
 from stiffness.units import RAD_TO_DEG

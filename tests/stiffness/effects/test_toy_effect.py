@@ -17,6 +17,7 @@ from hil.testing import CONFIG, truth_with
 from service.compensation import FastPredictor
 from service.config import load_config
 from service.pipeline import Cycle
+from stiffness.data.measurements import Dataset
 from stiffness.diagnose import diagnose
 from stiffness.edit import add_effect
 from stiffness.effects import EFFECTS
@@ -24,7 +25,6 @@ from stiffness.effects.axial import axial_basis
 from stiffness.effects.base import Effect, Param, read_location, read_values
 from stiffness.effects.realtime import AxialTerm
 from stiffness.identify import fit
-from stiffness.measurements import Dataset
 from stiffness.model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 

@@ -15,10 +15,10 @@ from functools import cached_property
 
 import numpy as np
 
-from .kinematics.robot import Robot
-from .kinematics.spatial import skew, transport_wrench
+from ..kinematics.robot import Robot
+from ..kinematics.spatial import skew, transport_wrench
+from ..units import M_TO_MM, RAD_TO_DEG
 from .measurements import Dataset
-from .units import M_TO_MM, RAD_TO_DEG
 
 N_SITES = 12
 

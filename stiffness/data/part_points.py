@@ -32,10 +32,10 @@ import numpy as np
 import yaml
 from pydantic import Field
 
-from .errors import DataError, Problems, quote
-from .files.csv_table import read_table
-from .files.yaml_schema import NoAliasLoader, Strict, format_validation_error
-from .kinematics.robot import PoseConfig
+from ..errors import DataError, Problems, quote
+from ..files.csv_table import read_table
+from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
+from ..kinematics.robot import PoseConfig
 
 POINT_COLS = ("x_mm", "y_mm", "z_mm")
 

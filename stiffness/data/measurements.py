@@ -13,7 +13,7 @@ Measurement axes. A row may give its deflection in axes of its own instead of th
 (``Dataset.axes``, in memory only): a CMM or a probe measures a machined surface along its normal, so
 a point of a part (`stiffness.part_rows`) is a TCP row whose first axis is the surface normal and whose
 only measured component is that one. The model's predictions and the fit's design follow the row's
-axes (`stiffness.context.Context`), so the same identification code fits campaigns and parts.
+axes (`stiffness.data.campaign.Context`), so the same identification code fits campaigns and parts.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError, Problems, quote
-from .files.parquet import read_parquet
-from .kinematics.robot import BODIES, Robot
+from ..errors import DataError, Problems, quote
+from ..files.parquet import read_parquet
+from ..kinematics.robot import BODIES, Robot
 
 Q_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH_COLS = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")

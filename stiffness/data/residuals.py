@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .context import Context
-from .kinematics.robot import BODIES
+from ..kinematics.robot import BODIES
+from .campaign import Context
 from .measurements import COMPONENTS
 
 LOAD_BINS = 4

@@ -42,8 +42,8 @@ from typing import Self
 
 import numpy as np
 
-from .errors import DataError, OutputError
-from .files.parquet import read_parquet
+from ..errors import DataError, OutputError
+from ..files.parquet import read_parquet
 
 log = logging.getLogger("stiffcomp.trace")
 
