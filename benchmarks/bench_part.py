@@ -124,7 +124,7 @@ def plot(before, after, exact, path: Path) -> None:
     """The part error around the contour (the virtual CMM) before and after learning, and the exact model's."""
     from matplotlib.figure import Figure
 
-    from stiffness.plots import legend_below
+    from stiffness.report.plots import legend_below
 
     fig = Figure(figsize=(11, 4.8), layout="constrained")
     ax = fig.add_subplot()

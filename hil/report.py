@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from matplotlib.figure import Figure
 
-from stiffness.plots import legend_below
+from stiffness.report.plots import legend_below
 
 from .robot_stub import RobotStub
 from .world import World

@@ -13,7 +13,7 @@ import numpy as np
 
 from .compare import METRICS, Comparison
 from .data.measurements import COMPONENTS
-from .report import Report
+from .report.html import Report
 
 GROUPS = (("by_body", "body"), ("by_config", "configuration"), ("by_load_direction", "load direction"))
 COMPONENT_STATS = (("rms", "RMS"), ("max", "max |error|"), ("r2", "R²"))
@@ -21,7 +21,7 @@ COMPONENT_STATS = (("rms", "RMS"), ("max", "max |error|"), ("r2", "R²"))
 
 def build_report(comp: Comparison, command: str = "", plots: bool = True) -> Report:
     """The HTML report: verdict, overall table, tables by group, RMS bars and Fig. 4 grids."""
-    from . import plots as P
+    from .report import plots as P
 
     names = [m.name for m in comp.models]
     title = "Model against measurement: " + " vs ".join(names)

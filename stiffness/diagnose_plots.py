@@ -7,7 +7,7 @@ from matplotlib.figure import Figure
 
 from .data.campaign import Context
 from .data.residuals import axial_residual
-from .plots import legend_below
+from .report.plots import legend_below
 from .units import RAD_TO_DEG
 
 

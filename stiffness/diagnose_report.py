@@ -10,7 +10,7 @@ from .data.residuals import patterns
 from .diagnose import Diagnosis
 from .diagnose_plots import axial_residual_vs_torque, evidence, residual_vs_force, residual_vs_time
 from .kinematics.robot import BODIES
-from .report import Report
+from .report.html import Report
 
 VERDICT_KIND = {"missing_effect": "warn", "no_missing_effect": "good", "unexplained": "bad"}
 

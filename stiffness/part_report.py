@@ -17,8 +17,8 @@ from matplotlib.figure import Figure
 
 from .part_compare import PartComparison, at_points
 from .part_rows import plane_basis
-from .plots import legend_below
-from .report import Report
+from .report.html import Report
+from .report.plots import legend_below
 
 # one legend holds the forces and the joints: nine colours, none shared (matplotlib's ten, without its gray)
 FORCE_COLOURS = ("tab:blue", "tab:orange", "tab:green")

@@ -298,7 +298,7 @@ def figure(found: Identified, rec: Record, window_s: float = 1.0):
     spectrum of the deflection against the identified model's (matplotlib Figure)."""
     from matplotlib.figure import Figure
 
-    from ..plots import legend_below
+    from ..report.plots import legend_below
 
     modes = found.structure.cfg.modes
     fig = Figure(figsize=(12, 3.2 * (len(modes) + 1)), layout="constrained")

@@ -12,7 +12,7 @@ from stiffness.data.measurements import read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_plots import evidence, residual_vs_force, residual_vs_time
 from stiffness.model import StiffnessModel
-from stiffness.plots import rms_bars
+from stiffness.report.plots import rms_bars
 
 
 def legends_off_the_data(fig: Figure) -> int:

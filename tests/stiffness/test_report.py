@@ -3,7 +3,7 @@
 import pytest
 from matplotlib.figure import Figure
 
-from stiffness.report import Report
+from stiffness.report.html import Report
 
 
 def small_figure() -> Figure:

@@ -11,8 +11,8 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from .data.measurements import COMPONENTS, Dataset
-from .kinematics.robot import BODIES
+from ..data.measurements import COMPONENTS, Dataset
+from ..kinematics.robot import BODIES
 
 UNITS = {c: ("mm" if k < 3 else "deg") for k, c in enumerate(COMPONENTS)}
 LINESTYLES = ("--", "-", ":", "-.")

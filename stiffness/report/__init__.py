@@ -1,0 +1,1 @@
+"""The HTML report writer and the plots every command's report draws."""
