@@ -30,7 +30,7 @@ from hil.dynamics import DynamicOptions, compare
 from hil.lockstep import run_lockstep
 from hil.run import run_pass
 from hil.scenario import load_scenario
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 def realtime(sc, truth, model_path, compensate, folder, overrides=None):

@@ -45,7 +45,7 @@ from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.kinematics.robot import load_robot
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 C_BLOCK = r"""
 #include <time.h>

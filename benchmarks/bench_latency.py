@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT))
 def main(argv: list[str] | None = None) -> int:
     from hil.latency import measure
     from hil.scenario import DEFAULT_SCENARIO, load_scenario
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default=str(DEFAULT_SCENARIO))

@@ -32,7 +32,7 @@ what, path = sys.argv[1], sys.argv[2]
 t0 = time.perf_counter()
 try:
     if what == "model":
-        from stiffness.model import StiffnessModel
+        from stiffness.model.stiffness_model import StiffnessModel
         StiffnessModel.from_yaml(path)
     else:
         from stiffness.data.measurements import read_measurements

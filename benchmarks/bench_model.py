@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 def median_time(fn, repeat: int) -> float:

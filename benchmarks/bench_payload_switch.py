@@ -41,7 +41,7 @@ from service.limits import CorrectionLimiter
 from service.payloads import PayloadSelector
 from service.pipeline import Compensator
 from stiffness.effects.backlash import Backlash
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 G = [0.0, 0.0, -9.81]
 

@@ -27,7 +27,7 @@ from discovery.campaigns import campaign, start_model, with_gross_errors
 
 from hil.testing import truth_with
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.planning import Device, plan
 
 

@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 from service.compensation import FastPredictor
 from stiffness.kinematics.statics import Statics
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 def main() -> int:

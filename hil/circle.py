@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from stiffness.files.yaml_schema import deep_update
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
 from .dynamics import (

@@ -44,7 +44,7 @@ def milling_wrench(t: np.ndarray, gravity_bias: np.ndarray | None = None, seed: 
 def default_gravity_bias() -> np.ndarray:
     """Payload weight and bias of config/default.yaml at its initial pose, as the sensor reads them."""
     from service.config import load_config
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     from .payload import TruePayload
 

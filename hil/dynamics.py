@@ -25,7 +25,7 @@ import numpy as np
 from plc_interface.endpoints import SHIPPED_CONFIG
 from stiffness.dynamics.identify import DEFLECTION, FORCE, Identified, Record, identify
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import M_TO_MM
 
 from .report import end_to_end_delay, errors, evaluate_pass, evaluate_uncompensated, window_errors

@@ -29,7 +29,7 @@ from service.config import load_config
 from service.sources.base import FtSource
 from service.trace import TraceOptions
 from stiffness.data.trace_file import TraceFile
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .run import PassResult, write_service_config
 from .scenario import Scenario

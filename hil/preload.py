@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from stiffness.effects.backlash import Backlash
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .report import errors, evaluate_pass, evaluate_uncompensated
 from .robot_stub import RobotStub

@@ -20,7 +20,7 @@ from .robot_stub import RobotStub
 from .world import World
 
 if TYPE_CHECKING:
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     from .scenario import Scenario
 

@@ -41,7 +41,7 @@ from stiffness.data.campaign import Context
 from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
 from stiffness.kinematics.statics import statics_for
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .payload import TruePayload
 from .structure import GRID_S, Structure, StructureConfig

@@ -35,7 +35,7 @@ from plc_interface.register_map import RegisterMap
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario

@@ -24,7 +24,7 @@ from service.sources.replay import write_log
 from stiffness.effects import EFFECTS
 from stiffness.effects.joint_spring import JointSpring
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "config"

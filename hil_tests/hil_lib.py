@@ -10,7 +10,7 @@ from hil.report import errors, evaluate_pass
 from hil.run import Faults, PassResult, run_pass
 from hil.scenario import ROOT, Scenario, load_scenario
 from plc_interface.register_map import RegisterMap
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 EXAMPLES = ROOT / "examples"
 MODELS = ROOT / "config" / "models"

@@ -16,7 +16,7 @@ from hil.scenario import load_scenario
 from hil.testing import BEYOND_SPRINGS, truth_with
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part_rows import read_against
 from tools.cli import main
 

@@ -13,7 +13,7 @@ from hil_lib import EXAMPLES, MODELS, OUT, nothing_outside_the_map, scenario, wr
 
 from hil.circle import run_circle
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign
 
 TRUTH = EXAMPLES / "truth_reference.yaml"

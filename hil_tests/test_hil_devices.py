@@ -20,7 +20,7 @@ from service.ati import AtiProtocol
 from service.config import load_config
 from service.errors import CanFrameError, SensorTimeout
 from service.sources.can_source import CanSource
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 TRUTH = StiffnessModel.from_yaml(EXAMPLES / "truth_reference.yaml")
 

@@ -32,7 +32,7 @@ from hil.dynamics import DynamicOptions, compare
 from hil.lockstep import run_lockstep
 from hil.report import evaluate_pass
 from hil.scenario import load_scenario
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 ROBUST = 0.1

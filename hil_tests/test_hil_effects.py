@@ -23,10 +23,10 @@ from hil.robot_stub import RobotStub
 from hil.testing import truth_with
 from hil.world import World
 from stiffness.diagnose import diagnose
-from stiffness.edit import add_effect
 from stiffness.files.yaml_schema import read_yaml
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.edit import add_effect
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign, CampaignSpec
 
 LOW_TABLE_Q_DEG = [0.0, -45.0, 100.0, 0.0, 35.0, 0.0]     # tool down, TCP 0.55 m below joint 2

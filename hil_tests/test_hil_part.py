@@ -20,11 +20,11 @@ from hil.scenario import load_scenario
 from hil.testing import ROTATIONAL, scaled_model_file
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import COLUMNS, read_trace
-from stiffness.model import StiffnessModel
+from stiffness.model.prior import Prior
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
 from stiffness.part_rows import read_against
-from stiffness.prior import Prior
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -24,7 +24,7 @@ from hil.payload import TruePayload
 from hil.report import evaluate_pass
 from hil.world import World
 from service.gravity import PAYLOAD_BODIES, GravityCompensator, GravityConfig
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
 FEED = 60.0                      # mm/s: a 3.7 s circle

@@ -14,7 +14,7 @@ import shlex
 
 from hil_lib import ROOT
 
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 PAGE = ROOT / "docs" / "part.md"

@@ -15,7 +15,7 @@ import numpy as np
 from hil_lib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 HEADING = "### Cut, measure, learn, cut again"

@@ -8,7 +8,7 @@ frame i-1 as W_i = Ad_i^T w0 (Eq. 4, unloaded geometry). The spring twists by de
 
     [v0; dr] = sum_i Ad_i C_i Ad_i^T w0,      dX = [v0 + dr x p_tcp ; dr]      (m, rad, base axes)
 
-the first-order term of `stiffness.model.StiffnessModel.predict` (the tests check the agreement).
+the first-order term of `stiffness.model.stiffness_model.StiffnessModel.predict` (the tests check the agreement).
 Pinocchio gives the frames and the Jacobian in one forward pass; the rest is four small NumPy calls.
 
 Correction (the paper's δq_r). The commanded joints must move the unloaded TCP by -dX:
@@ -50,7 +50,7 @@ from stiffness.files.yaml_schema import Strict
 from stiffness.kinematics.robot import BODIES
 from stiffness.kinematics.spatial import damped_pinv_solve
 from stiffness.kinematics.statics import PayloadConfig, statics_for
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .errors import ServiceConfigError
 from .fast_effects import fast_terms
@@ -98,7 +98,7 @@ class FastPredictor:
         self.compliance = terms.compliance       # (frame, [x y z rx ry rz]); frame k holds joint k+1's spring
         self.axial = terms.axial
         self.statics = model.statics()
-        self.preloads = model.preloads()         # identified static torque (stiffness.preload), kept by carry
+        self.preloads = model.preloads()         # identified static torque (stiffness.model.preload_term), kept by carry
         self._q: np.ndarray | None = None        # the joints of the last kinematics (rad)
         self.tau_s = [0.0] * 6                   # Nm, at the last kinematics
         self._axial_at_rest = [0.0] * len(self.axial)   # f(tau_s) of each axial term

@@ -36,7 +36,7 @@ from stiffness.effects.realtime import (
     TwistTerm,
     WrenchTerm,
 )
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .errors import ModelUnsupportedError
 

@@ -19,7 +19,7 @@ from pydantic import Field
 
 from plc_interface.contract import Fault
 from stiffness.files.yaml_schema import Strict
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 
 from .ati import Reading

@@ -32,7 +32,7 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from stiffness.errors import quote
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .compensation import FastPredictor, load_model
 from .config import ServiceConfig, load_config

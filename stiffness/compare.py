@@ -28,7 +28,7 @@ import numpy as np
 from .data.measurements import COMPONENTS, Dataset
 from .identify import rms
 from .kinematics.robot import BODIES
-from .model import StiffnessModel
+from .model.stiffness_model import StiffnessModel
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z", "none")
 NONE_FRACTION = 0.05

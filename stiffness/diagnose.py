@@ -39,9 +39,9 @@ from .effects import EFFECTS, Effect
 from .errors import DataError
 from .explain import describe
 from .identify import FitResult, design, fit, jacobian, rms
-from .model import StiffnessModel
-from .preload import PreloadTerm, held_preload, start_from_centres
-from .prior import Prior
+from .model.preload_term import PreloadTerm, held_preload, start_from_centres
+from .model.prior import Prior
+from .model.stiffness_model import StiffnessModel
 
 CV_MIN = 0.005
 BIC_MIN = 10.0
@@ -165,7 +165,7 @@ class _Gram:
     """Per-fold Gram blocks of the base Jacobian and the residual, for fast nested least squares.
 
     ``prior``: rows (A_p, r_p) over the base parameters that join every training set and are never held
-    out (a prior's, `stiffness.prior`)."""
+    out (a prior's, `stiffness.model.prior`)."""
 
     def __init__(self, A0: np.ndarray, r: np.ndarray, fold: np.ndarray,
                  prior: tuple[np.ndarray, np.ndarray] | None = None):
@@ -283,7 +283,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     Only the measured components count. With ``robust`` (the default) the rows the fit judges gross
     errors (`robust`) are left out of the fit and of every candidate's evidence; a missing effect
     repeats in every reading of a load state and is not mistaken for them. With ``prior`` (what the model
-    knew before these data, `stiffness.prior`: a machined part sees few combinations of the parameters,
+    knew before these data, `stiffness.model.prior`: a machined part sees few combinations of the parameters,
     `stiffness.part_diagnose`) the fit and every candidate's nested fit hold the base parameters to it.
     """
     say = progress or (lambda msg: None)

@@ -12,7 +12,7 @@ evaluation (variable projection).
 The noise of each kind is re-estimated from the residuals between rounds, so position and rotation
 count by what the data show.
 
-A prior (`stiffness.prior.Prior`: what a campaign already told of the parameters) adds rows that hold
+A prior (`stiffness.model.prior.Prior`: what a campaign already told of the parameters) adds rows that hold
 the parameters near it, whitened like the data's; every step below solves the data's rows and the
 prior's together, so new data (a machined part's points, `stiffness.part_learn`) move only what they
 determine better than the prior did. The fit's own covariance is stored in the fitted model (the
@@ -38,11 +38,11 @@ from .data.residuals import repeat_groups
 from .fit_result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
 from .identifiability import IDENT_TOL, unidentifiable_information
 from .kinematics.robot import BODIES
-from .model import StiffnessModel
-from .preload import directions, held_preload
+from .model.preload_term import directions, held_preload
+from .model.prior import Prior, PriorRows, covariance_entry
+from .model.stiffness_model import StiffnessModel
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
-from .prior import Prior, PriorRows, covariance_entry
 from .robust import gross_errors, robust_scale
 from .sanity import noise_warning
 
@@ -147,7 +147,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
         Called with a few words at each stage and at each evaluation of the nonlinear solver (a fit with
         an identified preload takes minutes); `tools.common.Progress` shows them.
     prior : Prior, optional
-        What is known of the parameters before these data (`stiffness.prior`): its rows are solved with
+        What is known of the parameters before these data (`stiffness.model.prior`): its rows are solved with
         the data's at every step, and the standard errors and the covariance include it.
     """
     say = progress or (lambda stage: None)
@@ -260,7 +260,7 @@ def _solve_linear(model, ctx, y, w, theta, lin, lower=None, prior=None):
 
     With ``lower`` (P,) below which a parameter may not go (-inf: unbounded), and any finite, the
     bounded problem is solved by scipy.optimize.lsq_linear on unit-norm columns instead. With ``prior``
-    (`stiffness.prior.PriorRows`) its rows are solved with the data's."""
+    (`stiffness.model.prior.PriorRows`) its rows are solved with the data's."""
     theta = theta.copy()
     start = theta[lin].copy()
     theta[lin] = 0.0
@@ -305,7 +305,7 @@ def _compliance_warnings(model: StiffnessModel, compliance: np.ndarray, nonnegat
 
 def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=None, counted=None, prior=None):
     """least_squares over the nonlinear parameters; the linear ones solved inside each evaluation (each
-    counted with ``counted(n)``; with the prior's rows, `stiffness.prior.PriorRows`, in both)."""
+    counted with ``counted(n)``; with the prior's rows, `stiffness.model.prior.PriorRows`, in both)."""
     lo = np.array([_param(model, k).bounds[0] for k in nl]) / scale[nl]
     hi = np.array([_param(model, k).bounds[1] for k in nl]) / scale[nl]
     x0 = np.clip(theta[nl] / scale[nl], lo, hi)
@@ -339,7 +339,7 @@ def _solve_projected(model, ctx, y, w, scale, theta, lin, nl, max_nfev, lower=No
 def _exact_step(model, ctx, y, w, scale, theta, lower=None, prior=None):
     """One Gauss-Newton step on the exact chain from the linearised optimum (kept within the
     parameters' bounds and ``lower``). An identified preload is held: it moves a step function, which
-    a linearisation does not follow (`stiffness.preload`)."""
+    a linearisation does not follow (`stiffness.model.preload_term`)."""
     lo = np.array([p.bounds[0] for e in model.effects for p in e.params])
     if lower is not None:
         lo = np.maximum(lo, lower)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .data.campaign import Context
 from .effects.axial import joint_torque
-from .model import StiffnessModel
+from .model.stiffness_model import StiffnessModel
 from .part_rows import PartRows
 from .part_timing import when_made
 

@@ -5,7 +5,7 @@ The part's points are a campaign of one configuration measuring one component ea
 so the project's diagnosis runs on them as it runs on a campaign (`stiffness.diagnose`): every library
 effect the model lacks, through each effect's own ``candidates``, judged by cross-validation over blocks of
 the contour, BIC and an F-test. A part sees only a few combinations of the model's parameters, so the model's
-prior holds the rest (`stiffness.prior`), in the fit and in every candidate's nested fit.
+prior holds the rest (`stiffness.model.prior`), in the fit and in every candidate's nested fit.
 
 What the campaign's diagnosis says about a configuration, this one says about the contour: where along it
 the named effect shows. An effect on a joint's axis that switches with the direction of the joint's torque
@@ -25,12 +25,12 @@ from .data.measurements import COMPONENTS, Dataset
 from .diagnose import Candidate, Diagnosis, diagnose
 from .effects.axial import joint_torque
 from .errors import DataError
-from .model import StiffnessModel
+from .model.prior import Prior
+from .model.stiffness_model import StiffnessModel
 from .part_compare import at_points
 from .part_learn import _concat
 from .part_rows import PartRows
 from .part_timing import when_made
-from .prior import Prior
 
 PART_COMPONENTS = ("normal", "along the contour", "along the tool axis", "about the normal",
                    "about the contour", "about the tool axis")     # a part row's axes (n, a x n, a)

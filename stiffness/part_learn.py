@@ -4,7 +4,7 @@ A part's points, read against the trace of its cut (`stiffness.part_rows`), are 
 measure one component each, the deflection along the surface normal: e = n . dX(q, W; theta), linear in
 the model's compliances through the joints and the wrench of the moment the tool passed. The project's
 one identification code fits them (`identify.fit`), with the model's earlier information as the prior
-(`stiffness.prior`): the covariance its campaign fit stored, a campaign given again, or, for a model no
+(`stiffness.model.prior`): the covariance its campaign fit stored, a campaign given again, or, for a model no
 campaign identified, its own values within a stated fraction. So a part moves the parameter combinations
 it determines better than the prior did, and leaves the others where they were; `Learned.determined`
 names them. Compliances are bounded at zero as `fit --nonnegative` bounds them, and a model that is still
@@ -26,12 +26,12 @@ from .data.measurements import Dataset
 from .effects.base import Effect, Param
 from .errors import ConfigError, StiffnessError
 from .identify import FitResult, fit, jacobian
-from .model import StiffnessModel
+from .model.prior import Prior, covariance_entry
+from .model.stiffness_model import StiffnessModel
 from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
 from .part_rows import PartRows, plane_basis
 from .part_sanity import problems
 from .part_timing import when_made
-from .prior import Prior, covariance_entry
 from .units import M_TO_MM
 
 DETERMINED = 1.0        # a combination is the parts' when their information exceeds the prior's by this factor

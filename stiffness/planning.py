@@ -34,7 +34,7 @@ import numpy as np
 from .identifiability import unidentifiable_information
 from .identify import jacobian
 from .kinematics.robot import BODIES
-from .model import StiffnessModel
+from .model.stiffness_model import StiffnessModel
 from .simulate import Campaign, CampaignSpec, LoadSpec, random_configurations
 
 DEVICES = {

@@ -17,7 +17,7 @@ from .data.campaign import Context
 from .data.measurements import Dataset
 from .data.residuals import pure_error
 from .kinematics.robot import BODIES
-from .model import StiffnessModel
+from .model.stiffness_model import StiffnessModel
 
 NOISE_RATIO = 10.0
 SHOW_LINES = 20

@@ -6,7 +6,7 @@ import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.kinematics.robot import Robot
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 @pytest.fixture(scope="session")

@@ -20,7 +20,7 @@ from stiffness.data.measurements import Dataset
 from stiffness.data.part_points import write_part
 from stiffness.data.trace_file import COLUMNS, TraceFile
 from stiffness.kinematics.robot import PoseConfig
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 CENTER_Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]
 TOOL_RADIUS_MM = 4.0

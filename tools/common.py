@@ -14,7 +14,7 @@ import numpy as np
 
 from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.errors import ConfigError, OutputError
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.sanity import resolve_duplicates
 
 

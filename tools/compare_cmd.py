@@ -9,7 +9,7 @@ import sys
 from stiffness.compare import METRICS, Comparison, compare
 from stiffness.compare_report import GROUPS, build_report, change_text
 from stiffness.errors import ConfigError
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .common import add_duplicates_option, load, print_json
 

@@ -115,7 +115,7 @@ def _check_outputs_and_reach(args, scenario) -> None:
     its centre's pose (the inverse kinematics of its points): each checked before any pass starts."""
     from hil.path import CirclePath, IkError
     from stiffness.errors import ConfigError
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     for option, path in (("--cmm", args.cmm), ("--modes-data", args.modes_data)):
         if path is not None:

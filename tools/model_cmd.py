@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from stiffness.edit import add_effect
 from stiffness.effects import EFFECTS
-from stiffness.model import StiffnessModel
+from stiffness.model.edit import add_effect
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .common import write_output
 

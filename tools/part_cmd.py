@@ -94,7 +94,7 @@ def _prior(args, model, say):
     """The prior and the model to start from: the YAML's covariance, a campaign's fit, or the catalogue's."""
     from stiffness.data.measurements import read_measurements
     from stiffness.identify import fit
-    from stiffness.prior import Prior
+    from stiffness.model.prior import Prior
 
     if args.campaign:
         say(f"fitting the campaign {args.campaign} for the prior")
@@ -111,7 +111,7 @@ def _command() -> str:
 
 
 def run_compare(args) -> int:
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
     from stiffness.part_compare import compare_part
 
     _check_options(args)
@@ -132,7 +132,7 @@ def run_compare(args) -> int:
 
 def _setup(args, command: str):
     """Progress, the prior, the model to start from and the parts, for learn and diagnose."""
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     _check_options(args)
     progress = Progress(command)

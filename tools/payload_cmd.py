@@ -24,7 +24,7 @@ import numpy as np
 from service.config import DEFAULT_CONFIG, load_config
 from service.fast_effects import input_rotation
 from stiffness.kinematics.payload_identification import identify_payload, read_poses
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .payload_entry import write_entry
 

@@ -11,7 +11,7 @@ import numpy as np
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.kinematics.robot import BODIES
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.planning import DEVICES, Device, Plan, plan
 from stiffness.simulate import LoadSpec, NoiseSpec, ReadingSpec
 

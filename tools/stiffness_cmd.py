@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffness.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.errors import ConfigError
+from stiffness.model.cartesian import identify_cartesian, tcp_stiffness, tcp_wrench_and_deflection
 
 from .common import add_duplicates_option, load, print_json
 from .torques_cmd import static_torques, torque_dict, torque_table

@@ -14,7 +14,7 @@ import numpy as np
 
 from stiffness.errors import ConfigError
 from stiffness.kinematics.statics import Statics, StaticTorques, models_static_load
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 from .common import load, print_json
 

@@ -22,7 +22,7 @@ def models():
     """(label, model) of every shipped combination."""
     from stiffness.effects import EFFECTS
     from stiffness.kinematics.robot import load_robot
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     springs = StiffnessModel.from_yaml(ROOT / "config" / "models" / "kr125_6dof.yaml")
 

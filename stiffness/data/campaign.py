@@ -79,7 +79,7 @@ class Context:
     @property
     def static_torque(self) -> np.ndarray:
         """tau_s (R, 6) Nm: each reading's static joint torque, `static_prior` plus the identified
-        correction ``preload_torque`` the model binds for its current parameters (`stiffness.preload`)."""
+        correction ``preload_torque`` the model binds for its current parameters (`stiffness.model.preload_term`)."""
         return self.static_prior if self.preload_torque is None else self.static_prior + self.preload_torque
 
     def _time_in_config(self) -> np.ndarray:

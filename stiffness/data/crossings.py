@@ -1,5 +1,5 @@
 """Where a joint's axial nonlinearity is crossed, per configuration: the centre search on the residual, the
-crossings in the external torque and their text (`stiffness.preload`, the diagnosis' free-centre variants).
+crossings in the external torque and their text (`stiffness.model.preload_term`, the diagnosis' free-centre variants).
 
 A play or soft zone sits at zero total torque tau_s + tau_ext, so configuration c crosses it at the
 external torque -tau_s(q_c); a configuration whose crossing lies beyond its load range bounds tau_s

@@ -10,7 +10,7 @@ tau_i = W_i[rz] (Nm). A campaign measures loaded minus unloaded, so the deflecti
 which is f(tau_i) for a robot without masses (tau_s = 0, f(0) = 0).
 
 The diagnosis also tries each of these effects with its centre free per configuration
-(`with_free_centres`): tau_s found where each configuration's residual steps (`stiffness.preload`),
+(`with_free_centres`): tau_s found where each configuration's residual steps (`stiffness.model.preload_term`),
 for a preload the model does not know (masses wrong or missing).
 """
 

@@ -51,7 +51,7 @@ class PayloadConfig(Strict):
 
 class StaticTorques(NamedTuple):
     """Static joint torques per reading, each (N, 6) in Nm, signed like the external joint torque;
-    ``identified`` is the correction the fit identified (`stiffness.preload`), zero without one."""
+    ``identified`` is the correction the fit identified (`stiffness.model.preload_term`), zero without one."""
 
     arm: np.ndarray
     payload: np.ndarray
@@ -83,7 +83,7 @@ class Statics:
     g_mps2 : (3,)
         Gravity in base axes, m/s^2.
     preloads : list of (joint, columns, beta)
-        The identified corrections (`stiffness.preload`): joint j's static torque gains
+        The identified corrections (`stiffness.model.preload_term`): joint j's static torque gains
         ``static_regressor(q)[j - 1, columns] @ beta``.
 
     Holds its own pinocchio model (a copy of ``robot.pin_model`` with this gravity and a frame at the
@@ -200,7 +200,7 @@ def models_static_load(robot: Robot, preloads=()) -> bool:
 def statics_for(robot: Robot, payload: PayloadConfig | None = None, g_mps2=G_STANDARD,
                 preloads=()) -> Statics | None:
     """The `Statics` of ``robot`` carrying ``payload``, with the model's identified ``preloads``
-    ((joint, columns, beta), `stiffness.preload`), for the effects at the total torque.
+    ((joint, columns, beta), `stiffness.model.preload_term`), for the effects at the total torque.
 
     None (tau_s = 0, every effect at the external torque as before robots had masses) for a robot
     without masses and without an identified preload: a robot description without an ``inertial``

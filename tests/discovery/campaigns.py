@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from stiffcomp_testlib import MODELS
 
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign, CampaignSpec
 
 

@@ -13,8 +13,8 @@ import pytest
 from discovery.campaigns import campaign, start_model
 from hil.testing import truth_with
 from stiffness.diagnose import diagnose
-from stiffness.edit import add_effect
 from stiffness.identify import fit
+from stiffness.model.edit import add_effect
 
 NOISE_MM, NOISE_DEG = 0.03, 0.002
 

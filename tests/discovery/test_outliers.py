@@ -11,8 +11,8 @@ import pytest
 from discovery.campaigns import campaign, start_model, with_gross_errors
 from hil.testing import truth_with
 from stiffness.diagnose import diagnose
-from stiffness.edit import add_effect
 from stiffness.identify import fit
+from stiffness.model.edit import add_effect
 
 BACKLASH = {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.02, "width_Nm": 5}
 

@@ -19,11 +19,11 @@ from discovery.campaigns import campaign
 from service.compensation import FastPredictor
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import to_dict
-from stiffness.edit import add_effect
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.edit import add_effect
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 from tools.common import to_jsonable
 

@@ -18,7 +18,7 @@ from hil.testing import constant_log, free_port, write_config
 from service.app import Service
 from service.compensation import FastPredictor
 from service.config import load_config
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 PROBE = Path(__file__).with_name("plc_probe.py")
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]

@@ -10,7 +10,7 @@ from hil.testing import CONFIG
 from service.compensation import FastPredictor
 from service.errors import ModelUnsupportedError
 from stiffness.data.measurements import Dataset
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 MODELS = CONFIG / "models"
 

@@ -30,7 +30,7 @@ from service.kernel import NotCompilable
 from service.pipeline import Cycle
 from stiffness.effects.realtime import AxialTerm, TwistTerm, WrenchTerm
 from stiffness.kinematics.robot import load_robot
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 RTOL = 1e-9
 ROBOTS = ("kr125", "kr125_masses", "preload identified")

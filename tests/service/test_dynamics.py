@@ -28,7 +28,7 @@ from service.ati import Reading
 from service.config import ServiceConfig, load_config
 from service.errors import ServiceConfigError
 from service.pipeline import Cycle
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 MODES = [{"hz": 10.0, "damping": 0.03, "direction": [1.0, 0.0, 0.0]},
          {"hz": 16.0, "damping": 0.03, "direction": [0.0, 1.0, 0.0]}]

@@ -20,7 +20,7 @@ from service.config import load_config
 from service.pipeline import Cycle
 from service.sources import make_source
 from stiffness.files.yaml_schema import deep_update
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 DT = 1e-3
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]

@@ -23,7 +23,7 @@ from service.gravity import GravityConfig
 from service.payloads import QUIET_AFTER
 from service.pipeline import Cycle
 from stiffness.kinematics.statics import PayloadConfig, statics_for
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 DT = 0.001
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]

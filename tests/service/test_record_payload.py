@@ -14,7 +14,7 @@ from service.config import load_config
 from service.gravity import GravityCompensator
 from service.sources.replay import ReplaySource, read_log
 from stiffness.kinematics.spatial import exp_so3
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 

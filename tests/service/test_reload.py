@@ -20,7 +20,7 @@ from service.reload import Outcome, Prepared, prepare
 from service.sources import make_source
 from service.sources.replay import write_log
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 DT = 1e-3
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]

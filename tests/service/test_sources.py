@@ -108,7 +108,7 @@ def _loaded_compensator(tmp_path):
     """A compensator that has run 100 cycles on a constant, nonzero wrench from a fast replay."""
     from service.config import load_config
     from service.sources import make_source
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
 
     log = tmp_path / "c.blf"
     write_log(log, np.tile([50.0, 20.0, -30.0, 1.0, 2.0, 3.0], (300, 1)))

@@ -5,7 +5,7 @@ import yaml
 from stiffcomp_testlib import MODELS, ROOT, random_dataset
 
 from service.compensation import FastPredictor
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 def model_on(robot_file: str) -> StiffnessModel:

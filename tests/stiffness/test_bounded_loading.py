@@ -18,7 +18,7 @@ from stiffcomp_testlib import DATA, MODELS, ROOT
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError, DataError, Problems, quote
 from stiffness.files.yaml_schema import read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 REF = DATA / "reference_campaign.csv"
 
@@ -55,7 +55,7 @@ CHILD = textwrap.dedent("""
     import json, sys, time, tracemalloc
     kind, path = sys.argv[1], sys.argv[2]
     if kind == "model":
-        from stiffness.model import StiffnessModel as M
+        from stiffness.model.stiffness_model import StiffnessModel as M
         load = M.from_yaml
     else:
         from service.config import load_config as load

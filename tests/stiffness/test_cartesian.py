@@ -3,9 +3,14 @@
 import numpy as np
 from stiffcomp_testlib import with_deflection
 
-from stiffness.cartesian import identify_cartesian, tcp_compliance, tcp_stiffness, tcp_wrench_and_deflection
 from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
+from stiffness.model.cartesian import (
+    identify_cartesian,
+    tcp_compliance,
+    tcp_stiffness,
+    tcp_wrench_and_deflection,
+)
 
 Q = np.array([10.0, -75.0, 90.0, 0.0, 75.0, 0.0])
 
@@ -48,7 +53,7 @@ def test_eq15_identifies_k_from_tcp_data(robot, model6):
 
 def test_history_and_time_do_not_enter_k(robot, model6):
     """The probes are independent readings at time 0: hysteresis and drift leave C unchanged."""
-    from stiffness.edit import add_effect
+    from stiffness.model.edit import add_effect
     m = add_effect(add_effect(model6, "hysteresis", 2, {"offset_deg": 0.005}), "drift", None, {"x_mm_per_min": 0.1})
     np.testing.assert_allclose(tcp_compliance(m, Q), tcp_compliance(model6, Q), rtol=1e-9, atol=1e-15)
 
@@ -70,7 +75,7 @@ def test_singular_compliance_is_refused():
     import pytest
     from stiffcomp_testlib import MODELS
 
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
     axial = StiffnessModel.from_yaml(MODELS / "kr125_axial.yaml")
     with pytest.raises(ValueError, match="singular"):
         tcp_stiffness(axial, np.array([10.0, -75.0, 90.0, 0.0, 0.0, 0.0]))   # q5 = 0: a wrist singularity

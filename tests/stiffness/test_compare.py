@@ -10,7 +10,7 @@ from stiffcomp_testlib import ROOT
 
 from stiffness.compare import by_component, compare, load_direction, r2, summary
 from stiffness.data.measurements import Dataset
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign
 from tools.cli import main
 

@@ -16,7 +16,7 @@ from stiffness.data.part_points import read_part, write_part
 from stiffness.data.trace_file import COLUMNS, TraceFile, read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part_compare import compare_part
 from stiffness.part_rows import read_against
 from stiffness.part_timing import when_made

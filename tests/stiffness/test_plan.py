@@ -15,7 +15,7 @@ import yaml
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.planning import Device, worst_relative
 from stiffness.planning import plan as make_plan
 from stiffness.simulate import Campaign, random_configurations

@@ -1,4 +1,4 @@
-"""The prior of a fit (`stiffness.prior`) and rows measured in axes of their own (`Dataset.axes`): what a part's
+"""The prior of a fit (`stiffness.model.prior`) and rows measured in axes of their own (`Dataset.axes`): what a part's
 learning rests on (issue 29, item 5)."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from stiffcomp_testlib import DATA
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
-from stiffness.prior import Prior
+from stiffness.model.prior import Prior
+from stiffness.model.stiffness_model import StiffnessModel
 
 
 @pytest.fixture(scope="module")

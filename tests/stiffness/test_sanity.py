@@ -15,7 +15,7 @@ from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.sanity import duplicate_rows, noise_warning, resolve_duplicates
 
 CAMPAIGN = DATA / "reference_campaign.csv"

@@ -18,7 +18,7 @@ from hil.dynamics import tap_record, write_record
 from hil.scenario import load_scenario
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 

@@ -15,8 +15,8 @@ import pytest
 from part_testlib import synthetic_cut
 from stiffcomp_testlib import ROOT
 
-from stiffness.model import StiffnessModel
-from stiffness.prior import covariance_entry
+from stiffness.model.prior import covariance_entry
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

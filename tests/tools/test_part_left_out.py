@@ -14,7 +14,7 @@ from stiffcomp_testlib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
 from stiffness.data.part_points import read_part, write_part
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

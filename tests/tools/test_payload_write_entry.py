@@ -19,7 +19,7 @@ from service.config import load_config
 from service.gravity import GravityConfig
 from service.pipeline import Cycle
 from stiffness.files.yaml_schema import read_yaml
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools import payload_cmd
 from tools.cli import main
 

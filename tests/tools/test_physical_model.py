@@ -14,7 +14,7 @@ from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from hil.testing import write_config
 from stiffness.errors import ConfigError
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 
 CAMPAIGN = DATA / "reference_campaign.csv"
 

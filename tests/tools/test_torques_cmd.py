@@ -9,7 +9,7 @@ import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.kinematics.statics import Statics
-from stiffness.model import StiffnessModel
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]

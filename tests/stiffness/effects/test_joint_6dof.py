@@ -16,7 +16,7 @@ def test_axial_plus_6dof_equals_the_full_spring(robot, model6):
     ref = model_with(base="kr125_axial")
     d = ref.to_dict()
     d["effects"] = [entry if e["joint"] == 4 else e for e in d["effects"]]
-    from stiffness.model import StiffnessModel
+    from stiffness.model.stiffness_model import StiffnessModel
     full = StiffnessModel.from_dict(d, "full", robot=robot)
     # same axial compliances everywhere
     np.testing.assert_allclose(mine.predict(data), full.predict(data), atol=1e-12)

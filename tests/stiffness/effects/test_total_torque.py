@@ -18,8 +18,8 @@ from stiffness.data.measurements import Dataset
 from stiffness.errors import ConfigError
 from stiffness.identify import fit
 from stiffness.kinematics.statics import PayloadConfig, Statics, static_regressor
-from stiffness.model import StiffnessModel
-from stiffness.preload import PreloadTerm
+from stiffness.model.preload_term import PreloadTerm
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 
 ROBOTS = ROOT / "config" / "robots"
@@ -162,9 +162,9 @@ def test_a_robot_extends_another_and_a_loop_or_a_missing_base_is_named(tmp_path)
 def test_the_preload_module_runs_its_example():
     import doctest
 
-    import stiffness.preload
+    import stiffness.model.preload_term
 
-    result = doctest.testmod(stiffness.preload)
+    result = doctest.testmod(stiffness.model.preload_term)
     assert result.attempted > 0 and result.failed == 0
 
 
@@ -172,7 +172,7 @@ def test_the_preload_module_runs_its_example():
 @given(st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6),
        st.lists(st.floats(-50.0, 50.0), min_size=18, max_size=18))
 def test_an_identified_preload_adds_its_rows_of_the_static_regressor(q, values):
-    """tau_s,j(q) gains phi_j(q) beta (stiffness.preload): the service's fast form equals the definition,
+    """tau_s,j(q) gains phi_j(q) beta (stiffness.model.preload_term): the service's fast form equals the definition,
     at any configuration, for preloads at two joints, on a robot with masses and one without."""
     for robot_file in (ROBOTS / "kr125.yaml", MASSES):
         robot = model_on(robot_file).robot

@@ -19,13 +19,13 @@ from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.data.measurements import Dataset
 from stiffness.diagnose import diagnose
-from stiffness.edit import add_effect
 from stiffness.effects import EFFECTS
 from stiffness.effects.axial import axial_basis
 from stiffness.effects.base import Effect, Param, read_location, read_values
 from stiffness.effects.realtime import AxialTerm
 from stiffness.identify import fit
-from stiffness.model import StiffnessModel
+from stiffness.model.edit import add_effect
+from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 
 NOISE_MM, NOISE_DEG = 0.03, 0.002

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data.measurements import Dataset
-from .kinematics.robot import BODIES
-from .kinematics.spatial import transform, transport_wrench
-from .model import StiffnessModel
+from ..data.measurements import Dataset
+from ..kinematics.robot import BODIES
+from ..kinematics.spatial import transform, transport_wrench
+from .stiffness_model import StiffnessModel
 
 TCP = BODIES.index("TCP")
 UNIT = 1.0  # N or Nm per probe: small enough that the composed chain is linear to 1e-9

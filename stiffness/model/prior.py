@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, quote
+from ..errors import ConfigError, quote
 
 RANK_TOL = 1e-10        # eigenvalues of the information below this share of the largest: no information
 

@@ -39,8 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from .effects.base import Effect, Param, read_location, read_values
-from .kinematics.statics import Statics, base_columns, column_key
+from ..effects.base import Effect, Param, read_location, read_values
+from ..kinematics.statics import Statics, base_columns, column_key
 
 BEYOND = 1.3                             # a start puts an unseen crossing this far beyond the load range
 RIDGE = 1e-3                             # the start's pull toward the prior, relative to the data

@@ -18,18 +18,18 @@ from typing import Any
 
 import numpy as np
 
-from .data.campaign import Context
-from .data.measurements import Dataset
-from .effects import EFFECTS, Effect
-from .effects.joint_spring import JointSpring
-from .errors import ConfigError, quote
-from .files.yaml_schema import FlowList, dump_yaml, read_yaml, validate
-from .kinematics.robot import Robot, load_robot
-from .kinematics.spatial import log_so3, twist_transform
-from .kinematics.statics import PayloadConfig, Statics, statics_for
-from .preload import PreloadTerm
+from ..data.campaign import Context
+from ..data.measurements import Dataset
+from ..effects import EFFECTS, Effect
+from ..effects.joint_spring import JointSpring
+from ..errors import ConfigError, quote
+from ..files.yaml_schema import FlowList, dump_yaml, read_yaml, validate
+from ..kinematics.robot import Robot, load_robot
+from ..kinematics.spatial import log_so3, twist_transform
+from ..kinematics.statics import PayloadConfig, Statics, statics_for
+from ..units import M_TO_MM, RAD_TO_DEG
+from .preload_term import PreloadTerm
 from .prior import read_covariance
-from .units import M_TO_MM, RAD_TO_DEG
 
 TOP_KEYS = {"name", "description", "robot", "noise", "payload", "preload", "effects", "covariance"}
 DEFAULT_NOISE = {"position_mm": 0.03, "rotation_deg": 0.002}
@@ -53,7 +53,7 @@ class StiffnessModel:
     covariance : dict, optional
         What the campaign that identified the model told of its parameters (the YAML's ``covariance``:
         params, std_error, correlation; written by `stiffcomp fit`), the prior of a later fit such as
-        `stiffcomp part learn` (`stiffness.prior.Prior.from_model`).
+        `stiffcomp part learn` (`stiffness.model.prior.Prior.from_model`).
     """
 
     def __init__(self, robot: Robot, effects: list[Effect], name: str = "model", description: str = "",
@@ -242,7 +242,7 @@ class StiffnessModel:
 
     # -- evaluation -----------------------------------------------------------------------------
     def preloads(self) -> list[tuple[int, np.ndarray, np.ndarray]]:
-        """The identified static torque corrections (joint, columns, beta) (`stiffness.preload`)."""
+        """The identified static torque corrections (joint, columns, beta) (`stiffness.model.preload_term`)."""
         return [(e.joint, e.columns, e.theta) for e in self.effects if isinstance(e, PreloadTerm)]
 
     def statics(self) -> Statics | None:

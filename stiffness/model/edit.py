@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from .effects import EFFECTS
-from .effects.axial import AxialEffect
-from .errors import ConfigError, quote
-from .model import StiffnessModel
+from ..effects import EFFECTS
+from ..effects.axial import AxialEffect
+from ..errors import ConfigError, quote
+from .stiffness_model import StiffnessModel
 
 
 def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
@@ -13,7 +13,7 @@ def add_effect(model: StiffnessModel, effect: str, joint: int | None = None,
     """A copy of ``model`` with the library effect ``effect`` added (parameters at their defaults).
 
     ``joint`` is the joint (1..6) or, for link_bending, the link; global effects take none.
-    ``preload``: the model's ``preload`` entry for that joint (`stiffness.preload`; ``{"joint": J}``
+    ``preload``: the model's ``preload`` entry for that joint (`stiffness.model.preload_term`; ``{"joint": J}``
     starts at the robot's masses, a diagnosis gives the start it found), replacing any there. Only an
     effect that sits at zero total torque (`AxialEffect`: backlash, the soft zone) can use one: a preload
     for any other is refused, as it would be identified from nothing.
