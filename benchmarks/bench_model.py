@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from stiffness.data.measurements import Dataset, read_measurements
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 
 

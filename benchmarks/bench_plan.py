@@ -26,7 +26,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 from discovery.campaigns import campaign, start_model, with_gross_errors
 
 from hil.testing import truth_with
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.planning import Device, plan
 

@@ -12,7 +12,7 @@ import numpy as np
 from hil_lib import EXAMPLES, MODELS, OUT, nothing_outside_the_map, scenario, write_model
 
 from hil.circle import run_circle
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign
 

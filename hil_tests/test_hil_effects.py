@@ -24,7 +24,7 @@ from hil.testing import truth_with
 from hil.world import World
 from stiffness.diagnose import diagnose
 from stiffness.files.yaml_schema import read_yaml
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign, CampaignSpec

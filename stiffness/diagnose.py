@@ -38,7 +38,7 @@ from .data.residuals import pure_error, worst
 from .effects import EFFECTS, Effect
 from .errors import DataError
 from .explain import describe
-from .identify import FitResult, design, fit, jacobian, rms
+from .fit.identify import FitResult, design, fit, jacobian, rms
 from .model.preload_term import PreloadTerm, held_preload, start_from_centres
 from .model.prior import Prior
 from .model.stiffness_model import StiffnessModel

@@ -25,7 +25,7 @@ from .data.campaign import Context
 from .data.measurements import Dataset
 from .effects.base import Effect, Param
 from .errors import ConfigError, StiffnessError
-from .identify import FitResult, fit, jacobian
+from .fit.identify import FitResult, fit, jacobian
 from .model.prior import Prior, covariance_entry
 from .model.stiffness_model import StiffnessModel
 from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all

@@ -2,7 +2,7 @@
 JSON, and says which figures hold them (docs/part.md).
 
 A point is left out when the tool passed it twice (which pass made it cannot be told), when the trace is
-blind to the moment it was made, or when a robust fit judged it a gross error (`stiffness.robust`). A trace
+blind to the moment it was made, or when a robust fit judged it a gross error (`stiffness.fit.gross_errors`). A trace
 is blind where it lost rows (`stiffness.data.trace_file.Trace.gaps`) and where the joints it holds jumped: the tool
 moved JUMP_FACTOR times its typical step and JUMP_MM or more between two rows, most often after the joints
 stood still for a while (a stalled PLC or host). Either way where the arm was and what loaded it then is not

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .identifiability import unidentifiable_information
-from .identify import jacobian
+from .fit.identifiability import unidentifiable_information
+from .fit.identify import jacobian
 from .kinematics.robot import BODIES
 from .model.stiffness_model import StiffnessModel
 from .simulate import Campaign, CampaignSpec, LoadSpec, random_configurations

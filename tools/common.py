@@ -14,14 +14,14 @@ import numpy as np
 
 from stiffness.data.measurements import Dataset, read_measurements
 from stiffness.errors import ConfigError, OutputError
+from stiffness.fit.sanity import resolve_duplicates
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.sanity import resolve_duplicates
 
 
 def load(model_path: str, data_path: str | None = None,
          keep_duplicates: bool = False) -> tuple[StiffnessModel, Dataset | None]:
     """The model and the campaign, with a note on ignored columns and a warning on duplicate rows
-    (left out unless ``keep_duplicates``, see `stiffness.sanity`)."""
+    (left out unless ``keep_duplicates``, see `stiffness.fit.sanity`)."""
     model = StiffnessModel.from_yaml(model_path)
     data = read_measurements(data_path, model.robot) if data_path else None
     if data is not None and data.ignored_columns:

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
-from stiffness.identify import FitResult, fit
+from stiffness.fit.identify import FitResult, fit
 
 from .common import Progress, add_duplicates_option, load, print_json, write_output
 

@@ -93,7 +93,7 @@ def _parts(args, model) -> list:
 def _prior(args, model, say):
     """The prior and the model to start from: the YAML's covariance, a campaign's fit, or the catalogue's."""
     from stiffness.data.measurements import read_measurements
-    from stiffness.identify import fit
+    from stiffness.fit.identify import fit
     from stiffness.model.prior import Prior
 
     if args.campaign:

@@ -13,7 +13,7 @@ import pytest
 from discovery.campaigns import campaign, start_model
 from hil.testing import truth_with
 from stiffness.diagnose import diagnose
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 
 NOISE_MM, NOISE_DEG = 0.03, 0.002

@@ -11,7 +11,7 @@ import pytest
 from discovery.campaigns import campaign, start_model, with_gross_errors
 from hil.testing import truth_with
 from stiffness.diagnose import diagnose
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 
 BACKLASH = {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.02, "width_Nm": 5}

@@ -21,7 +21,7 @@ from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import to_dict
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG

@@ -16,7 +16,7 @@ from hil.testing import truth_with
 from stiffness.compare import compare
 from stiffness.data.measurements import read_measurements
 from stiffness.diagnose import diagnose
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from tools.cli import main
 
 J6_AXIAL = "joint_spring@joint6.rz_rad_per_Nm"

@@ -13,7 +13,7 @@ from stiffcomp_testlib import MODELS, ROOT
 from stiffness.data.measurements import COMPONENTS, read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.diagnose_report import build_report
-from stiffness.identify import rms
+from stiffness.fit.identify import rms
 from stiffness.model.stiffness_model import StiffnessModel
 
 WALK = ROOT / "examples" / "campaign_backlash.csv"

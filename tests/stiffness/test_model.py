@@ -9,7 +9,7 @@ from stiffcomp_testlib import DATA, MODELS, random_dataset, with_deflection
 
 from stiffness.data.measurements import read_measurements
 from stiffness.effects.joint_spring import COMPONENTS
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 
 

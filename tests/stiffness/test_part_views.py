@@ -17,6 +17,7 @@ from stiffcomp_testlib import ROOT
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
 from stiffness.diagnose_report import to_dict
+from stiffness.fit.gross_errors import repeat_deviation
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part_compare import at_points, compare_part
@@ -24,7 +25,6 @@ from stiffness.part_diagnose import diagnose_parts
 from stiffness.part_learn import learn
 from stiffness.part_report import diagnose_report, learn_figure, load_figure
 from stiffness.part_rows import read_against
-from stiffness.robust import repeat_deviation
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

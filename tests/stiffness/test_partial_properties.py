@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from stiffness.data.measurements import Dataset, read_measurements
-from stiffness.identifiability import unidentifiable, unidentifiable_information
+from stiffness.fit.identifiability import unidentifiable, unidentifiable_information
 
 
 def _masks(n):

@@ -14,7 +14,7 @@ import pytest
 import yaml
 from stiffcomp_testlib import MODELS, ROOT
 
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.planning import Device, worst_relative
 from stiffness.planning import plan as make_plan

@@ -13,7 +13,7 @@ import pytest
 from discovery.campaigns import campaign
 from stiffcomp_testlib import MODELS, ROOT
 
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 

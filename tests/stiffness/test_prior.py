@@ -12,7 +12,7 @@ from stiffcomp_testlib import DATA
 
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
 

@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
+from stiffness.fit.sanity import duplicate_rows, noise_warning, resolve_duplicates
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.sanity import duplicate_rows, noise_warning, resolve_duplicates
 
 CAMPAIGN = DATA / "reference_campaign.csv"
 

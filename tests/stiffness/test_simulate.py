@@ -8,7 +8,7 @@ from stiffcomp_testlib import DATA, MODELS, ROOT
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.simulate import Campaign, simulate
 from tools.cli import main

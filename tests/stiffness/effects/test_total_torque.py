@@ -16,7 +16,7 @@ from stiffcomp_testlib import MODELS, ROOT
 from service.compensation import FastPredictor
 from stiffness.data.measurements import Dataset
 from stiffness.errors import ConfigError
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.kinematics.statics import PayloadConfig, Statics, static_regressor
 from stiffness.model.preload_term import PreloadTerm
 from stiffness.model.stiffness_model import StiffnessModel

@@ -23,7 +23,7 @@ from stiffness.effects import EFFECTS
 from stiffness.effects.axial import axial_basis
 from stiffness.effects.base import Effect, Param, read_location, read_values
 from stiffness.effects.realtime import AxialTerm
-from stiffness.identify import fit
+from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG

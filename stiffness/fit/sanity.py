@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data.campaign import Context
-from .data.measurements import Dataset
-from .data.residuals import pure_error
-from .kinematics.robot import BODIES
-from .model.stiffness_model import StiffnessModel
+from ..data.campaign import Context
+from ..data.measurements import Dataset
+from ..data.residuals import pure_error
+from ..kinematics.robot import BODIES
+from ..model.stiffness_model import StiffnessModel
 
 NOISE_RATIO = 10.0
 SHOW_LINES = 20

@@ -1,5 +1,5 @@
 """The identified preload in the fit: its start where the data step, whether the data support it, and
-its lines in the fit's report (`stiffness.model.preload_term`; `stiffness.identify` calls them).
+its lines in the fit's report (`stiffness.model.preload_term`; `stiffness.fit.identify` calls them).
 
 A preload is called identified only when the data show its joint's crossing: the fitted model's
 residual, against the same model without that joint's axial nonlinearity and its preload (the other
@@ -21,10 +21,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .data.crossings import centre_search, centres, crossing_text
-from .effects.axial import AxialEffect
-from .model.preload_term import PreloadTerm, start_from_centres
-from .model.stiffness_model import StiffnessModel
+from ..data.crossings import centre_search, centres, crossing_text
+from ..effects.axial import AxialEffect
+from ..model.preload_term import PreloadTerm, start_from_centres
+from ..model.stiffness_model import StiffnessModel
 
 
 def fresh_start(model, ctx, fit, say: Callable[[str], None] = lambda stage: None) -> None:

@@ -32,18 +32,18 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.optimize import least_squares, lsq_linear
 
-from .data.campaign import Context
-from .data.measurements import Dataset
-from .data.residuals import repeat_groups
-from .fit_result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
+from ..data.campaign import Context
+from ..data.measurements import Dataset
+from ..data.residuals import repeat_groups
+from ..kinematics.robot import BODIES
+from ..model.preload_term import directions, held_preload
+from ..model.prior import Prior, PriorRows, covariance_entry
+from ..model.stiffness_model import StiffnessModel
+from .gross_errors import gross_errors, robust_scale
 from .identifiability import IDENT_TOL, unidentifiable_information
-from .kinematics.robot import BODIES
-from .model.preload_term import directions, held_preload
-from .model.prior import Prior, PriorRows, covariance_entry
-from .model.stiffness_model import StiffnessModel
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
-from .robust import gross_errors, robust_scale
+from .result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
 from .sanity import noise_warning
 
 T_DETERMINED = 3.0  # |estimate| / standard error below this: the data cannot tell it from zero

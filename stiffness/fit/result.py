@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model.stiffness_model import StiffnessModel
+from ..model.stiffness_model import StiffnessModel
 
 
 @dataclass

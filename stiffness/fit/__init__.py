@@ -1,0 +1,1 @@
+"""Identification: least squares, what a campaign can determine, gross errors, sanity checks."""
