@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_plan.py [--repeat 3]
 
-* plan: wall time of `stiffness.planning.plan` for kr125_6dof with a 6-D optical device, N = 4 and
+* plan: wall time of `stiffness.plan.design.plan` for kr125_6dof with a 6-D optical device, N = 4 and
   N = 8 (median of --repeat runs), with the plan's criterion against the median of random sets;
 * robust vs plain: a simulated campaign (5 random configurations, 2 readings per load state) with
   1 % of rows off by 0.4 mm; the worst axial stiffness error of each fit, the residual RMS over the
@@ -28,7 +28,7 @@ from discovery.campaigns import campaign, start_model, with_gross_errors
 from hil.testing import truth_with
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.planning import Device, plan
+from stiffness.plan.design import Device, plan
 
 
 def bench_plan(repeat: int) -> None:

@@ -14,7 +14,7 @@ from hil_lib import EXAMPLES, MODELS, OUT, nothing_outside_the_map, scenario, wr
 from hil.circle import run_circle
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign
+from stiffness.plan.simulate import Campaign
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
 

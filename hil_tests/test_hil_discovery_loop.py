@@ -12,7 +12,7 @@ from stiffness.diagnose import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign
+from stiffness.plan.simulate import Campaign
 
 TRUTH = EXAMPLES / "truth_backlash.yaml"
 

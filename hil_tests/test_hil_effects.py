@@ -27,7 +27,7 @@ from stiffness.files.yaml_schema import read_yaml
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign, CampaignSpec
+from stiffness.plan.simulate import Campaign, CampaignSpec
 
 LOW_TABLE_Q_DEG = [0.0, -45.0, 100.0, 0.0, 35.0, 0.0]     # tool down, TCP 0.55 m below joint 2
 

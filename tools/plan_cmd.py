@@ -12,8 +12,8 @@ from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.kinematics.robot import BODIES
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.planning import DEVICES, Device, Plan, plan
-from stiffness.simulate import LoadSpec, NoiseSpec, ReadingSpec
+from stiffness.plan.design import DEVICES, Device, Plan, plan
+from stiffness.plan.simulate import LoadSpec, NoiseSpec, ReadingSpec
 
 from .common import print_json, write_output
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from stiffness.errors import ConfigError
-from stiffness.simulate import Campaign
+from stiffness.plan.simulate import Campaign
 
 from .common import print_json
 

@@ -1,4 +1,4 @@
-"""Synthetic campaigns with hidden effects for the discovery tests (made by stiffness.simulate)."""
+"""Synthetic campaigns with hidden effects for the discovery tests (made by stiffness.plan.simulate)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from stiffcomp_testlib import MODELS
 
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign, CampaignSpec
+from stiffness.plan.simulate import Campaign, CampaignSpec
 
 
 def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2, step_N: float = 300,

@@ -11,7 +11,7 @@ from stiffcomp_testlib import ROOT
 from stiffness.compare import by_component, compare, load_direction, r2, summary
 from stiffness.data.measurements import Dataset
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign
+from stiffness.plan.simulate import Campaign
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

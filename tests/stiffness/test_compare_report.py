@@ -12,7 +12,7 @@ from stiffcomp_testlib import ROOT
 
 from stiffness.compare import METRICS, compare, summary
 from stiffness.compare_report import GROUPS, build_report, component_table, group_table
-from stiffness.simulate import Campaign
+from stiffness.plan.simulate import Campaign
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 LONG = "kr125_6dof_with_backlash_fitted_on_the_campaign_of_the_second_shift"

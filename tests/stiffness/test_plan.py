@@ -16,9 +16,9 @@ from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.planning import Device, worst_relative
-from stiffness.planning import plan as make_plan
-from stiffness.simulate import Campaign, random_configurations
+from stiffness.plan.design import Device, worst_relative
+from stiffness.plan.design import plan as make_plan
+from stiffness.plan.simulate import Campaign, random_configurations
 from tools.cli import main
 
 N = 4

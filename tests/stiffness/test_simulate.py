@@ -10,7 +10,7 @@ from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.simulate import Campaign, simulate
+from stiffness.plan.simulate import Campaign, simulate
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -32,12 +32,12 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator
 
-from .data.measurements import COMPONENTS, Dataset
-from .errors import ConfigError, quote
-from .files.yaml_schema import Strict, read_yaml, validate
-from .kinematics.robot import BODIES, N_JOINTS, Robot
-from .kinematics.spatial import transform, transport_wrench
-from .model.stiffness_model import StiffnessModel
+from ..data.measurements import COMPONENTS, Dataset
+from ..errors import ConfigError, quote
+from ..files.yaml_schema import Strict, read_yaml, validate
+from ..kinematics.robot import BODIES, N_JOINTS, Robot
+from ..kinematics.spatial import transform, transport_wrench
+from ..model.stiffness_model import StiffnessModel
 
 AXES = ("x", "y", "z")
 MAX_ROWS = 5_000_000  # refuse campaigns that would not fit in memory comfortably

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fit.identifiability import unidentifiable_information
-from .fit.identify import jacobian
-from .kinematics.robot import BODIES
-from .model.stiffness_model import StiffnessModel
+from ..fit.identifiability import unidentifiable_information
+from ..fit.identify import jacobian
+from ..kinematics.robot import BODIES
+from ..model.stiffness_model import StiffnessModel
 from .simulate import Campaign, CampaignSpec, LoadSpec, random_configurations
 
 DEVICES = {
