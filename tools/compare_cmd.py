@@ -6,8 +6,8 @@ import math
 import shlex
 import sys
 
-from stiffness.compare import METRICS, Comparison, compare
-from stiffness.compare_report import GROUPS, build_report, change_text
+from stiffness.compare.comparison import METRICS, Comparison, compare
+from stiffness.compare.report import GROUPS, build_report, change_text
 from stiffness.errors import ConfigError
 from stiffness.model.stiffness_model import StiffnessModel
 

@@ -36,7 +36,7 @@ def deflection_vs_load(data: Dataset, direction: np.ndarray, predictions: list[t
     data : Dataset
         The measurements; x is the sensor force along the column's axis (N).
     direction : (N,) str
-        Each row's load direction ("+x" .. "-z", "none"; `stiffness.compare.load_direction`).
+        Each row's load direction ("+x" .. "-z", "none"; `stiffness.compare.comparison.load_direction`).
         A column holds the readings loaded along its axis and the unloaded ones.
     predictions : list of (name, (N, 6) array)
         Modelled deflections (mm, deg); each model is drawn as lines in the order readings were
@@ -116,7 +116,7 @@ def rms_bars(groups: list[tuple[str, dict[str, dict]]], what: str,
     Parameters
     ----------
     groups : list of (model name, {group: metrics})
-        Metrics as `stiffness.compare.summary` returns them.
+        Metrics as `stiffness.compare.comparison.summary` returns them.
     what : str
         The grouping, for the title ("body", "configuration", "load direction").
     noise : (position_mm, rotation_deg), optional

@@ -13,7 +13,7 @@ from stiffcomp_testlib import MODELS
 
 from discovery.campaigns import campaign, start_model, tracker
 from hil.testing import truth_with
-from stiffness.compare import compare
+from stiffness.compare.comparison import compare
 from stiffness.data.measurements import read_measurements
 from stiffness.diagnose import diagnose
 from stiffness.fit.identify import fit

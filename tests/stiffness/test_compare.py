@@ -8,7 +8,7 @@ import pytest
 import yaml
 from stiffcomp_testlib import ROOT
 
-from stiffness.compare import by_component, compare, load_direction, r2, summary
+from stiffness.compare.comparison import by_component, compare, load_direction, r2, summary
 from stiffness.data.measurements import Dataset
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign

@@ -10,8 +10,8 @@ import numpy as np
 import yaml
 from stiffcomp_testlib import ROOT
 
-from stiffness.compare import METRICS, compare, summary
-from stiffness.compare_report import GROUPS, build_report, component_table, group_table
+from stiffness.compare.comparison import METRICS, compare, summary
+from stiffness.compare.report import GROUPS, build_report, component_table, group_table
 from stiffness.plan.simulate import Campaign
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -1,6 +1,6 @@
 """Model against measurement without fitting: error metrics overall and by body, component,
 configuration and load direction, for one model or two side by side (docs/compare.md). The HTML
-report of a comparison is `stiffness.compare_report`.
+report of a comparison is `stiffness.compare.report`.
 
 Metrics, for a set of rows and one kind (position: dx, dy, dz in mm; rotation: rx, ry, rz in deg),
 with e = measured - predicted:
@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from .data.measurements import COMPONENTS, Dataset
-from .fit.identify import rms
-from .kinematics.robot import BODIES
-from .model.stiffness_model import StiffnessModel
+from ..data.measurements import COMPONENTS, Dataset
+from ..fit.identify import rms
+from ..kinematics.robot import BODIES
+from ..model.stiffness_model import StiffnessModel
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z", "none")
 NONE_FRACTION = 0.05

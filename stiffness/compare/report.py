@@ -1,4 +1,4 @@
-"""A comparison (`stiffness.compare`) as an HTML page: verdict first, the overall table, the tables by
+"""A comparison (`stiffness.compare.comparison`) as an HTML page: verdict first, the overall table, the tables by
 body, configuration, load direction and component, RMS bars and the Fig. 4 grids (docs/compare.md).
 
 The group tables are long, not wide: one row per group and model, one column per `METRICS` entry, so
@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from .compare import METRICS, Comparison
-from .data.measurements import COMPONENTS
-from .report.html import Report
+from ..data.measurements import COMPONENTS
+from ..report.html import Report
+from .comparison import METRICS, Comparison
 
 GROUPS = (("by_body", "body"), ("by_config", "configuration"), ("by_load_direction", "load direction"))
 COMPONENT_STATS = (("rms", "RMS"), ("max", "max |error|"), ("r2", "R²"))
@@ -21,7 +21,7 @@ COMPONENT_STATS = (("rms", "RMS"), ("max", "max |error|"), ("r2", "R²"))
 
 def build_report(comp: Comparison, command: str = "", plots: bool = True) -> Report:
     """The HTML report: verdict, overall table, tables by group, RMS bars and Fig. 4 grids."""
-    from .report import plots as P
+    from ..report import plots as P
 
     names = [m.name for m in comp.models]
     title = "Model against measurement: " + " vs ".join(names)

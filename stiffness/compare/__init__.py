@@ -1,0 +1,1 @@
+"""`stiffcomp compare`: a model against measurements, and its report."""
