@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 from discovery.campaigns import campaign, start_model
 
 from hil.testing import truth_with
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.effects.backlash import Backlash
 
 

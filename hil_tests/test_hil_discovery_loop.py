@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from hil_lib import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
 
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel

@@ -22,7 +22,7 @@ from hil.report import evaluate_uncompensated
 from hil.robot_stub import RobotStub
 from hil.testing import truth_with
 from hil.world import World
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.files.yaml_schema import read_yaml
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect

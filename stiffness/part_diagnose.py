@@ -2,7 +2,7 @@
 (`stiffcomp part diagnose`, docs/part.md).
 
 The part's points are a campaign of one configuration measuring one component each (`stiffness.part_rows`),
-so the project's diagnosis runs on them as it runs on a campaign (`stiffness.diagnose`): every library
+so the project's diagnosis runs on them as it runs on a campaign (`stiffness.diagnose.discovery`): every library
 effect the model lacks, through each effect's own ``candidates``, judged by cross-validation over blocks of
 the contour, BIC and an F-test. A part sees only a few combinations of the model's parameters, so the model's
 prior holds the rest (`stiffness.model.prior`), in the fit and in every candidate's nested fit.
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.measurements import COMPONENTS, Dataset
-from .diagnose import Candidate, Diagnosis, diagnose
+from .diagnose.discovery import Candidate, Diagnosis, diagnose
 from .effects.axial import joint_torque
 from .errors import DataError
 from .model.prior import Prior

@@ -5,8 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from stiffness.diagnose import diagnose
-from stiffness.diagnose_report import build_report, to_dict
+from stiffness.diagnose.discovery import diagnose
+from stiffness.diagnose.report import build_report, to_dict
 
 from .common import Progress, add_duplicates_option, load, print_json, write_output
 from .fit_cmd import add_robust_option

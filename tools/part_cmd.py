@@ -194,7 +194,7 @@ def _refuse_unless(written: bool, args, result) -> int:
 
 
 def run_diagnose(args) -> int:
-    from stiffness.diagnose_report import VERDICT_KIND, to_dict
+    from stiffness.diagnose.report import VERDICT_KIND, to_dict
     from stiffness.part_diagnose import diagnose_parts
     from stiffness.part_leftout import GROSS, fit_account, left_out_lines
 

@@ -12,7 +12,7 @@ import pytest
 
 from discovery.campaigns import campaign, start_model
 from hil.testing import truth_with
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 

@@ -6,7 +6,7 @@ import pytest
 from discovery.campaigns import campaign, start_model
 from hil.testing import truth_with
 from stiffness.data.residuals import pure_error, repeat_groups
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.errors import DataError
 
 

@@ -17,8 +17,8 @@ from stiffcomp_testlib import MODELS, ROOT
 
 from discovery.campaigns import campaign
 from service.compensation import FastPredictor
-from stiffness.diagnose import diagnose
-from stiffness.diagnose_report import to_dict
+from stiffness.diagnose.discovery import diagnose
+from stiffness.diagnose.report import to_dict
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.fit.identify import fit

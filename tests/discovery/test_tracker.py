@@ -15,7 +15,7 @@ from discovery.campaigns import campaign, start_model, tracker
 from hil.testing import truth_with
 from stiffness.compare.comparison import compare
 from stiffness.data.measurements import read_measurements
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from tools.cli import main
 

@@ -11,8 +11,8 @@ import pytest
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.data.measurements import COMPONENTS, read_measurements
-from stiffness.diagnose import diagnose
-from stiffness.diagnose_report import build_report
+from stiffness.diagnose.discovery import diagnose
+from stiffness.diagnose.report import build_report
 from stiffness.fit.identify import rms
 from stiffness.model.stiffness_model import StiffnessModel
 

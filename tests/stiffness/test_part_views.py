@@ -16,7 +16,7 @@ from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
-from stiffness.diagnose_report import to_dict
+from stiffness.diagnose.report import to_dict
 from stiffness.fit.gross_errors import repeat_deviation
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel

@@ -9,8 +9,8 @@ from matplotlib.figure import Figure
 from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
-from stiffness.diagnose import diagnose
-from stiffness.diagnose_plots import evidence, residual_vs_force, residual_vs_time
+from stiffness.diagnose.discovery import diagnose
+from stiffness.diagnose.plots import evidence, residual_vs_force, residual_vs_time
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.report.plots import rms_bars
 

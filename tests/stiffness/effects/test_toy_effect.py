@@ -18,7 +18,7 @@ from service.compensation import FastPredictor
 from service.config import load_config
 from service.pipeline import Cycle
 from stiffness.data.measurements import Dataset
-from stiffness.diagnose import diagnose
+from stiffness.diagnose.discovery import diagnose
 from stiffness.effects import EFFECTS
 from stiffness.effects.axial import axial_basis
 from stiffness.effects.base import Effect, Param, read_location, read_values

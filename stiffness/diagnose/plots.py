@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .data.campaign import Context
-from .data.residuals import axial_residual
-from .report.plots import legend_below
-from .units import RAD_TO_DEG
+from ..data.campaign import Context
+from ..data.residuals import axial_residual
+from ..report.plots import legend_below
+from ..units import RAD_TO_DEG
 
 
 def axial_residual_vs_torque(ctx: Context, resid: np.ndarray, sigma: np.ndarray,

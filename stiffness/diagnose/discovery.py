@@ -32,16 +32,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import f as f_dist
 
-from .data.campaign import Context
-from .data.measurements import Dataset
-from .data.residuals import pure_error, worst
-from .effects import EFFECTS, Effect
-from .errors import DataError
+from ..data.campaign import Context
+from ..data.measurements import Dataset
+from ..data.residuals import pure_error, worst
+from ..effects import EFFECTS, Effect
+from ..errors import DataError
+from ..fit.identify import FitResult, design, fit, jacobian, rms
+from ..model.preload_term import PreloadTerm, held_preload, start_from_centres
+from ..model.prior import Prior
+from ..model.stiffness_model import StiffnessModel
 from .explain import describe
-from .fit.identify import FitResult, design, fit, jacobian, rms
-from .model.preload_term import PreloadTerm, held_preload, start_from_centres
-from .model.prior import Prior
-from .model.stiffness_model import StiffnessModel
 
 CV_MIN = 0.005
 BIC_MIN = 10.0

@@ -6,11 +6,11 @@ from typing import Any
 
 import numpy as np
 
-from .data.residuals import patterns
-from .diagnose import Diagnosis
-from .diagnose_plots import axial_residual_vs_torque, evidence, residual_vs_force, residual_vs_time
-from .kinematics.robot import BODIES
-from .report.html import Report
+from ..data.residuals import patterns
+from ..kinematics.robot import BODIES
+from ..report.html import Report
+from .discovery import Diagnosis
+from .plots import axial_residual_vs_torque, evidence, residual_vs_force, residual_vs_time
 
 VERDICT_KIND = {"missing_effect": "warn", "no_missing_effect": "good", "unexplained": "bad"}
 

@@ -1,0 +1,1 @@
+"""`stiffcomp diagnose`: which effect the model misses, its plots, words and report."""
