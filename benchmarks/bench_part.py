@@ -38,9 +38,9 @@ from stiffness.data.trace_file import read_trace
 from stiffness.effects.hysteresis import Hysteresis
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_diagnose import diagnose_parts
-from stiffness.part_learn import learn
-from stiffness.part_rows import read_against
+from stiffness.part.diagnose import diagnose_parts
+from stiffness.part.learn import learn
+from stiffness.part.rows import read_against
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 PLACES = {"A": [0.0, -60.0, 90.0, 0.0, 60.0, 0.0], "B": [25.0, -45.0, 75.0, 0.0, 60.0, 30.0],

@@ -17,7 +17,7 @@ from hil.testing import BEYOND_SPRINGS, truth_with
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_rows import read_against
+from stiffness.part.rows import read_against
 from tools.cli import main
 
 WINDOWS = {f"{w}_{k}_mm" for w in ("entry", "exit", "steady") for k in ("peak", "mean")}   # issue 26

@@ -22,9 +22,9 @@ from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import COLUMNS, read_trace
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_diagnose import diagnose_parts
-from stiffness.part_learn import learn
-from stiffness.part_rows import read_against
+from stiffness.part.diagnose import diagnose_parts
+from stiffness.part.learn import learn
+from stiffness.part.rows import read_against
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -41,7 +41,7 @@ def register(sub) -> None:
 
 
 def _common(p, more: bool = False) -> None:
-    from stiffness.part_rows import NEAR_MM, SMOOTH_HZ
+    from stiffness.part.rows import NEAR_MM, SMOOTH_HZ
 
     p.add_argument("model", help="model YAML")
     p.add_argument("trace", help="the trace of the cut (`stiffcomp run --trace FILE`, .csv or .parquet)")
@@ -80,7 +80,7 @@ def _check_options(args) -> None:
 def _parts(args, model) -> list:
     from stiffness.data.part_points import read_part
     from stiffness.data.trace_file import read_trace
-    from stiffness.part_rows import read_against
+    from stiffness.part.rows import read_against
 
     pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
     out = []
@@ -112,13 +112,13 @@ def _command() -> str:
 
 def run_compare(args) -> int:
     from stiffness.model.stiffness_model import StiffnessModel
-    from stiffness.part_compare import compare_part
+    from stiffness.part.compare import compare_part
 
     _check_options(args)
     model = StiffnessModel.from_yaml(args.model)
     comp = compare_part(model, _parts(args, model)[0])
     if args.report:
-        from stiffness.part_report import compare_report
+        from stiffness.part.report import compare_report
 
         rep = compare_report(comp, _command())
         path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
@@ -141,7 +141,7 @@ def _setup(args, command: str):
 
 
 def run_learn(args) -> int:
-    from stiffness.part_learn import learn
+    from stiffness.part.learn import learn
 
     progress, prior, start, parts = _setup(args, "part learn")
     result = learn(start, parts, prior, args.best_fit, progress)
@@ -175,7 +175,7 @@ def _write_learned(args, result) -> None:
               "is the prior of the next")
     write_output(args.output, lambda p: result.model.to_yaml(p, header))
     if args.report:
-        from stiffness.part_report import learn_report
+        from stiffness.part.report import learn_report
 
         rep = learn_report(result, _command())
         path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
@@ -183,7 +183,7 @@ def _write_learned(args, result) -> None:
 
 
 def _refuse_unless(written: bool, args, result) -> int:
-    """0 once the model is written; a learning that failed its checks (`stiffness.part_sanity`) and was not
+    """0 once the model is written; a learning that failed its checks (`stiffness.part.sanity`) and was not
     forced is refused in one line naming the output and the first problem (the text lists them all)."""
     if written:
         return 0
@@ -195,8 +195,8 @@ def _refuse_unless(written: bool, args, result) -> int:
 
 def run_diagnose(args) -> int:
     from stiffness.diagnose.report import VERDICT_KIND, to_dict
-    from stiffness.part_diagnose import diagnose_parts
-    from stiffness.part_leftout import GROSS, fit_account, left_out_lines
+    from stiffness.part.diagnose import diagnose_parts
+    from stiffness.part.left_out import GROSS, fit_account, left_out_lines
 
     progress, prior, start, parts = _setup(args, "part diagnose")
     pd = diagnose_parts(start, parts, prior, progress)
@@ -205,8 +205,8 @@ def run_diagnose(args) -> int:
     left_out, rms_kept, rms_all = fit_account(pd.parts, pd.data, d.fit)
     gross = [x for x in left_out if x.why == GROSS]
     if args.report:
-        from stiffness.part_compare import compare_part
-        from stiffness.part_report import diagnose_report
+        from stiffness.part.compare import compare_part
+        from stiffness.part.report import diagnose_report
 
         rep = diagnose_report(pd.message, VERDICT_KIND[d.verdict], compare_part(d.fit.model, parts[0]), pd,
                               _command())

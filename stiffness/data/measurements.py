@@ -11,7 +11,7 @@ is NaN (``Dataset.measured`` is False there). A NaN or inf written in the file s
 
 Measurement axes. A row may give its deflection in axes of its own instead of the base axes
 (``Dataset.axes``, in memory only): a CMM or a probe measures a machined surface along its normal, so
-a point of a part (`stiffness.part_rows`) is a TCP row whose first axis is the surface normal and whose
+a point of a part (`stiffness.part.rows`) is a TCP row whose first axis is the surface normal and whose
 only measured component is that one. The model's predictions and the fit's design follow the row's
 axes (`stiffness.data.campaign.Context`), so the same identification code fits campaigns and parts.
 """

@@ -15,11 +15,11 @@ point              a label per point (optional; the line number names a point ot
 tool_radius_mm     the cutter's radius (required): the surface lies that far from the tool's axis
 part_frame         the part frame in the robot's base (xyz_mm, rpy_deg as the robot YAML's poses: URDF
                    roll-pitch-yaw), from the fixture's calibration; without it the part has no datum and
-                   only ``--best-fit`` can place it (which hides a constant offset, `stiffness.part_rows`)
+                   only ``--best-fit`` can place it (which hides a constant offset, `stiffness.part.rows`)
 
 Errors name the file and the line. Units: the format is millimetres; a file whose points sit where the
 trace says the tool went only after scaling by 25.4 or 1000 is named as inches or metres
-(`stiffness.part_rows`).
+(`stiffness.part.rows`).
 """
 
 from __future__ import annotations

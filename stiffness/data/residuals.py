@@ -46,7 +46,7 @@ def repeat_groups(ctx: Context, tolerance: float = 0.01) -> np.ndarray:
     joints, with a force within ``tolerance`` of the campaign's largest force *of the group's first
     reading* (so a slow ramp of small steps never chains into one group). Returns a group id per reading.
 
-    The points of a part (`stiffness.part_rows`) each sit at joints of their own: none repeats another."""
+    The points of a part (`stiffness.part.rows`) each sit at joints of their own: none repeats another."""
     f = ctx.wrench_sensor[:, :3]
     q = ctx.q
     tol = tolerance * max(np.linalg.norm(f, axis=1).max(), 1e-9)

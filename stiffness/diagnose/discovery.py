@@ -284,7 +284,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     errors (`robust`) are left out of the fit and of every candidate's evidence; a missing effect
     repeats in every reading of a load state and is not mistaken for them. With ``prior`` (what the model
     knew before these data, `stiffness.model.prior`: a machined part sees few combinations of the parameters,
-    `stiffness.part_diagnose`) the fit and every candidate's nested fit hold the base parameters to it.
+    `stiffness.part.diagnose`) the fit and every candidate's nested fit hold the base parameters to it.
     """
     say = progress or (lambda msg: None)
     need = 2 * (len(model.theta) + 6)          # the model and the largest candidate, twice over

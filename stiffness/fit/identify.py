@@ -14,7 +14,7 @@ count by what the data show.
 
 A prior (`stiffness.model.prior.Prior`: what a campaign already told of the parameters) adds rows that hold
 the parameters near it, whitened like the data's; every step below solves the data's rows and the
-prior's together, so new data (a machined part's points, `stiffness.part_learn`) move only what they
+prior's together, so new data (a machined part's points, `stiffness.part.learn`) move only what they
 determine better than the prior did. The fit's own covariance is stored in the fitted model (the
 YAML's ``covariance``), the prior of the next fit.
 

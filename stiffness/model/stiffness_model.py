@@ -167,7 +167,7 @@ class StiffnessModel:
 
     def copy(self) -> StiffnessModel:
         """A copy through the YAML form; a model holding an effect from outside the library (a part's
-        placement while learning, `stiffness.part_learn`) is copied effect by effect instead."""
+        placement while learning, `stiffness.part.learn`) is copied effect by effect instead."""
         if all(EFFECTS.get(e.name) is type(e) or isinstance(e, PreloadTerm) for e in self.effects):
             return StiffnessModel.from_dict(self.to_dict(), self.source, robot=self.robot)
         return StiffnessModel(self.robot, [copy.deepcopy(e) for e in self.effects], self.name, self.description,

@@ -12,10 +12,10 @@ from stiffness.data.part_points import read_part, write_part
 from stiffness.data.trace_file import read_trace
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_compare import compare_part
-from stiffness.part_diagnose import diagnose_parts
-from stiffness.part_learn import learn
-from stiffness.part_rows import read_against
+from stiffness.part.compare import compare_part
+from stiffness.part.diagnose import diagnose_parts
+from stiffness.part.learn import learn
+from stiffness.part.rows import read_against
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 ELSEWHERE = [-20.0, -70.0, 100.0, 0.0, 60.0, -20.0]

@@ -1,4 +1,4 @@
-"""A part read against the trace of its cut (`stiffness.part_rows`): the deviations it recovers, and every
+"""A part read against the trace of its cut (`stiffness.part.rows`): the deviations it recovers, and every
 bad input named by file and line (issue 29, item 2)."""
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from stiffness.data.trace_file import COLUMNS, TraceFile, read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_compare import compare_part
-from stiffness.part_rows import read_against
-from stiffness.part_timing import when_made
+from stiffness.part.compare import compare_part
+from stiffness.part.rows import read_against
+from stiffness.part.timing import when_made
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

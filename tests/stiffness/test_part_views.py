@@ -20,11 +20,11 @@ from stiffness.diagnose.report import to_dict
 from stiffness.fit.gross_errors import repeat_deviation
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part_compare import at_points, compare_part
-from stiffness.part_diagnose import diagnose_parts
-from stiffness.part_learn import learn
-from stiffness.part_report import diagnose_report, learn_figure, load_figure
-from stiffness.part_rows import read_against
+from stiffness.part.compare import at_points, compare_part
+from stiffness.part.diagnose import diagnose_parts
+from stiffness.part.learn import learn
+from stiffness.part.report import diagnose_report, learn_figure, load_figure
+from stiffness.part.rows import read_against
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

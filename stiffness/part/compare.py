@@ -1,7 +1,7 @@
 """Compare a model with a machined part: the part's error, the arm's deflection that made it, and the model's
 own account of both (`stiffcomp part compare`, docs/part.md).
 
-Along the surface normal n at each point (`stiffness.part_rows`):
+Along the surface normal n at each point (`stiffness.part.rows`):
 
 =================  ===============================================================================
 part error         the point's deviation from the nominal contour, as the CMM reports it (Fig. 8b)
@@ -21,11 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data.campaign import Context
-from .effects.axial import joint_torque
-from .model.stiffness_model import StiffnessModel
-from .part_rows import PartRows
-from .part_timing import when_made
+from ..data.campaign import Context
+from ..effects.axial import joint_torque
+from ..model.stiffness_model import StiffnessModel
+from .rows import PartRows
+from .timing import when_made
 
 
 @dataclass

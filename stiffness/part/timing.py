@@ -1,5 +1,5 @@
 """When each point of a part was made: the moment the deflected tool passed it, and the curve's term
-(`stiffness.part_rows`'s docstring has the geometry; docs/part.md).
+(`stiffness.part.rows`'s docstring has the geometry; docs/part.md).
 
 The commanded path passes abeam of a point at the fractional trace row u; the tool that made the point was
 the deflected one, which passed there earlier or later by its deflection along the path over the feed,
@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from .part_rows import PartRows
+from .rows import PartRows
 
 CHORD_M = 0.002          # the path's curvature is taken over this length either side of a point
 

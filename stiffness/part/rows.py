@@ -16,7 +16,7 @@ error against its nominal contour is the same with the nominal path c_nom(u) = F
 
 When the point was made. The commanded path passes abeam of a point at u, but the tool that made it was
 the deflected one, which passed there earlier or later by its deflection along the path over the feed:
-t* = u - (dX . t) / |dc/du|. `stiffness.part_timing.when_made` places each point at t* with a model's prediction of dX (the loads
+t* = u - (dX . t) / |dc/du|. `stiffness.part.timing.when_made` places each point at t* with a model's prediction of dX (the loads
 at t* are what deflected the arm then). On a curved wall the point then lies a little inside what n . dX
 says: the deflection along the path d_t carries the tool around the curve,
 
@@ -42,7 +42,7 @@ pass came within PASS_MARGIN_MM as close to it as the closest one) is left out a
 it cannot be told. So is a point made while the trace lost rows (a gap in its cycle count, `Trace.gaps`), or
 within GAP_MARGIN_MM of the path of them: where the arm was and what loaded it then is not known, and the
 path across the gap is a chord. The notes name each gap (its cycles, its time, how many rows) and the points
-left out by file line (`stiffness.part_leftout`); the wrench is smoothed on each side of a gap on its own.
+left out by file line (`stiffness.part.left_out`); the wrench is smoothed on each side of a gap on its own.
 """
 
 from __future__ import annotations
@@ -54,12 +54,12 @@ import numpy as np
 from scipy import signal
 from scipy.spatial import cKDTree
 
-from .data.measurements import Dataset
-from .data.part_points import PartMeasurement
-from .data.trace_file import Gap, Trace
-from .errors import DataError, Problems
-from .kinematics.robot import Robot
-from .part_leftout import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
+from ..data.measurements import Dataset
+from ..data.part_points import PartMeasurement
+from ..data.trace_file import Gap, Trace
+from ..errors import DataError, Problems
+from ..kinematics.robot import Robot
+from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more

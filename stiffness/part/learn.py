@@ -1,6 +1,6 @@
 """Learn from parts: each machined part is one more measurement of the same model (docs/part.md).
 
-A part's points, read against the trace of its cut (`stiffness.part_rows`), are rows of a campaign that
+A part's points, read against the trace of its cut (`stiffness.part.rows`), are rows of a campaign that
 measure one component each, the deflection along the surface normal: e = n . dX(q, W; theta), linear in
 the model's compliances through the joints and the wrench of the moment the tool passed. The project's
 one identification code fits them (`identify.fit`), with the model's earlier information as the prior
@@ -21,18 +21,18 @@ from typing import Any
 
 import numpy as np
 
-from .data.campaign import Context
-from .data.measurements import Dataset
-from .effects.base import Effect, Param
-from .errors import ConfigError, StiffnessError
-from .fit.identify import FitResult, fit, jacobian
-from .model.prior import Prior, covariance_entry
-from .model.stiffness_model import StiffnessModel
-from .part_leftout import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
-from .part_rows import PartRows, plane_basis
-from .part_sanity import problems
-from .part_timing import when_made
-from .units import M_TO_MM
+from ..data.campaign import Context
+from ..data.measurements import Dataset
+from ..effects.base import Effect, Param
+from ..errors import ConfigError, StiffnessError
+from ..fit.identify import FitResult, fit, jacobian
+from ..model.prior import Prior, covariance_entry
+from ..model.stiffness_model import StiffnessModel
+from ..units import M_TO_MM
+from .left_out import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
+from .rows import PartRows, plane_basis
+from .sanity import problems
+from .timing import when_made
 
 DETERMINED = 1.0        # a combination is the parts' when their information exceeds the prior's by this factor
 SHOWN = 6               # combinations listed

@@ -1,7 +1,7 @@
 """Diagnose from the part: which effect the model misses, read from a machined part and the trace of its cut
 (`stiffcomp part diagnose`, docs/part.md).
 
-The part's points are a campaign of one configuration measuring one component each (`stiffness.part_rows`),
+The part's points are a campaign of one configuration measuring one component each (`stiffness.part.rows`),
 so the project's diagnosis runs on them as it runs on a campaign (`stiffness.diagnose.discovery`): every library
 effect the model lacks, through each effect's own ``candidates``, judged by cross-validation over blocks of
 the contour, BIC and an F-test. A part sees only a few combinations of the model's parameters, so the model's
@@ -21,16 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data.measurements import COMPONENTS, Dataset
-from .diagnose.discovery import Candidate, Diagnosis, diagnose
-from .effects.axial import joint_torque
-from .errors import DataError
-from .model.prior import Prior
-from .model.stiffness_model import StiffnessModel
-from .part_compare import at_points
-from .part_learn import _concat
-from .part_rows import PartRows
-from .part_timing import when_made
+from ..data.measurements import COMPONENTS, Dataset
+from ..diagnose.discovery import Candidate, Diagnosis, diagnose
+from ..effects.axial import joint_torque
+from ..errors import DataError
+from ..model.prior import Prior
+from ..model.stiffness_model import StiffnessModel
+from .compare import at_points
+from .learn import _concat
+from .rows import PartRows
+from .timing import when_made
 
 PART_COMPONENTS = ("normal", "along the contour", "along the tool axis", "about the normal",
                    "about the contour", "about the tool axis")     # a part row's axes (n, a x n, a)

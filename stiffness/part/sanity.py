@@ -1,7 +1,7 @@
 """Whether what `part learn` learned from parts can be believed: the checks that keep a misplaced part from
 becoming a model in silence (`stiffcomp part learn` writes nothing when one fails, unless ``--force``).
 
-A part's points read against its trace (`stiffness.part_rows`) are e = n . dX + probe noise, and the model
+A part's points read against its trace (`stiffness.part.rows`) are e = n . dX + probe noise, and the model
 with its prior (`stiffness.model.prior`) is the account of n . dX. So the learned model has two things to answer for:
 
 * **the residual the parts leave** against what the model's stated noise explains (``noise.position_mm``,

@@ -15,10 +15,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .part_compare import PartComparison, at_points
-from .part_rows import plane_basis
-from .report.html import Report
-from .report.plots import legend_below
+from ..report.html import Report
+from ..report.plots import legend_below
+from .compare import PartComparison, at_points
+from .rows import plane_basis
 
 # one legend holds the forces and the joints: nine colours, none shared (matplotlib's ten, without its gray)
 FORCE_COLOURS = ("tab:blue", "tab:orange", "tab:green")
