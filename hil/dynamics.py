@@ -7,7 +7,7 @@ What a commissioning engineer does, with the HIL's instruments:
    turn and the robot stub's deflection, as an accelerometer or a laser tracker records it, 1 µm noise), or
    the uncompensated test cut itself (``cut``: the process force and the stub's deflection from its path);
    a tap test moves the joints too little to cross their hysteresis or play, so it sees the structure alone;
-2. identify the structure's modes from it (`stiffness.dynamics.identify`, as `stiffcomp modes` does);
+2. identify the structure's modes from it (`stiffness.dynamics.modes`, as `stiffcomp modes` does);
 3. measure the end-to-end delay with the static compensator (the run's static pass, `hil.report.end_to_end_delay`);
 4. give the service the modes (their frequencies scaled by 1 + ``mode_error``: a model that is off), the
    delay, and with ``feedforward`` the process plan (`write_plan`: the engagement and the force the milling
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from plc_interface.endpoints import SHIPPED_CONFIG
-from stiffness.dynamics.identify import DEFLECTION, FORCE, Identified, Record, identify
+from stiffness.dynamics.modes import DEFLECTION, FORCE, Identified, Record, identify
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import M_TO_MM

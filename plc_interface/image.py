@@ -43,11 +43,11 @@ _HEADER = 10
 
 
 # The cycle's side of the protocol as plain functions over the image's memory: the image's methods call them,
-# and the compiled service's steady cycle compiles the same functions (`service.kernel.steady`), so the
+# and the compiled service's steady cycle compiles the same functions (`service.kernel.steady_cycle`), so the
 # protocol has one implementation whichever runs it. ``h``: the header's int64s; ``k``: a direction's first
 # place in it (`_H`); buffers are byte ranges of ``mem`` (memoryviews here, arrays when compiled).
 def copy_bytes(dst, src) -> None:
-    """``dst[:] = src``, of equal lengths. Compiled (`service.kernel.steady`), it is a loop: numba's slice
+    """``dst[:] = src``, of equal lengths. Compiled (`service.kernel.steady_cycle`), it is a loop: numba's slice
     assignment carries a shape error whose message alone takes some 2.5 s to compile for each model."""
     dst[:] = src
 
@@ -205,7 +205,7 @@ class ProcessImage:
 
     def places(self) -> dict[str, int]:
         """Where a compiled cycle finds the parts of `bytes` it runs this protocol's functions on
-        (`service.kernel.steady`): the header's bytes, the inputs' two buffers and their length (`in_work`
+        (`service.kernel.steady_cycle`): the header's bytes, the inputs' two buffers and their length (`in_work`
         holds the scratch, then the copy, of that length each), the outputs' two buffers, the timing count."""
         (i0, i1), (o0, o1) = self._off_in, self._off_out
         return {"header_bytes": 8 * _HEADER, "in_off0": i0, "in_off1": i1, "in_bytes": self._in_bytes,

@@ -42,13 +42,13 @@ from plc_interface.io_server import IoSettings
 
 from .compensation import load_model
 from .config import ServiceConfig
+from .cycle_rules import task_row
 from .errors import ServiceConfigError
-from .glue import task_row
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
 from .trace import TraceOptions, TraceRing, TraceWriter
-from .values import Values
+from .value_vector import Values
 
 log = logging.getLogger("stiffcomp.service")
 
@@ -79,7 +79,7 @@ class Service:
         self.trace_counts: dict[str, int] | None = None
         self.model = load_model(cfg)
         self.rmap = cfg.register_map()
-        # the cycle's values as one vector (`service.values`): the compiled service packs its record from it
+        # the cycle's values as one vector (`service.value_vector`): the compiled service packs its record from it
         self.values = Values(len(FromPlc._fields) + len(self.rmap.codecs["to_plc"].names))
         self.cycle = Cycle.from_config(cfg, self.model, self.values.signals)
         dyn = self.cycle.compensator.dynamics
@@ -143,7 +143,7 @@ class Service:
 
     def _task_tuple(self, state: int) -> list[float]:
         """The task's counters of the cycle now, in `TaskValues`' order, also into the values' task part
-        (`service.glue.task_row`)."""
+        (`service.cycle_rules.task_row`)."""
         info, v = self.info, self.values.task
         task_row(v, info.cycle_count + (state == _RUN), state, info.exceed_count, info.last_exec_s * 1e6,
                  self.period * 1e6, info.last_jitter_s * 1e6, info.last_exceeded)

@@ -1,6 +1,6 @@
 """The dynamic compensation in the service: the ``dynamics`` section, its parts' terms and the plan's feed.
 
-Off by default. With ``enabled: true`` each part the section holds (`stiffness.dynamics.PARTS`: the
+Off by default. With ``enabled: true`` each part the section holds (`stiffness.dynamics.STAGES`: the
 predictor, the feedforward, the structure's modes; docs/dynamics.md) is built from its own sub-section and
 returns its per-cycle terms of the real-time kinds, which the predictor (`FastPredictor`) runs with the
 model's own: a `WrenchTerm` on the external wrench before the springs, a `TwistTerm` on the deflection
@@ -19,8 +19,8 @@ import logging
 
 from pydantic import Field, create_model
 
-from stiffness.dynamics import PARTS, DynamicsContext, Part
-from stiffness.effects.realtime import Term
+from stiffness.dynamics import STAGES, DynamicsContext, Stage
+from stiffness.effects.terms import Term
 from stiffness.errors import StiffnessError
 from stiffness.files.yaml_schema import Strict
 
@@ -32,7 +32,7 @@ DynamicsConfig = create_model(
     "DynamicsConfig", __base__=Strict, __doc__="``dynamics``: the dynamic compensation (module docstring).",
     enabled=(bool, False),
     delay_ms=(float, Field(8.0, ge=0.0, le=200.0)),
-    **{name: (cls.Config | None, None) for name, cls in PARTS.items()})
+    **{name: (cls.Config | None, None) for name, cls in STAGES.items()})
 
 
 class Dynamics:
@@ -50,13 +50,13 @@ class Dynamics:
     def __init__(self, section, period_s: float, resolve=None):
         self.section = section
         self.period_s = float(period_s)
-        self.parts: list[Part] = []
+        self.stages: list[Stage] = []
         self._resolve = resolve
         if section.enabled:
-            self.parts = [self._part(name, cls, getattr(section, name)) for name, cls in PARTS.items()
+            self.stages = [self._stage(name, cls, getattr(section, name)) for name, cls in STAGES.items()
                           if getattr(section, name) is not None]
 
-    def _part(self, name: str, cls: type[Part], cfg) -> Part:
+    def _stage(self, name: str, cls: type[Stage], cfg) -> Stage:
         try:
             return cls.from_config(cfg, self._resolve)
         except StiffnessError as e:
@@ -64,14 +64,14 @@ class Dynamics:
 
     @property
     def active(self) -> bool:
-        return bool(self.parts)
+        return bool(self.stages)
 
     def terms(self) -> list[Term]:
         """Fresh terms of every part (their states at the start), in the registry's order."""
-        lag = sum(p.lag_s() for p in self.parts)
+        lag = sum(p.lag_s() for p in self.stages)
         ctx = DynamicsContext(self.period_s, self.section.delay_ms / 1000.0, lag)
         out: list[Term] = []
-        for part in self.parts:
+        for part in self.stages:
             try:
                 out += part.terms(ctx)
             except ValueError as e:
@@ -81,16 +81,16 @@ class Dynamics:
 
     def plc_values(self) -> list[str]:
         """The contract values the parts read from the PLC every cycle (`feed`)."""
-        return [v for p in self.parts if (v := p.plc_value()) is not None]
+        return [v for p in self.stages if (v := p.plc_value()) is not None]
 
     def feed(self, t: float, inputs, p_tcp) -> None:
         """This cycle's values from the PLC (``inputs``: the `FromPlc` record) into the parts that read one."""
-        for p in self.parts:
+        for p in self.stages:
             name = p.plc_value()
             if name is not None:
                 p.feed(t, float(getattr(inputs, name)), p_tcp)
 
     def describe(self) -> str:
-        if not self.parts:
+        if not self.stages:
             return "dynamic compensation off"
-        return f"dynamic compensation (delay {self.section.delay_ms:g} ms): " + "; ".join(p.describe() for p in self.parts)
+        return f"dynamic compensation (delay {self.section.delay_ms:g} ms): " + "; ".join(p.describe() for p in self.stages)

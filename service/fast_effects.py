@@ -1,7 +1,7 @@
 """The assembly of the service's fast path (`service.compensation.FastPredictor`) from the model's effects.
 
 Each effect returns its own real-time terms (``Effect.realtime``, the kinds in
-`stiffness.effects.realtime`), built from its own equation with its parameters frozen at start-up;
+`stiffness.effects.terms`), built from its own equation with its parameters frozen at start-up;
 this module only sorts them by kind, so no equation and no effect's name is written here. An effect
 with no term stops the start (`ModelUnsupportedError`), so the service never sends a correction from
 a partial model. With W_k = Ad_k^T w0 the wrench at DH frame k (Eq. 4):
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stiffness.effects.realtime import (
+from stiffness.effects.terms import (
     AxialTerm,
     FrameCompliance,
     HistoryTerm,
@@ -99,6 +99,6 @@ def fast_terms(model: StiffnessModel, extra: list | None = None) -> FastTerms:
                 log.warning("%s: %s ignored by the service: %s", model.source, t.label, t.reason)
             elif not isinstance(t, InputTerm):
                 raise ModelUnsupportedError(f"{model.source}: effect {label} returned {type(t).__name__}, "
-                                            "which is not a real-time term (stiffness.effects.realtime)")
+                                            "which is not a real-time term (stiffness.effects.terms)")
     terms.input_rotation = input_rotation(model)
     return terms

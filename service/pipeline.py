@@ -24,11 +24,11 @@ from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 
 from .ati import Reading
 from .compensation import FastPredictor, ModelConfig
+from .cycle_rules import safe_state, sample_age_ms, status_word
 from .dynamics import Dynamics
 from .errors import SensorError
 from .faults import FaultMonitor
 from .filters import FilterConfig, SosLowPass, SpikeRejector
-from .glue import safe_state, sample_age_ms, status_word
 from .gravity import GravityCompensator, GravityConfig
 from .limits import CorrectionLimiter, LimitsConfig
 from .payloads import PayloadSelector

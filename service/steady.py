@@ -1,5 +1,5 @@
 """The steady cycle: most cycles of a running service change nothing but the time and the sample, and the
-compiled service runs those in one compiled call (`service.kernel.steady`, in the model's compiled module);
+compiled service runs those in one compiled call (`service.kernel.steady_cycle`, in the model's compiled module);
 every other cycle runs the Python glue around the compiled signal path (`Cycle.advance`), the reference.
 
 A cycle is steady when no reload is pending, no stop is requested or under way, no fault is held from
@@ -14,7 +14,7 @@ the glue runs the cycle; after each cycle of the glue the mirror is exported aga
 A steady cycle does what the glue would do, with the same functions compiled: the PLC's block read from the
 process image and the cycle's published into it (`plc_interface.image`'s protocol: `read_newest`,
 `open_buffer`, `close_buffer`, `note_timing`), the heartbeat's bookkeeping, the safe state, the status word,
-the sample's age and the task's counters (`service.glue`), the signal path (the model's compiled `cycle`, as
+the sample's age and the task's counters (`service.cycle_rules`), the signal path (the model's compiled `cycle`, as
 the glue's compiled path calls it), and the block packed as the glue's compiled publish packs it
 (`service.kernel.pack`). It then writes to the Python objects what changed (the mirror's counters), and a
 correction that is not finite trips ``value_invalid`` as the glue does. `tests/service/test_steady.py` holds
@@ -31,8 +31,8 @@ import numpy as np
 
 from plc_interface.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, Status, TaskValues
 
-from . import glue
-from .kernel import steady as ks
+from . import cycle_rules
+from .kernel import steady_cycle as ks
 from .signals import SIGNAL_SLOTS
 
 H = {name: k for k, name in enumerate(ks.HEAD)}
@@ -45,8 +45,8 @@ assert [SIGNAL_SLOTS[n][0] for n in ("status_word", "fault_word", "correction", 
     ks.SIG_STATUS, ks.SIG_WORD, ks.SIG_VECTORS, ks.SIG_TARES, ks.SIG_SAMPLES, ks.SIG_AGE, ks.SIG_PAYLOAD,
     ks.SIG_RELOADS]
 assert [int(Status[n]) for n in ("RUNNING", "ACTIVE", "FAULTED", "RAMPING", "SENSOR_OK", "PLC_SEEN", "TARE_REFUSED")] == [
-    glue.RUNNING, glue.ACTIVE, glue.FAULTED, glue.RAMPING, glue.SENSOR_OK, glue.PLC_SEEN, glue.TARE_REFUSED]
-assert (int(Fault.VALUE_INVALID), int(SENSOR_FAULTS), COMMAND_BITS) == (ks.VALUE_INVALID, glue.SENSOR_FAULTS,
+    cycle_rules.RUNNING, cycle_rules.ACTIVE, cycle_rules.FAULTED, cycle_rules.RAMPING, cycle_rules.SENSOR_OK, cycle_rules.PLC_SEEN, cycle_rules.TARE_REFUSED]
+assert (int(Fault.VALUE_INVALID), int(SENSOR_FAULTS), COMMAND_BITS) == (ks.VALUE_INVALID, cycle_rules.SENSOR_FAULTS,
                                                                        ks.COMMAND_BITS)
 assert TaskValues._fields == ("heartbeat", "task_state", "cycle_count", "exceed_count", "last_exec_us",
                               "cycle_time_us", "period_jitter_us", "cycle_exceeded")
@@ -63,7 +63,7 @@ class SteadyCycle:
     ----------
     service : Service
         Compiled, with its packers.
-    values : service.values.Values
+    values : service.value_vector.Values
         The service's values; their head is this cycle's.
     inputs, outputs : (rows, scales) each
         The PLC's block, decoded into the values' inputs, and the block for the PLC (`service.kernel.pack.table`).

@@ -29,9 +29,9 @@ from pydantic import Field
 from plc_interface.contract import COMMAND_BITS, Command, Fault
 from stiffness.files.yaml_schema import Strict
 
+from .cycle_rules import heartbeat, heartbeat_late
 from .errors import SensorError
 from .faults import FaultMonitor
-from .glue import heartbeat, heartbeat_late
 
 # the command bits as plain ints: IntFlag arithmetic costs microseconds in a 1 ms cycle
 _ENABLE, _TARE, _RESET = int(Command.ENABLE), int(Command.TARE), int(Command.RESET)

@@ -17,7 +17,7 @@ from stiffness.errors import StiffnessError
 # imported (the service's, the plots' and the protocols' imports cost a second); help imports all.
 COMMANDS = {
     "fit": "tools.fit_cmd",
-    "kcart": "tools.stiffness_cmd",
+    "kcart": "tools.kcart_cmd",
     "torques": "tools.torques_cmd",
     "run": "tools.run_cmd",
     "reload": "tools.reload_cmd",

@@ -56,7 +56,7 @@ def check_options(args) -> None:
 
 
 def run(args) -> int:
-    from stiffness.dynamics.identify import figure, identify, read_record
+    from stiffness.dynamics.modes import figure, identify, read_record
     from stiffness.errors import OutputError
     from stiffness.files.yaml_schema import dump_yaml
 

@@ -1,7 +1,7 @@
 """The compiled cycle: the signal path of `service.pipeline.Compensator` compiled by numba.
 
 Why numba: the effects' laws are plain Python numeric functions in their own files
-(`stiffness.effects.realtime`), and numba compiles exactly those functions into the cycle, so an effect
+(`stiffness.effects.terms`), and numba compiles exactly those functions into the cycle, so an effect
 stays one file and the Python path (the reference) and the compiled one run the same equation. It comes
 from the package index as a wheel (no compiler on the machine), and caches what it compiles on disk.
 

@@ -16,8 +16,7 @@ import numpy as np
 from numba import njit
 
 from service.kernel import chain, signal
-from service.kernel import steady as ks
-
+from service.kernel import steady_cycle as ks
 # Signals' five vectors in the cycle's ``out`` (`service.signals.VECTOR_AT`); the correction is at 0
 DQ, WRENCH_BASE, WRENCH_SENSOR, DEFLECTION = {at_dq}, {at_wrench_base}, {at_wrench_sensor}, {at_deflection}
 

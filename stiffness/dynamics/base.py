@@ -2,11 +2,11 @@
 
 A part is what the service adds to its static prediction to follow the arm in time (docs/dynamics.md):
 a predictor of the wrench over the delay, the structure's modes, the feedforward from the process plan.
-Each is a class deriving `Part` in its own module, with
+Each is a class deriving `Stage` in its own module, with
 
-* ``name``: its section in the service config's ``dynamics`` (and its key in `stiffness.dynamics.PARTS`);
+* ``name``: its section in the service config's ``dynamics`` (and its key in `stiffness.dynamics.STAGES`);
 * ``Config``: the schema of that section (a `Strict` model: its keys, units, bounds and defaults);
-* ``terms(ctx)``: its per-cycle terms, of the real-time kinds (`stiffness.effects.realtime`: a
+* ``terms(ctx)``: its per-cycle terms, of the real-time kinds (`stiffness.effects.terms`: a
   `WrenchTerm` before the springs, a `TwistTerm` on the deflection), each with its ``law`` written once at
   module level in the part's file, so the Python and the compiled cycle both run it;
 * ``describe()``: one line for the start-up log.
@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 from scipy import signal
 
-from ..effects.realtime import Term
+from ..effects.terms import Term
 from ..files.yaml_schema import Strict
 
 
@@ -47,7 +47,7 @@ class DynamicsContext:
         return self.delay_s - self.lag_s
 
 
-class Part(ABC):
+class Stage(ABC):
     """Base of a part of the dynamic compensation, built from its config section."""
 
     name: ClassVar[str]
@@ -57,7 +57,7 @@ class Part(ABC):
         self.cfg = cfg
 
     @classmethod
-    def from_config(cls, cfg: Strict, resolve=None) -> Part:
+    def from_config(cls, cfg: Strict, resolve=None) -> Stage:
         """The part of its validated section; ``resolve`` finds a path the section names (relative to the
         config file). A file it reads that is missing or bad raises `stiffness.errors.StiffnessError`."""
         return cls(cfg)

@@ -1,6 +1,6 @@
 """What a force and path record excites (`stiffcomp modes`, docs/dynamics.md "What a record excites").
 
-Both tests ask of a part of the identified model (`stiffness.dynamics.identify`): how much more of the
+Both tests ask of a part of the identified model (`stiffness.dynamics.modes`): how much more of the
 deflection is left unexplained without it (dRSS, the other parts solved again), against what the record's
 noise alone would let the fit explain with it.
 

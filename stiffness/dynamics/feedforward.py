@@ -48,9 +48,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..effects.realtime import WrenchTerm
+from ..effects.terms import WrenchTerm
 from ..files.yaml_schema import Strict
-from .base import DynamicsContext, Part
+from .base import DynamicsContext, Stage
 from .records import read_columns
 
 COLUMNS = ("t_s", "engagement")
@@ -146,7 +146,7 @@ def read_plan(path: str | Path, force_N: list[float] | None = None) -> Plan:
     return Plan(cols["t_s"], e, force)
 
 
-class Feedforward(Part):
+class Feedforward(Stage):
     """``dynamics.feedforward``: the plan's change added ahead of the measurement (module docstring)."""
 
     name = "feedforward"

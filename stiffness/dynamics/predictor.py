@@ -44,9 +44,9 @@ from dataclasses import replace
 import numpy as np
 from pydantic import Field
 
-from ..effects.realtime import WrenchTerm
+from ..effects.terms import WrenchTerm
 from ..files.yaml_schema import Strict
-from .base import DynamicsContext, Part, biquad
+from .base import DynamicsContext, Stage, biquad
 
 
 def predictor_law(s, p, w, dt):
@@ -65,7 +65,7 @@ def predictor_law(s, p, w, dt):
         w[i] = y
 
 
-class Predictor(Part):
+class Predictor(Stage):
     """``dynamics.predictor``: the wrench h ahead (module docstring)."""
 
     name = "predictor"

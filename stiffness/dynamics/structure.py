@@ -17,7 +17,7 @@ off). The rotation part of dX is left as it is (the modes move the TCP).
 lag_ms (YAML) is the arm's own lag behind the force beyond its modes (what `stiffcomp modes` identifies:
 the joints' low-pass): the predictor's horizon is the delay less this lag (`DynamicsContext`).
 
-The modes are those identified where the robot cuts (`stiffcomp modes`, `stiffness.dynamics.identify`);
+The modes are those identified where the robot cuts (`stiffcomp modes`, `stiffness.dynamics.modes`);
 they move across the workspace (published: up to 40 %), so identify them again for another working area.
 
 Real-time term: a `TwistTerm` whose law is `structure_law`, each mode's H_k as a biquad (bilinear at the
@@ -42,9 +42,9 @@ import numpy as np
 from pydantic import Field, field_validator
 from scipy import signal
 
-from ..effects.realtime import TwistTerm
+from ..effects.terms import TwistTerm
 from ..files.yaml_schema import Strict
-from .base import DynamicsContext, Part, biquad
+from .base import DynamicsContext, Stage, biquad
 
 PER_MODE = 8             # phi (3), b0 b1 b2 a1 a2
 MAX_LAG_MS = 100.0       # the most lag_ms takes
@@ -94,7 +94,7 @@ def structure_law(s, p, dX, dt):
     s[2 * n] = 1.0
 
 
-class Structure(Part):
+class Structure(Stage):
     """``dynamics.structure``: the arm's modes (module docstring)."""
 
     name = "structure"

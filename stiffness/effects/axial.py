@@ -23,7 +23,7 @@ import numpy as np
 from ..data import crossings
 from ..data.campaign import Context
 from .base import Effect
-from .realtime import AxialTerm
+from .terms import AxialTerm
 
 
 def joint_torque(W: np.ndarray, joint: int) -> np.ndarray:
@@ -48,7 +48,7 @@ class AxialEffect(Effect):
     """An effect on joint i's axial twist of the form delta_rz = theta[0] * shape(tau_i; theta).
 
     The equation is written once, as the module-level ``law(tau, p)`` of the effect's own file (a plain
-    numeric function, `stiffness.effects.realtime`), with ``p = law_params(theta)``; ``shape`` and the
+    numeric function, `stiffness.effects.terms`), with ``p = law_params(theta)``; ``shape`` and the
     service's real-time path (Python and compiled) all call it, at the total torque (module docstring).
     """
 

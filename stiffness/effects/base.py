@@ -13,7 +13,7 @@ units a person reads in the YAML. A site effect that is linear in its parameters
 Everything else about an effect lives in its own module too, so that a new effect is one file (and
 its test) plus its line in the registry (`stiffness.effects.EFFECTS`):
 
-* ``realtime(robot)``: the terms it adds to the service's 1 ms path (`stiffness.effects.realtime`);
+* ``realtime(robot)``: the terms it adds to the service's 1 ms path (`stiffness.effects.terms`);
 * ``candidates(model, ctx)``: where the diagnosis tries it, with its trial grid of shapes;
 * ``size_text(estimate, std_error, model)``: its estimated size in plain words;
 * ``evidence_plot``: how the diagnosis shows its evidence (``EVIDENCE_PLOTS``);
@@ -31,7 +31,7 @@ import numpy as np
 
 from ..data.campaign import N_SITES, Context
 from ..errors import ConfigError, quote
-from .realtime import InputTerm, Term
+from .terms import InputTerm, Term
 
 # "predicted": the residual against the deflection the effect predicts (points on the diagonal: explained);
 # "axial": joint i's unexplained axial rotation against its torque tau_i, with the fitted curve;
@@ -124,7 +124,7 @@ class Effect(ABC):
     # -- the service, the diagnosis, the words ---------------------------------------------------
     def realtime(self, robot: Any) -> list[Term] | None:
         """The terms this effect adds to the service's 1 ms path, its parameters frozen
-        (`stiffness.effects.realtime`); None when it has none, and the service refuses the model.
+        (`stiffness.effects.terms`); None when it has none, and the service refuses the model.
         An input effect is taken from `StiffnessModel.input_map`, with every other input effect."""
         return [InputTerm(self.label)] if self.kind == "input" else None
 

@@ -29,7 +29,7 @@ import numpy as np
 from ..data.campaign import Context
 from ..units import M_TO_MM, RAD_TO_DEG
 from .base import Effect, Param, read_values
-from .realtime import Ignored
+from .terms import Ignored
 
 M_PER_S_TO_MM_PER_MIN = M_TO_MM * 60.0
 RAD_PER_S_TO_DEG_PER_MIN = RAD_TO_DEG * 60.0

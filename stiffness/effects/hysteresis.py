@@ -61,7 +61,7 @@ from ..errors import ConfigError, quote
 from ..units import RAD_TO_DEG
 from .axial import axial_basis, joint_torque, torque_range
 from .base import Effect, Param, read_location, read_values
-from .realtime import HistoryTerm
+from .terms import HistoryTerm
 
 DEFAULT_THRESHOLD_NM = 10.0
 DEFAULT_TRANSITION_NM = 20.0

@@ -32,7 +32,7 @@ import numpy as np
 from ..data.campaign import Context
 from ..errors import ConfigError
 from .base import Effect, Param, read_location, read_values
-from .realtime import JointCompliance
+from .terms import JointCompliance
 
 COMPONENTS = ("x", "y", "z", "rx", "ry", "rz")
 

@@ -33,7 +33,7 @@ import pinocchio as pin
 
 from ..data.campaign import Context
 from .base import Effect, Param, read_location, read_values
-from .realtime import FrameCompliance
+from .terms import FrameCompliance
 
 MIN_LENGTH_M = 0.1
 DIAGNOSED_LINKS = (2, 3)

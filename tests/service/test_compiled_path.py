@@ -28,7 +28,7 @@ from service.config import load_config
 from service.gravity import PayloadEntry
 from service.kernel import NotCompilable
 from service.pipeline import Cycle
-from stiffness.effects.realtime import AxialTerm, TwistTerm, WrenchTerm
+from stiffness.effects.terms import AxialTerm, TwistTerm, WrenchTerm
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 

@@ -1,4 +1,4 @@
-"""Commissioning: the modes identified from a force and a path (stiffness/dynamics/identify.py).
+"""Commissioning: the modes identified from a force and a path (stiffness/dynamics/modes.py).
 
 Recovery: a record made by the structure's own response (known modes, directions, lag and compliance) under
 a random force, with 1 um of noise, gives back the frequencies (0.5 %), dampings (10 %), directions and the
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from stiffness.dynamics.identify import Record, _late, identify, read_record
+from stiffness.dynamics.modes import Record, _late, identify, read_record
 from stiffness.dynamics.structure import Structure
 from stiffness.errors import DataError
 

@@ -22,7 +22,7 @@ from stiffness.diagnose.discovery import diagnose
 from stiffness.effects import EFFECTS
 from stiffness.effects.axial import axial_basis
 from stiffness.effects.base import Effect, Param, read_location, read_values
-from stiffness.effects.realtime import AxialTerm
+from stiffness.effects.terms import AxialTerm
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel

@@ -1,5 +1,5 @@
 """The glue's per-cycle formulas, written once: the Python glue (`service.supervision`, `service.pipeline`,
-`service.app`) calls each as it is, and the steady cycle (`service.kernel.steady`) compiles the same functions
+`service.app`) calls each as it is, and the steady cycle (`service.kernel.steady_cycle`) compiles the same functions
 (numba) and runs them all in one compiled call, as the effects' laws are run by both paths. What a cycle
 decides and reports is therefore computed by one function whichever way the cycle runs:
 

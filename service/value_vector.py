@@ -3,7 +3,7 @@
     [ head | task | signals | t | inputs | scales ]
 
 * head: the steady cycle's mirror of the Python objects' state, its inputs and the offsets of the parts below
-  (`service.kernel.steady.HEAD`; at most `HEAD_ROOM` places);
+  (`service.kernel.steady_cycle.HEAD`; at most `HEAD_ROOM` places);
 * task: the task's counters of the cycle (`plc_interface.contract.TaskValues`, ``task.NAME``);
 * signals: the cycle's Signals (`service.signals.SIGNAL_SLOTS`, ``signals.NAME`` or ``signals.NAME[k]``), the
   cycle's own vector (`Cycle.vector` is this part);

@@ -2,7 +2,7 @@
 word, values and packed block around the model's `cycle` (the generated module's ``steady`` entry calls
 `take_inputs`, `admit`, then `cycle`, then `publish`; numba, no allocation).
 
-The formulas are not written here: the glue's (`service.glue`) and the process image's protocol
+The formulas are not written here: the glue's (`service.cycle_rules`) and the process image's protocol
 (`plc_interface.image`) are compiled from the functions the Python glue and the image run. What is here is
 the order, and the mirror: every place is read from the service's values ``V`` at run time, and `HEAD` names
 the leading ones (the mirror of the Python objects' state, the cycle's inputs, and the places of the other
@@ -21,12 +21,12 @@ from numba.extending import overload
 
 from plc_interface import image
 
-from .. import glue
+from .. import cycle_rules
 from . import pack
 
-# the glue's formulas (`service.glue`), compiled here from the functions the Python glue runs
+# the glue's formulas (`service.cycle_rules`), compiled here from the functions the Python glue runs
 heartbeat, heartbeat_late, safe_state, status_word, sample_age_ms, task_row = (njit(f) for f in (
-    glue.heartbeat, glue.heartbeat_late, glue.safe_state, glue.status_word, glue.sample_age_ms, glue.task_row))
+    cycle_rules.heartbeat, cycle_rules.heartbeat_late, cycle_rules.safe_state, cycle_rules.status_word, cycle_rules.sample_age_ms, cycle_rules.task_row))
 
 
 @overload(image.copy_bytes)
