@@ -1,6 +1,6 @@
 """The PLC contract: every value that crosses to or from the PLC, declared once, addressed by name.
 
-This module is the one owner of what the PLC sees (STYLE.md, guideline 13). It declares
+This module is the one owner of what the PLC sees: nothing else declares a bit or a value. It declares
 
 * the command, status and fault bits (`Command`, `Status`, `Fault`) and the task state (`TaskState`);
 * the values each way (`TO_PLC`, `FROM_PLC`): name, type, unit, meaning and, for the values the

@@ -9,7 +9,7 @@ systemd send them to the whole process group): the child ignores them from its f
 (they are ignored while it is spawned, and an ignored disposition survives exec), so Ctrl-C on
 ``make run`` prints no traceback here and the correction still ramps before the I/O stops.
 
-The two processes watch each other (STYLE.md, guideline 16). The child polls its parent: when the
+The two processes watch each other, so neither dies unnoticed. The child polls its parent: when the
 cycle process dies, it logs that at error level and exits with code 1 (the PLC then sees the service's
 heartbeat stop). The parent watches the child through `IoProcess.alive` and `IoProcess.exit_reason`
 (`service.app.Service.watch_io`).

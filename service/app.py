@@ -2,16 +2,15 @@
 
 Two processes, as TwinCAT separates its real-time task from the ADS router and the Modbus server:
 
-* this process runs the 1 ms cycle (`CyclicTask`) and nothing else while it runs: no server, no
-  notifier thread, no file or socket I/O but the sensor's non-blocking reads; log lines only on state
-  changes;
+* this process runs the 1 ms cycle (`CyclicTask`) and nothing else while it runs: no server, no notifier
+  thread, no file or socket I/O but the sensor's non-blocking reads; log lines only on state changes;
 * the I/O process (`plc_interface.io_process.IoProcess`) serves Modbus TCP (or the Modbus client
   role) and ADS on one asyncio loop.
 
 They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
 builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
 
-The two processes watch each other (STYLE.md, guideline 16). The main thread of this process (the
+The two processes watch each other, so neither dies unnoticed. The main thread of this process (the
 caller of `Service.watch_io`, between its waits) notices an I/O process that died, logs it, latches
 ``io_process`` (the cycle ramps the correction to zero), and then restarts it, at most
 ``faults.io_restarts`` times, or fails the service (`failure`; `stiffcomp run` exits 1). The I/O process

@@ -1,6 +1,6 @@
 """Reload the service's YAML while it runs (SIGHUP, `stiffcomp reload`; docs/service.md, "Reload").
 
-The main thread does all the work, the cycle only swaps (guideline 14: the cycle waits on nothing):
+The main thread does all the work, the cycle only swaps (the cycle never waits on a reload):
 
 1. `prepare` rereads the file the service started with and validates it as a start does: the config
    (`load_config`, with the checks across sections), the model (`load_model`: found, readable,
