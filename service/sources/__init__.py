@@ -15,9 +15,10 @@ from .base import FtSource
 from .can_source import CanConfig
 from .replay import ReplayConfig
 
+# name -> the backend's class, imported only when used; the config's ``source.type`` takes these names
 SOURCES = {
-    "can": "service.sources.can_source:CanSource",
     "replay": "service.sources.replay:ReplaySource",
+    "can": "service.sources.can_source:CanSource",
 }
 
 
@@ -29,7 +30,7 @@ def source_class(name: str) -> type[FtSource]:
 class SourceConfig(Strict):
     """``source``: which backend, its section, the sensor's protocol and its measuring range."""
 
-    type: Literal["replay", "can"] = "replay"
+    type: Literal[tuple(SOURCES)] = "replay"
     ati: AtiConfig = Field(default_factory=AtiConfig)
     can: CanConfig = Field(default_factory=CanConfig)
     replay: ReplayConfig | None = None
