@@ -26,7 +26,7 @@ from .run_file import RunFile
 def register(sub) -> None:
     p = sub.add_parser("run", help="run the cyclic compensation service")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (default: config/default.yaml)")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds of cycles (counted from the first cycle)")
     p.add_argument("--check", action="store_true",
                    help="validate the config and everything it names as a start does (model, register map, "
                         "source), then exit 0 without starting anything or opening a port")
@@ -93,6 +93,8 @@ def run(args) -> int:
             logging.getLogger("stiffcomp.service").warning(
                 "no run file for stiffcomp reload at %s (another service runs with %s, or the folder is not "
                 "writable): SIGHUP still reloads", run_file.path, args.config)
+        if args.duration is not None:
+            _first_cycle(service, stop)     # --duration counts cycling time, not a slow start's
         t_end = None if args.duration is None else time.monotonic() + args.duration
         interval = cfg.cycle.stats_log_interval_s or None
         next_log = time.monotonic() + (interval or 0)
@@ -118,3 +120,12 @@ def run(args) -> int:
         if args.stats_json:
             service.write_stats(args.stats_json)
     return 1 if service.failed.is_set() else 0
+
+
+def _first_cycle(service, stop, timeout_s: float = 30.0) -> None:
+    """Wait until the cycle has run once (a loaded machine starts the task's thread late), a stop, a failure,
+    or ``timeout_s``."""
+    end = time.monotonic() + timeout_s
+    while (service.info.cycle_count == 0 and not stop.is_set() and not service.failed.is_set()
+           and time.monotonic() < end and service.watch_io()):
+        stop.wait(0.005)
