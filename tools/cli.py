@@ -36,6 +36,7 @@ COMMANDS = {
     "hil": "tools.hil_cmd",
     "part": "tools.part_cmd",
     "modes": "tools.modes_cmd",
+    "plc-library": "tools.plc_library_cmd",
 }
 
 EXIT_USER_ERROR = 2

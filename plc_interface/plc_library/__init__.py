@@ -1,0 +1,50 @@
+"""The PLC's side of the contract as PLC source: a TwinCAT 3 library and a PLCopen XML export.
+
+`build(rmap, endpoint)` makes the library's objects from the contract (`plc_interface.contract`) and a
+register map; `generate(rmap, endpoint, formats)` renders them as files (relative path -> bytes):
+``twincat/<object>.TcDUT|TcGVL|TcPOU`` and ``plcopen/StiffComp.xml``. The same inputs give the same
+bytes (no time stamps, GUIDs from names). `stiffcomp plc-library` writes them; docs/plc.md says how
+to use them on the PLC.
+"""
+
+from __future__ import annotations
+
+from ..register_map import RegisterMap
+from . import plcopen, twincat
+from .blocks import ads_block, main_program, modbus_block
+from .declarations import (
+    Endpoint,
+    bit_structs,
+    block_struct,
+    check_map,
+    contract_gvl,
+    settings_gvl,
+    task_info_struct,
+    task_state_enum,
+)
+from .model import Library
+
+FORMATS = ("twincat", "plcopen")
+PLCOPEN_FILE = "StiffComp.xml"
+
+__all__ = ["FORMATS", "Endpoint", "build", "generate"]
+
+
+def build(rmap: RegisterMap, endpoint: Endpoint) -> Library:
+    """The library for ``rmap``; RegisterMapError where a map cannot be served by one request each way."""
+    check_map(rmap)
+    types = [block_struct(rmap, "to_plc"), block_struct(rmap, "from_plc"), task_info_struct(),
+             task_state_enum(), *bit_structs()]
+    return Library(types, [contract_gvl(rmap), settings_gvl(endpoint)],
+                   [ads_block(rmap), modbus_block(rmap), main_program()])
+
+
+def generate(rmap: RegisterMap, endpoint: Endpoint, formats: tuple[str, ...] = FORMATS) -> dict[str, bytes]:
+    """Relative path -> contents of every file of ``formats``."""
+    lib = build(rmap, endpoint)
+    out: dict[str, bytes] = {}
+    if "twincat" in formats:
+        out |= {f"twincat/{name}": data for name, data in twincat.files(lib).items()}
+    if "plcopen" in formats:
+        out[f"plcopen/{PLCOPEN_FILE}"] = plcopen.project(lib)
+    return out

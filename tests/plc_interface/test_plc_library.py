@@ -1,0 +1,180 @@
+"""`stiffcomp plc-library`: the PLC's side of the contract as TwinCAT 3 sources and PLCopen XML.
+
+The sources are read back with blark and compared with the contract, the register map and the ADS
+symbols the service serves; the committed plc/ files must equal what the shipped config generates.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+from plc_source import constant, constants, enum_values, packed, struct_fields, summary
+
+from plc_interface.ads.symbols import IEC_TYPES, symbols_from_map
+from plc_interface.contract import Command, Fault, Status, TaskState
+from plc_interface.register_map import RegisterMap
+from tools.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SHIPPED = ROOT / "config" / "default.yaml"
+COMMITTED = ROOT / "plc"
+SCHEMA = Path(__file__).parent / "data" / "tc6_xml_v201.xsd"
+CONTRACT = "GVL_StiffCompContract"
+RECORDS = {"to_plc": "ST_StiffCompToPlc", "from_plc": "ST_StiffCompFromPlc"}
+TAGS = {"to_plc": "TO_PLC", "from_plc": "FROM_PLC"}
+
+
+def generate(out: Path, config: Path = SHIPPED, *extra: str) -> int:
+    return main(["plc-library", "-o", str(out), "--config", str(config), *extra])
+
+
+def moved_map_config(tmp_path: Path) -> tuple[Path, RegisterMap]:
+    """A config whose map moves the corrections up, leaves the deflection out and binds dq_q1 at a gap:
+    other offsets, other gaps, a field that is not naturally aligned."""
+    data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
+    regs = data["to_plc"]["registers"]
+    for r in regs:
+        if r["name"].startswith("correction_q"):
+            r["address"] += 0x33
+    regs.append({"name": "dq_q1", "address": 0x8050})
+    data["to_plc"]["registers"] = regs
+    (tmp_path / "moved.yaml").write_text(yaml.safe_dump(data))
+    cfg = tmp_path / "service.yaml"
+    cfg.write_text("plc: {register_map: moved.yaml, port: 1502}\nads: {net_id: 10.1.2.3.1.1}\n")
+    return cfg, RegisterMap.from_yaml(tmp_path / "moved.yaml")
+
+
+def symbols(capsys, config: Path) -> list[dict]:
+    capsys.readouterr()
+    assert main(["symbols", "--json", "--config", str(config)]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_the_committed_files_are_what_the_shipped_config_generates(tmp_path):
+    assert generate(tmp_path) == 0
+    made = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*") if p.is_file())
+    shipped = sorted(p.relative_to(COMMITTED) for p in COMMITTED.rglob("*") if p.is_file())
+    assert made == shipped, "plc/ is not what `stiffcomp plc-library -o plc` writes now: regenerate it"
+    for rel in made:
+        assert (tmp_path / rel).read_bytes() == (COMMITTED / rel).read_bytes(), f"plc/{rel} is stale: regenerate it"
+    assert {p.suffix for p in made} == {".TcDUT", ".TcGVL", ".TcPOU", ".xml"}
+
+
+def test_every_twincat_file_parses_with_blark():
+    code = summary(COMMITTED / "twincat")         # every file, each parsed without an error
+    assert {"FB_StiffComp", "FB_StiffCompModbus"} <= set(code.function_blocks)
+    assert "MAIN" in code.programs
+    assert set(code.data_types) | set(code.globals) | set(code.function_blocks) | set(code.programs) == {
+        p.stem for p in (COMMITTED / "twincat").iterdir()}
+
+
+@pytest.mark.skipif(not SCHEMA.exists(), reason=f"the PLCopen TC6 v2.01 schema is not at {SCHEMA}")
+def test_the_plcopen_file_validates_against_the_tc6_schema(tmp_path):
+    import xmlschema
+
+    schema = xmlschema.XMLSchema(SCHEMA)
+    schema.validate(COMMITTED / "plcopen" / "StiffComp.xml")
+    cfg, _ = moved_map_config(tmp_path)
+    assert generate(tmp_path / "out", cfg, "--format", "plcopen") == 0
+    schema.validate(tmp_path / "out" / "plcopen" / "StiffComp.xml")
+    assert not (tmp_path / "out" / "twincat").exists()
+
+
+def check_against_map(folder: Path, rmap: RegisterMap, served: list[dict]) -> None:
+    """Every register and ADS symbol, read back from the parsed sources in ``folder``."""
+    code = summary(folder, "*.Tc[DG]*")          # the types and global lists
+    group = constant(code, CONTRACT, "ADS_IGRP")
+    by_symbol = {s["name"]: s for s in served}
+    for direction, record in RECORDS.items():
+        fields = {f.name: f for f in struct_fields(code, record)}
+        regs = [r for r in rmap.registers if r.direction == direction]
+        start = constant(code, CONTRACT, f"ADS_IOFFS_{TAGS[direction]}")
+        mb_addr = constant(code, CONTRACT, f"MB_ADDR_{TAGS[direction]}")
+        size = sum(f.size for f in fields.values())
+        assert constant(code, CONTRACT, f"CB_{TAGS[direction]}") == size
+        assert 2 * constant(code, CONTRACT, f"MB_WORDS_{TAGS[direction]}") == size
+        assert {n for n in fields if not n.startswith("reserved_")} == {r.name for r in regs}
+        for r in regs:
+            f = fields[r.name]
+            sym = by_symbol.pop(f"GVL_Comp.{r.name}")
+            assert (f.type, f.size) == (IEC_TYPES[r.type], 2 * r.count) == (sym["type"], sym["size"])
+            assert mb_addr + f.offset // 2 == r.address, r.name
+            assert (group, start + f.offset) == (sym["index_group"], sym["index_offset"]), r.name
+        if not packed(folder / f"{record}.TcDUT"):    # then natural alignment must give the same layout
+            assert all(f.offset % min(f.size, 4) == 0 for f in fields.values() if not f.type.startswith("ARRAY"))
+            assert size % max(min(f.size, 4) for f in fields.values()) == 0
+    info = {f.name: f for f in struct_fields(code, "ST_StiffCompTaskInfo")}
+    assert constant(code, CONTRACT, "ADS_CB_TASKINFO") == sum(f.size for f in info.values())
+    for name, sym in by_symbol.items():
+        f = info[name.removeprefix("TwinCAT_SystemInfoVarList._TaskInfo[1].")]
+        assert (f.type, f.offset, f.size) == (sym["type"], sym["index_offset"], sym["size"]), name
+        assert constant(code, CONTRACT, "ADS_IGRP_TASKINFO") == sym["index_group"]
+
+
+def test_every_symbol_and_register_has_its_offset_and_type_in_the_sources(capsys):
+    check_against_map(COMMITTED / "twincat", RegisterMap.from_yaml(ROOT / "config" / "registers.yaml"),
+                      symbols(capsys, SHIPPED))
+
+
+def test_another_map_gives_its_own_offsets_gaps_and_packing(tmp_path):
+    cfg, rmap = moved_map_config(tmp_path)
+    assert generate(tmp_path / "out", cfg, "--format", "twincat") == 0
+    folder = tmp_path / "out" / "twincat"
+    check_against_map(folder, rmap, [s.as_dict() for s in symbols_from_map(rmap)])   # what `symbols` prints
+    assert packed(folder / "ST_StiffCompToPlc.TcDUT")          # dq_q1 (a REAL) at an odd word
+    assert not packed(COMMITTED / "twincat" / "ST_StiffCompToPlc.TcDUT")
+    code = summary(folder, "*.TcGVL")
+    assert str(code.globals["GVL_StiffCompSettings"].declarations["sAmsNetId"].value) == "'10.1.2.3.1.1'"
+    assert constant(code, "GVL_StiffCompSettings", "nModbusPort") == 1502
+    assert not (tmp_path / "out" / "plcopen").exists()
+
+
+def test_every_contract_bit_and_state_has_the_contracts_value():
+    code = summary(COMMITTED / "twincat", "*.Tc[DG]*")
+    for prefix, flags in (("CMD_", Command), ("STATUS_", Status), ("FAULT_", Fault)):
+        assert constants(code, CONTRACT, prefix) == {f.name: int(f) for f in flags}
+    assert enum_values(code, "E_StiffCompTaskState") == {s.name: int(s) for s in TaskState}
+    body = (COMMITTED / "twincat" / "FB_StiffComp.TcPOU").read_text()
+    decoded = dict(re.findall(r"(st\w+\.b\w+) := \(n\w+Word AND GVL_StiffCompContract\.(\w+)\) <> 0;", body))
+    status = {f.name for f in struct_fields(code, "ST_StiffCompStatus")}
+    faults = {f.name for f in struct_fields(code, "ST_StiffCompFaults")}
+    assert sorted(decoded.values()) == sorted([f"STATUS_{s.name}" for s in Status] + [f"FAULT_{f.name}" for f in Fault])
+    assert {k.split(".")[1] for k in decoded if k.startswith("stStatus")} == status
+    assert {k.split(".")[1] for k in decoded if k.startswith("stFaults")} == faults
+
+
+def test_the_blocks_are_the_same_but_for_their_requests():
+    ads = (COMMITTED / "twincat" / "FB_StiffComp.TcPOU").read_text()
+    modbus = (COMMITTED / "twincat" / "FB_StiffCompModbus.TcPOU").read_text()
+    assert "ADSREAD" in ads and "ADSWRITE" in ads
+    assert "FB_MBReadInputRegs" in modbus and "FB_MBWriteRegs" in modbus      # to_plc: input registers
+    step5 = ads.index("// 5.")
+    assert ads[step5:] == modbus[modbus.index("// 5."):]
+
+
+def refused(capsys, code: int, *words: str) -> None:
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    for w in words:
+        assert w in err
+
+
+def test_a_missing_parent_folder_or_a_file_is_refused_and_nothing_written(tmp_path, capsys):
+    refused(capsys, generate(tmp_path / "no" / "out"), "-o", "does not exist")
+    assert not (tmp_path / "no").exists()
+    (tmp_path / "f").write_text("x")
+    refused(capsys, generate(tmp_path / "f"), "-o", "is a file")
+    assert (tmp_path / "f").read_text() == "x"
+
+
+def test_a_map_with_a_gap_between_the_plcs_registers_is_refused(tmp_path, capsys):
+    data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
+    data["from_plc"]["registers"][-1]["address"] += 1           # payload_index one word further
+    (tmp_path / "gap.yaml").write_text(yaml.safe_dump(data))
+    (tmp_path / "service.yaml").write_text("plc: {register_map: gap.yaml}\n")
+    refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "payload_index", "gap")
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,44 @@
+"""`stiffcomp plc-library -o DIR`: write the PLC's side of the contract as TwinCAT 3 sources and PLCopen XML
+(docs/plc.md), from the contract and the register map the config names."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from plc_interface.plc_library import FORMATS, Endpoint, generate
+from service.config import DEFAULT_CONFIG, read_sections
+from stiffness.errors import OutputError
+
+from .common import write_output
+
+CHOICES = {"twincat": ("twincat",), "plcopen": ("plcopen",), "both": FORMATS}
+
+
+def register(sub) -> None:
+    p = sub.add_parser("plc-library", help="write the TwinCAT 3 library and the PLCopen XML of the PLC's side")
+    p.add_argument("-o", "--output", required=True, help="folder to write twincat/ and plcopen/ into")
+    p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config naming the register map")
+    p.add_argument("--format", choices=list(CHOICES), default="both", help="what to write (default both)")
+    p.set_defaults(func=run)
+
+
+def check_output_folder(option: str, path: str | Path) -> Path:
+    """The output folder ``path`` given as ``option``: it may be new, but its parent must exist and it must not
+    be a file; OutputError naming the option otherwise (checked before any work starts)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{option} {path}: is a file; name a folder")
+    if not path.parent.is_dir():
+        raise OutputError(f"{option} {path}: the folder {path.parent} does not exist (create it first)")
+    return path
+
+
+def run(args) -> int:
+    out = check_output_folder("-o", args.output)
+    cfg = read_sections(args.config, "plc", "ads")
+    endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, cfg.plc.host, cfg.plc.port, cfg.plc.device_id)
+    files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    for rel, data in files.items():
+        write_output(out / rel, lambda p, data=data: p.write_bytes(data))
+    print(f"plc-library: {len(files)} files in {out}")
+    return 0
