@@ -101,7 +101,7 @@ def declaration(obj: Struct | Enum | Gvl | Pou) -> str:
             lines.append("{attribute 'pack_mode' := '1'}")
         lines += [f"TYPE {obj.name} :", "STRUCT", *(v.line() for v in obj.fields), "END_STRUCT", "END_TYPE"]
     elif isinstance(obj, Enum):
-        lines += ["{attribute 'qualified_only'}", "{attribute 'strict'}", f"TYPE {obj.name} :", "("]
+        lines += ["{attribute 'qualified_only'}", f"TYPE {obj.name} :", "("]
         for k, (name, value, comment) in enumerate(obj.values):
             sep = "," if k < len(obj.values) - 1 else ""
             lines.append(f"    {name} := {value}{sep}" + (f" // {comment}" if comment else ""))

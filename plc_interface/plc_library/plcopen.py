@@ -2,7 +2,8 @@
 
 Types go to ``types/dataTypes``, the blocks and MAIN to ``types/pous`` (interfaces as variable lists,
 bodies as structured text), the global lists to ``instances/configurations`` as a configuration's
-``globalVars``. The file carries no time of its own: ``creationDateTime`` is fixed, so the same contract
+``globalVars``. A struct that must be packed carries ``pack_mode`` as CODESYS writes an attribute (in
+``addData``), since the schema has no place for pragmas. The file carries no time of its own: ``creationDateTime`` is fixed, so the same contract
 and map give the same bytes.
 """
 
@@ -17,6 +18,9 @@ NS = "http://www.plcopen.org/xml/tc6_0201"
 XHTML = "http://www.w3.org/1999/xhtml"
 CREATED = "2000-01-01T00:00:00"
 _POU_TYPES = {"FUNCTION_BLOCK": "functionBlock", "PROGRAM": "program"}
+# a struct packed without gaps, as CODESYS writes a pragma attribute in its PLCopen XML
+PACKED = ('<addData><data name="http://www.3s-software.com/plcopenxml/attributes" handleUnknown="implementation">'
+          '<Attributes><Attribute Name="pack_mode" Value="1"/></Attributes></data></addData>')
 _LISTS = {"VAR_INPUT": "inputVars", "VAR_OUTPUT": "outputVars", "VAR": "localVars", "VAR_GLOBAL": "globalVars"}
 
 
@@ -53,7 +57,8 @@ def data_type(obj: Struct | Enum) -> str:
         values = "".join(f"<value name={quoteattr(n)} value={quoteattr(str(x))}/>" for n, x, _ in obj.values)
         base = f"<enum><values>{values}</values><baseType><{obj.base}/></baseType></enum>"
     doc = _text(obj.comment) if obj.comment else ""
-    return f"<dataType name={quoteattr(obj.name)}><baseType>{base}</baseType>{doc}</dataType>"
+    pack = PACKED if isinstance(obj, Struct) and obj.pack else ""
+    return f"<dataType name={quoteattr(obj.name)}><baseType>{base}</baseType>{pack}{doc}</dataType>"
 
 
 def pou(obj: Pou) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 import yaml
@@ -26,6 +27,7 @@ SCHEMA = Path(__file__).parent / "data" / "tc6_xml_v201.xsd"
 CONTRACT = "GVL_StiffCompContract"
 RECORDS = {"to_plc": "ST_StiffCompToPlc", "from_plc": "ST_StiffCompFromPlc"}
 TAGS = {"to_plc": "TO_PLC", "from_plc": "FROM_PLC"}
+NS = "http://www.plcopen.org/xml/tc6_0201"
 
 
 def generate(out: Path, config: Path = SHIPPED, *extra: str) -> int:
@@ -82,6 +84,19 @@ def test_the_plcopen_file_validates_against_the_tc6_schema(tmp_path):
     assert generate(tmp_path / "out", cfg, "--format", "plcopen") == 0
     schema.validate(tmp_path / "out" / "plcopen" / "StiffComp.xml")
     assert not (tmp_path / "out" / "twincat").exists()
+
+
+def test_a_struct_that_needs_packing_says_so_in_the_plcopen_file_too(tmp_path):
+    cfg, _ = moved_map_config(tmp_path)
+    assert generate(tmp_path / "out", cfg) == 0
+    for folder, packed_to_plc in ((tmp_path / "out", True), (COMMITTED, False)):
+        root = ElementTree.parse(folder / "plcopen" / "StiffComp.xml").getroot()
+        types = {t.get("name"): t for t in root.iter(f"{{{NS}}}dataType")}
+        attrs = {r: {(a.get("Name"), a.get("Value")) for a in types[r].iter(f"{{{NS}}}Attribute")}
+                 for r in RECORDS.values()}
+        for record, found in attrs.items():
+            assert (("pack_mode", "1") in found) == packed(folder / "twincat" / f"{record}.TcDUT"), record
+        assert (("pack_mode", "1") in attrs["ST_StiffCompToPlc"]) == packed_to_plc
 
 
 def check_against_map(folder: Path, rmap: RegisterMap, served: list[dict]) -> None:
