@@ -8,8 +8,9 @@ Both blocks do the same each call, in this order (docs/plc.md, "The block's stat
    payload index and whatever else the map binds;
 2. write it (one request covering the block; a new one starts when the last has ended);
 3. read the to_plc record (likewise), keeping the last good copy;
-4. note whether the service's heartbeat *and* cycle count moved since the last good read; if they stand
-   still for ``tServiceTimeout``, the link is lost;
+4. note whether the service's heartbeat *and* cycle count moved since the last good read (the first good
+   read counts as a move); the link is alive unless they stood still for ``tServiceTimeout`` or the last
+   read failed (the table in docs/plc.md, which the HIL's virtual PLC follows);
 5. decode the status and fault words; ``bValid`` is the link alive, the service running, no fault and not
    stopped; the correction is the service's while valid, else zero.
 Only the requests differ (`ADS` and `MODBUS` name their pins).
@@ -60,7 +61,8 @@ def _interface(rmap: RegisterMap, pins: dict) -> tuple[VarList, ...]:
                    "its heartbeat and cycle count advance"),
                Var("aCorrectionDeg", "ARRAY[1..6] OF REAL", comment="joint corrections to add to the references "
                    "while bValid, else 0, deg"),
-               Var("bAlive", "BOOL", comment="the service's heartbeat and cycle count moved within tServiceTimeout"),
+               Var("bAlive", "BOOL", comment="the service's heartbeat and cycle count moved within tServiceTimeout, "
+                   "and the last read did not fail"),
                Var("stStatus", STATUS_BITS, comment="status_word, decoded"),
                Var("stFaults", FAULT_BITS, comment="fault_word, decoded"),
                Var("nStatusWord", "UINT"), Var("nFaultWord", "UINT"),
@@ -109,11 +111,14 @@ def _requests(pins: dict) -> list[str]:
 
 
 def _outputs(rmap: RegisterMap) -> list[str]:
-    lines = ["", "// 4. the service is alive while its heartbeat and cycle count both move",
-             "IF bNewData AND stToPlc.heartbeat <> nLastHeartbeat AND stToPlc.cycle_count <> nLastCycleCount THEN",
+    lines = ["", "// 4. the service is alive while its heartbeat and cycle count both move (the first good read counts",
+             "// as a move) and the last read did not fail",
+             "IF bNewData AND (NOT bSeen OR (stToPlc.heartbeat <> nLastHeartbeat",
+             "        AND stToPlc.cycle_count <> nLastCycleCount)) THEN",
              "    nLastHeartbeat := stToPlc.heartbeat;", "    nLastCycleCount := stToPlc.cycle_count;",
              "    bSeen := TRUE;", "    tonStale(IN := FALSE);", "END_IF",
-             f"tonStale(IN := TRUE, PT := {SETTINGS}.tServiceTimeout);", "bAlive := bSeen AND NOT tonStale.Q;",
+             f"tonStale(IN := TRUE, PT := {SETTINGS}.tServiceTimeout);",
+             "bAlive := bSeen AND NOT tonStale.Q AND NOT bReadError;",
              "", "// 5. decode the words; the correction only while valid",
              "nStatusWord := stToPlc.status_word;", "nFaultWord := stToPlc.fault_word;"]
     lines += [f"stStatus.b{camel(s.name)} := (nStatusWord AND {CONTRACT}.STATUS_{s.name}) <> 0;" for s in Status]
