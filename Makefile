@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: install test node-deps mbpoll run walk bench bench-service lint clean demo image image-test
+.PHONY: install test test-fast node-deps mbpoll run walk bench bench-service lint clean demo image image-test
 
 install: $(STAMP)
 
@@ -20,6 +20,12 @@ $(STAMP): pyproject.toml
 test: $(STAMP) node-deps mbpoll
 	$(VENV)/bin/lint-imports
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(PY) -m pytest -q
+
+# The quick lane for everyday work: every package's unit tests, without the tests that run the service or
+# the HIL in real time, compile cycles or run whole discovery loops (pytest markers, docs/contributing.md)
+test-fast: $(STAMP)
+	$(VENV)/bin/lint-imports
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(PY) -m pytest -q -m "not (realtime or hil or container or slow)"
 
 # ads-client (Node.js) for tests/plc_interface/test_ads_node.py, from the committed lock file, into a
 # folder git ignores. Without npm nothing is installed and that test is skipped (one line in pytest's summary).

@@ -4,7 +4,10 @@ import json
 import subprocess
 import sys
 
+import pytest
 from stiffcomp_testlib import ROOT
+
+pytestmark = pytest.mark.slow
 
 DATA = ROOT / "examples" / "campaign_backlash.csv"
 

@@ -16,6 +16,8 @@ from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 
+pytestmark = pytest.mark.slow
+
 NOISE_MM, NOISE_DEG = 0.03, 0.002
 
 CASES = [

@@ -14,6 +14,8 @@ from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 
+pytestmark = pytest.mark.slow
+
 BACKLASH = {"effect": "backlash", "joint": 3, "lost_motion_deg": 0.02, "width_Nm": 5}
 
 

@@ -27,6 +27,8 @@ from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 from tools.common import to_jsonable
 
+pytestmark = pytest.mark.slow
+
 ROBOTS = ROOT / "config" / "robots"
 ADD_OPTIONS = ("preload",)      # the options of `stiffcomp model add` a diagnosis entry may carry
 NOISE_MM, NOISE_DEG = 0.03, 0.002

@@ -15,11 +15,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from pymodbus.client import ModbusTcpClient
 
 from hil.testing import constant_log, free_port, write_config
 from service.app import Service
 from service.config import load_config
+
+pytestmark = pytest.mark.realtime
 
 PROBE = Path(__file__).with_name("ads_probe.py")
 

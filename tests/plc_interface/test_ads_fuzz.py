@@ -10,12 +10,15 @@ import struct
 import time
 
 import pyads
+import pytest
 from ads_child import MAP, AdsChild, recv_exact
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from plc_interface.ads import ams
 from plc_interface.register_map import RegisterMap
+
+pytestmark = pytest.mark.realtime
 
 NET_ID = "5.6.7.9.1.1"
 TARGET = ams.net_id_bytes(NET_ID)

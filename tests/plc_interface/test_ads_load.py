@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import multiprocessing
 
+import pytest
 from ads_child import AdsChild, read_by_handle
+
+pytestmark = pytest.mark.realtime
 
 NET_ID = "5.6.7.12.1.1"
 

@@ -32,8 +32,9 @@ from plc_interface.register_map import RegisterMap
 NET_ID = "127.0.0.1.1.1"           # ads.net_id in config/default.yaml
 NODE_DIR = ROOT / "tests" / "plc_interface" / "node"
 INSTALLED = shutil.which("node") is not None and (NODE_DIR / "node_modules" / "ads-client").is_dir()
-pytestmark = pytest.mark.skipif(not INSTALLED and not os.environ.get("CI"),
-                                reason="node or ads-client not installed (make node-deps needs node and npm)")
+pytestmark = [pytest.mark.realtime,
+              pytest.mark.skipif(not INSTALLED and not os.environ.get("CI"),
+                                 reason="node or ads-client not installed (make node-deps needs node and npm)")]
 
 
 def test_ads_client_in_plc_mode_against_the_running_service(tmp_path, record_property):

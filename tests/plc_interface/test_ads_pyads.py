@@ -18,6 +18,8 @@ from plc_interface.ads import symbols_from_map
 from plc_interface.ads.symbols import TASKINFO_PREFIX
 from plc_interface.register_map import RegisterMap
 
+pytestmark = pytest.mark.realtime
+
 NET_ID = "5.6.7.8.1.1"
 RMAP = RegisterMap.from_yaml(MAP)
 TO_PLC = [r.name for r in RMAP.registers if r.direction == "to_plc"]

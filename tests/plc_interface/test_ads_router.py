@@ -15,6 +15,8 @@ from ads_child import AdsChild, recv_exact
 from plc_interface.ads import AdsSettings, ams
 from plc_interface.ads.router import PORT_BASE
 
+pytestmark = pytest.mark.realtime
+
 NET_ID = "5.6.7.13.1.1"
 ROUTED = "10.0.0.9.1.1"
 

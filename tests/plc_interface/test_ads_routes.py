@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import socket
 
+import pytest
 from ads_child import AdsChild
 
 from plc_interface.ads import AdsSettings, ams
+
+pytestmark = pytest.mark.realtime
 
 NET_ID = "5.6.7.10.1.1"
 KNOWN = "10.0.0.7.1.1"

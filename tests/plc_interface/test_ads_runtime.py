@@ -22,6 +22,8 @@ from plc_interface.ads.symbols import TASKINFO_PREFIX, SymbolTable
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 
+pytestmark = pytest.mark.realtime
+
 NET_ID = "5.6.7.12.1.1"
 TABLE = SymbolTable(RegisterMap.from_yaml(MAP))
 

@@ -6,12 +6,15 @@ from __future__ import annotations
 import asyncio
 import struct
 
+import pytest
 from ads_child import MAP, map_variant
 
 from plc_interface.ads import AdsServer, AdsSettings, ams
 from plc_interface.contract import to_plc
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
+
+pytestmark = pytest.mark.realtime
 
 NET = "5.6.7.11.1.1"
 SRC = ams.net_id_bytes("127.0.0.1.1.1")

@@ -29,6 +29,8 @@ from plc_interface.io_server import IoSettings, IoThread
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import ClientLimits, PlcSettings
 
+pytestmark = pytest.mark.realtime
+
 NET_ID = "127.0.0.1.1.1"
 
 

@@ -20,6 +20,8 @@ from service.compensation import FastPredictor
 from service.config import load_config
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.realtime
+
 PROBE = Path(__file__).with_name("plc_probe.py")
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]
 

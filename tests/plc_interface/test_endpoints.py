@@ -19,6 +19,8 @@ from service.errors import ServiceConfigError
 from service.paths import DEFAULT_CONFIG, SECTIONS
 from stiffness.errors import ConfigError
 
+pytestmark = pytest.mark.slow
+
 SCHEMAS = {"monitoring": MonitoringSettings, "plc": PlcSettings, "ads": AdsSettings}
 
 

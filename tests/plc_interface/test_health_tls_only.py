@@ -19,6 +19,8 @@ from hil.run import ServiceProcess
 from hil.testing import free_port, write_config
 from tools.cli import main
 
+pytestmark = pytest.mark.realtime
+
 
 class TlsOnly:
     """The service with TLS alone, HTTP off and ADS on, its certificates (the probe shows ``viewer``'s)."""

@@ -11,6 +11,7 @@ import multiprocessing
 import time
 
 import numpy as np
+import pytest
 from pymodbus.client import ModbusTcpClient
 
 from hil.testing import CONFIG, free_port
@@ -19,6 +20,8 @@ from plc_interface.image import ProcessImage
 from plc_interface.io_server import IoSettings, IoThread
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import PlcSettings
+
+pytestmark = pytest.mark.realtime
 
 MAP = RegisterMap.from_yaml(CONFIG / "registers.yaml")
 # the reads go on until each reader has seen this many different cycles, each whole: a loaded machine that lets

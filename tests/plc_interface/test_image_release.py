@@ -23,6 +23,8 @@ from service.app import Service
 from service.config import load_config
 from service.trace import TraceRing
 
+pytestmark = pytest.mark.realtime
+
 MAP = RegisterMap.from_yaml(CONFIG / "registers.yaml")
 
 

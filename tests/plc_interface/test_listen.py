@@ -24,6 +24,8 @@ from plc_interface.listen import PRIVILEGED_BELOW
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import MonitoringSettings, PlcSettings
 
+pytestmark = pytest.mark.realtime
+
 LOW_PORT = 802
 
 

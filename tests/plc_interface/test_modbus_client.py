@@ -22,6 +22,8 @@ from plc_interface.settings import PlcClientSettings, PlcSettings
 from service.app import Service
 from service.config import load_config
 
+pytestmark = pytest.mark.realtime
+
 BASE = 0x8000      # the PLC's input registers the service reads (TF6250 GVL.mb_Input_Registers)
 OUT = 0x3000       # the PLC's holding registers the service writes (TF6250 %MW area)
 

@@ -17,6 +17,8 @@ from plc_interface.io_server import IoSettings
 from plc_interface.register_map import RegisterMap
 from plc_interface.settings import PlcSettings
 
+pytestmark = pytest.mark.realtime
+
 
 def test_a_child_that_dies_while_starting_is_a_prompt_plc_error():
     image = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))

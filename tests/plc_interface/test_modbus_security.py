@@ -22,6 +22,8 @@ from hil.testing import free_port, write_config
 from plc_interface.contract import TaskState
 from service.config import load_config
 
+pytestmark = pytest.mark.realtime
+
 NOT_ALLOWED = 0x01          # Modbus/TCP Security's answer to an unauthorized request: illegal function
 MBPOLL = shutil.which("mbpoll")
 

@@ -16,6 +16,8 @@ from service.app import Service
 from service.config import load_config
 from tools.ads_probe import open_ads, read_cycle_count
 
+pytestmark = pytest.mark.realtime
+
 
 def health(port: int, path: str = "/health") -> tuple[int, dict]:
     try:

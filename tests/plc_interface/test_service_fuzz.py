@@ -14,6 +14,7 @@ import socket
 import struct
 
 import pyads
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymodbus.client import ModbusTcpClient
@@ -22,6 +23,8 @@ from test_ads_fuzz import frames as ams_frames
 from hil.testing import free_port, write_config
 from service.app import Service
 from service.config import load_config
+
+pytestmark = pytest.mark.realtime
 
 CYCLES = "TwinCAT_SystemInfoVarList._TaskInfo[1].CycleCount"
 

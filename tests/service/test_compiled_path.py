@@ -32,6 +32,8 @@ from stiffness.effects.terms import AxialTerm, TwistTerm, WrenchTerm
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 RTOL = 1e-9
 ROBOTS = ("kr125", "kr125_masses", "preload identified")
 CASES = [pytest.param(name, k, id=f"{name}-{k}") for name in sorted(EXAMPLES) for k in range(len(EXAMPLES[name]))]

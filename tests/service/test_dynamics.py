@@ -30,6 +30,8 @@ from service.errors import ServiceConfigError
 from service.pipeline import Cycle
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 MODES = [{"hz": 10.0, "damping": 0.03, "direction": [1.0, 0.0, 0.0]},
          {"hz": 16.0, "damping": 0.03, "direction": [0.0, 1.0, 0.0]}]
 PARTS = {

@@ -7,8 +7,12 @@ import logging
 import subprocess
 import sys
 
+import pytest
+
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.log_format import JsonFormatter
+
+pytestmark = pytest.mark.realtime
 
 
 def test_a_record_becomes_one_json_line_with_its_extra_fields():

@@ -10,6 +10,7 @@ import logging
 import can
 import numpy as np
 import pyads
+import pytest
 from pymodbus.client import ModbusTcpClient
 from stiffcomp_testlib import wait_for
 
@@ -23,6 +24,8 @@ from service.compensation import FastPredictor
 from service.config import load_config
 from service.gravity import GravityConfig
 from tools.ads_probe import open_ads
+
+pytestmark = pytest.mark.realtime
 
 SPINDLE = {"index": 1, "name": "spindle + D20 mill", "mass_kg": 28.0, "cog_mm": [5.0, -3.0, 130.0],
            "bias": [2.0, -1.0, 4.0, 0.1, -0.05, 0.02]}

@@ -24,6 +24,8 @@ from hil.testing import ROOT, free_port, write_config
 from plc_interface.contract import Fault, Status
 from plc_interface.register_map import RegisterMap
 
+pytestmark = pytest.mark.realtime
+
 RMAP = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
 CODEC = RMAP.codecs["to_plc"]
 PR_SET_CHILD_SUBREAPER = 36

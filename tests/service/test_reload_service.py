@@ -26,6 +26,8 @@ from service.sources.replay import write_log
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from tools.cli import main
 
+pytestmark = pytest.mark.realtime
+
 CODEC = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml").codecs["to_plc"]
 LOAD = np.array([300.0, -200.0, 400.0, 15.0, 10.0, 5.0])
 NOISE = np.array([2.0, 2.0, 2.0, 0.2, 0.2, 0.2])

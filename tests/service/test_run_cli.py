@@ -10,11 +10,14 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
 from hil.testing import ROOT, free_port, write_config
 from plc_interface.contract import TaskState
 from service.config import load_config
 from stiffness.data.trace_file import read_trace
+
+pytestmark = pytest.mark.realtime
 
 STATS_KEYS = {"cycles", "exceed_count", "exec_us", "period_jitter_us"}
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import can
 import numpy as np
+import pytest
 from stiffcomp_testlib import wait_for
 
 from hil.testing import free_port, write_config
@@ -14,6 +15,8 @@ from service.app import Service
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.sources.replay import ReplaySource
+
+pytestmark = pytest.mark.realtime
 
 
 def test_service_with_a_live_can_sensor(tmp_path):

@@ -20,6 +20,8 @@ from stiffness.errors import ConfigError, DataError, Problems, quote
 from stiffness.files.yaml_schema import read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 REF = DATA / "reference_campaign.csv"
 
 

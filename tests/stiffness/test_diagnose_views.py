@@ -16,6 +16,8 @@ from stiffness.diagnose.report import build_report
 from stiffness.fit.identify import rms
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 WALK = ROOT / "examples" / "campaign_backlash.csv"
 
 

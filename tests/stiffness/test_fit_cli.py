@@ -8,6 +8,8 @@ import pytest
 import yaml
 from stiffcomp_testlib import DATA, MODELS, ROOT
 
+pytestmark = pytest.mark.slow
+
 
 def stiffcomp(*args, cwd=ROOT):
     return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=cwd,

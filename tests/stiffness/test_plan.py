@@ -21,6 +21,8 @@ from stiffness.plan.design import plan as make_plan
 from stiffness.plan.simulate import Campaign, random_configurations
 from tools.cli import main
 
+pytestmark = pytest.mark.slow
+
 N = 4
 
 

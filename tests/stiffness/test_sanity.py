@@ -18,6 +18,8 @@ from stiffness.fit.identify import fit
 from stiffness.fit.sanity import duplicate_rows, noise_warning, resolve_duplicates
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 CAMPAIGN = DATA / "reference_campaign.csv"
 
 

@@ -27,11 +27,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 from stiffcomp_testlib import wait_for
 
 from hil.testing import ROOT, free_port, write_config
 from tools.health_cmd import check
+
+pytestmark = pytest.mark.realtime
 
 DOC = ROOT / "docs" / "deploy.md"
 SYSTEMD_PATH = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"

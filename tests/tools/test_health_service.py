@@ -10,11 +10,14 @@ import subprocess
 import sys
 import time
 
+import pytest
 import yaml
 
 from hil.testing import ROOT, constant_log, free_port, wait_for_port, write_config
 from tools.cli import main
 from tools.health_cmd import check
+
+pytestmark = pytest.mark.realtime
 
 
 def poll_health(port: int, want: bool, timeout_s: float) -> tuple[bool, str]:

@@ -4,6 +4,7 @@ read only the addresses they need, so they answer about the service instead of e
 
 from __future__ import annotations
 
+import pytest
 import yaml
 from stiffcomp_testlib import wait_for
 
@@ -11,6 +12,8 @@ from hil.testing import free_port, write_config
 from service.app import Service
 from service.config import load_config
 from tools.cli import main
+
+pytestmark = pytest.mark.realtime
 
 IMAGE = "/opt/stiffcomp/config"         # where the image's config names its files
 

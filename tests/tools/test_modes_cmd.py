@@ -21,6 +21,8 @@ from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
+pytestmark = pytest.mark.slow
+
 
 def tapped(folder, name, **kw):
     sc = load_scenario()

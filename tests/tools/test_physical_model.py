@@ -16,6 +16,8 @@ from hil.testing import write_config
 from stiffness.errors import ConfigError
 from stiffness.model.stiffness_model import StiffnessModel
 
+pytestmark = pytest.mark.slow
+
 CAMPAIGN = DATA / "reference_campaign.csv"
 
 

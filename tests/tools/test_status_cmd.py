@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import pyte
+import pytest
 from stiffcomp_testlib import wait_for
 
 from hil.testing import constant_log, free_port, wait_for_port, write_config
@@ -27,6 +28,8 @@ from service.app import Service
 from service.config import load_config
 from tools.cli import main
 from tools.status_cmd import reader_for
+
+pytestmark = pytest.mark.realtime
 
 COLS, ROWS = 110, 40
 CLI = [sys.executable, "-m", "tools.cli"]

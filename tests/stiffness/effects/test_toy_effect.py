@@ -28,6 +28,8 @@ from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
 
+pytestmark = pytest.mark.slow
+
 NOISE_MM, NOISE_DEG = 0.03, 0.002
 TRUE_OFFSET_DEG = 0.01
 
