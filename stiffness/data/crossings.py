@@ -16,6 +16,7 @@ FAR_NM = 1e12           # a static torque beyond every load: the nonlinearity is
 EDGE = 0.05             # a crossing this close to the end of the load range is only a bound
 GRID = 48               # trial crossings per configuration
 MIN_GAIN = 100.0         # a crossing counts when it removes this many noise variances of the axial residual (repeats are correlated)
+TIE = 1e-12             # sums of squares this close (share of the data's) tie: only rounding tells them apart
 
 
 def centres(model, ctx, joint: int) -> np.ndarray:
@@ -102,7 +103,9 @@ def centre_search(ctx, resid: np.ndarray, sigma: np.ndarray, joint: int, shape) 
 def _best_crossing(t, y, base, shape, size):
     """(rss, crossing x, size) of the best step over a grid of crossings x in the range of t, refined.
     Each trial is the regression of y on ``base`` and the step (its size free, or held at ``size``),
-    all trials of a grid at once (the step's columns projected off ``base``)."""
+    all trials of a grid at once (the step's columns projected off ``base``). Where the step's shape is
+    flat at every load state, the trials between two of them fit alike to the last bits: their middle
+    is taken (`_middle`), not whichever the rounding of this machine's BLAS made smallest."""
     lo, hi = float(t.min()), float(t.max())
     step = (hi - lo) / (GRID + 1)
     Q = np.linalg.qr(base)[0]
@@ -121,10 +124,20 @@ def _best_crossing(t, y, base, shape, size):
         else:
             b = np.full(len(grid), size)
             rss = ry @ ry - 2 * size * gy + size**2 * gg
-        k = int(np.argmin(rss))
-        if rss[k] < best[0]:
-            best = (float(rss[k]), float(grid[k]), float(b[k]))
+        k = _middle(rss, TIE * float(ry @ ry))
+        best = (float(rss[k]), float(grid[k]), float(b[k]))     # the refined grid holds the coarse best
     return best
+
+
+def _middle(rss: np.ndarray, tol: float) -> int:
+    """The middle of the run of trials about the smallest ``rss`` that lie within ``tol`` of it (ties)."""
+    k = int(np.argmin(rss))
+    a, b = k, k
+    while a > 0 and rss[a - 1] <= rss[k] + tol:
+        a -= 1
+    while b < len(rss) - 1 and rss[b + 1] <= rss[k] + tol:
+        b += 1
+    return (a + b) // 2
 
 
 def _rss(A: np.ndarray, y: np.ndarray) -> float:
