@@ -372,7 +372,8 @@ def _standard_errors(X, resid, w, scale, theta, blind, prior):
     p = Xw.shape[1]
     n = int(np.count_nonzero(w))
     s2 = float(np.sum(np.nan_to_num(resid * w) ** 2)) / max(n - p, 1)
-    cov = np.linalg.pinv(Xw.T @ Xw / max(s2, 1e-300) + prior.information(scale)) * np.outer(scale, scale)
+    cov = np.linalg.pinv(Xw.T @ Xw / max(s2, 1e-300) + prior.information(scale))
+    cov = 0.5 * (cov + cov.T) * np.outer(scale, scale)    # pinv's rounding leaves it unequal across
     cov[blind, :] = 0.0
     cov[:, blind] = 0.0
     cov[blind, blind] = np.inf
