@@ -151,7 +151,7 @@ def candidate_columns(model: StiffnessModel, ctx: Context, effect: Effect) -> np
 
 def preload_entry(model: StiffnessModel, ctx: Context, effect: Effect) -> dict | None:
     """For an axial effect found with its centre free per configuration: the model's ``preload`` entry at
-    its joint, started where the centres were found (`preload.start_from_centres`); else None."""
+    its joint, started where the centres were found (`preload_term.start_from_centres`); else None."""
     centres = getattr(effect, "free_centres", None)
     if centres is None:
         return None
@@ -281,7 +281,7 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     """Fit ``model`` to ``data``, find where it fails, and rank the library effects it lacks.
 
     Only the measured components count. With ``robust`` (the default) the rows the fit judges gross
-    errors (`robust`) are left out of the fit and of every candidate's evidence; a missing effect
+    errors (`stiffness.fit.gross_errors`) are left out of the fit and of every candidate's evidence; a missing effect
     repeats in every reading of a load state and is not mistaken for them. With ``prior`` (what the model
     knew before these data, `stiffness.model.prior`: a machined part sees few combinations of the parameters,
     `stiffness.part.diagnose`) the fit and every candidate's nested fit hold the base parameters to it.

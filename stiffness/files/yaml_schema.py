@@ -10,7 +10,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import ConfigError, quote
-from .yaml_syntax import NoAliasLoader, kind_of, read_yaml, syntax_error  # noqa: F401 - re-exported: reading lives in yamlread
+from .yaml_syntax import NoAliasLoader, kind_of, read_yaml, syntax_error  # noqa: F401 - re-exported: reading lives in yaml_syntax
 
 M = TypeVar("M", bound=BaseModel)
 

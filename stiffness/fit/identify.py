@@ -21,7 +21,7 @@ YAML's ``covariance``), the prior of the next fit.
 Only the measured components count (a laser tracker gives the TCP position alone): an unmeasured
 entry has weight zero, and the parameters the measured components cannot determine at all are named
 (`identifiability`) and kept at their starting values. By default the fit is robust: rows judged
-gross errors (`robust`) get weight zero in the next round and are reported by line.
+gross errors (`gross_errors`) get weight zero in the next round and are reported by line.
 """
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ def fit(model: StiffnessModel, data: Dataset | Context, rounds: int = 2, max_nfe
     sigma : (6,) array, optional
         Starting noise per component (mm, deg); defaults to the model's ``noise`` section.
     robust : bool
-        Give rows judged gross errors (`robust.gross_errors`) weight zero, re-judging after each
+        Give rows judged gross errors (`gross_errors.gross_errors`) weight zero, re-judging after each
         round; up to ROBUST_EXTRA_ROUNDS more rounds while that set still changes. False: plain
         weighted least squares over every row.
     nonnegative : bool

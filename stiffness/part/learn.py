@@ -42,7 +42,7 @@ PLACEMENT_M = 0.001     # the best fit placed a part; learning refines its shift
 class Placement(Effect):
     """The placement of each part without a datum, as far as learning refines it: a shift in the plane across
     the tool axis (two numbers a part), applied to everything at the base site. The best fit
-    (`part_rows.read_against`) turned and shifted the part already; along a circle's normal a turn about any
+    (`rows.read_against`) turned and shifted the part already; along a circle's normal a turn about any
     point is a shift and nothing else, so refining it too would only trade the two. Not a physical effect and
     not in the library: `learn` adds it for a ``--best-fit`` part and removes it again.
 
@@ -115,7 +115,7 @@ class Learned:
     after_mm: float              # points the fit kept (not its gross errors)
     changes: list[tuple[str, float, float]]      # (label, before, after) SI, largest relative first
     notes: list[str] = field(default_factory=list)
-    problems: list[str] = field(default_factory=list)     # why it should not be written (`part_sanity`)
+    problems: list[str] = field(default_factory=list)     # why it should not be written (`sanity`)
     before_all_mm: float = float("nan")       # the same over every point read, the fit's gross errors too
     after_all_mm: float = float("nan")
     left_out: list[LeftOut] = field(default_factory=list)  # the points no figure holds: the parts' and the fit's

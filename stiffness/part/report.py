@@ -92,7 +92,7 @@ def load_figure(comp: PartComparison) -> Figure:
 
 
 def learn_figure(learned) -> Figure:
-    """What the model misses along each part's contour, before and after learning (`part_learn.Learned`): the
+    """What the model misses along each part's contour, before and after learning (`learn.Learned`): the
     residuals the learning's text counts, so the legend's RMS is the text's (over the points the fit kept)."""
     parts, data, fit = learned.parts, learned.data, learned.fit
     fig = Figure(figsize=(12, 3.6 * len(parts)), layout="constrained")

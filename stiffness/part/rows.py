@@ -93,7 +93,7 @@ class PartRows:
     smooth_wrench: np.ndarray    # (N trace, 6) the trace's wrench, smoothed
     trace_tool: np.ndarray       # (N trace, 3) the commanded tool centre of every trace row, m
     notes: list[str] = field(default_factory=list)
-    curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`part_timing.when_made`); None: not placed yet
+    curve_mm: np.ndarray | None = None    # kappa_w d_t^2 / 2 (`timing.when_made`); None: not placed yet
     left_out: list[LeftOut] = field(default_factory=list)    # the points not used, and why
     gaps: list[Gap | Jump] = field(default_factory=list)     # where the trace is blind: rows lost, joints jumped
 

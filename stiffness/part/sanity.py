@@ -34,7 +34,7 @@ HINT_SHARE = 0.5     # a shift of the part is named as the likely cause when it 
 
 
 def problems(learned, start, data) -> list[str]:
-    """What keeps ``learned`` (`part_learn.Learned`) from being written, in words with the likely cause;
+    """What keeps ``learned`` (`learn.Learned`) from being written, in words with the likely cause;
     empty when nothing does. ``start``: the model it was learned from; ``data``: the parts' rows it was fitted
     to (`PartRows.dataset`, its rows those of ``learned.fit``)."""
     out = []
