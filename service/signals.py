@@ -46,8 +46,7 @@ SCALAR_AT = {name: SIGNAL_SLOTS[name][0] for name in SCALARS}
 
 
 def six(name: str, doc: str) -> property:
-    """A list of six floats kept in the compensator's ``vector`` from place ``k``."""
-
+    """The vector ``name`` as a property: six floats kept in the signal path's ``vector`` at `VECTOR_AT`."""
     k = VECTOR_AT[name]
 
     def get(self) -> list[float]:

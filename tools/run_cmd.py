@@ -26,7 +26,8 @@ from .run_file import RunFile
 def register(sub) -> None:
     p = sub.add_parser("run", help="run the cyclic compensation service")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config (default: config/default.yaml)")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds of cycles (counted from the first cycle)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="stop after S seconds of cycles (counted from the first cycle)")
     p.add_argument("--check", action="store_true",
                    help="validate the config and everything it names as a start does (model, register map, "
                         "source), then exit 0 without starting anything or opening a port")
