@@ -3,6 +3,10 @@
     stiffcomp part compare  MODEL TRACE PART [--report DIR] [--json]
     stiffcomp part learn    MODEL TRACE PART [--part TRACE PART]... -o NEW.yaml [--campaign DATA]
     stiffcomp part diagnose MODEL TRACE PART [--part TRACE PART]... [--report DIR] [--json]
+    stiffcomp part features FILE.qif [--json]
+
+PART may be a CMM's QIF 3 results file (.qif; `tools.part_qif`: --feature, --results, --tool-radius-mm,
+--part-frame).
 
 TRACE is `stiffcomp run --trace` (or `hil circle --trace`); PART a CMM's or a probe's points in the part
 format (docs/part_format.md).
@@ -14,6 +18,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from . import part_qif
 from .common import Progress, check_number, check_output_file, print_json, write_output
 
 
@@ -38,6 +43,7 @@ def register(sub) -> None:
     _prior_options(d)
     d.add_argument("--report", metavar="DIR", help="write the evidence into DIR")
     d.set_defaults(func=run_diagnose)
+    part_qif.register_features(ps)
 
 
 def _common(p, more: bool = False) -> None:
@@ -56,6 +62,7 @@ def _common(p, more: bool = False) -> None:
     p.add_argument("--smooth-hz", type=float, default=SMOOTH_HZ, metavar="HZ",
                    help=f"low-pass the trace's wrench without lag at HZ (default {SMOOTH_HZ:g}; 0: none)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    part_qif.add_options(p)
 
 
 def _prior_options(p) -> None:
@@ -75,17 +82,17 @@ def _check_options(args) -> None:
         check_number("--prior-relative", args.prior_relative, "a fraction of each value", above=0.0)
     if getattr(args, "output", None):
         check_output_file("-o", args.output)
+    part_qif.check_options(args, [args.part] + [x[1] for x in getattr(args, "more", [])])
 
 
 def _parts(args, model) -> list:
-    from stiffness.data.part_points import read_part
     from stiffness.data.trace_file import read_trace
     from stiffness.part.rows import read_against
 
     pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
     out = []
     for k, (trace, part) in enumerate(pairs):
-        out.append(read_against(read_part(part), read_trace(trace), model.robot, f"part {k + 1}",
+        out.append(read_against(part_qif.read_any(part, args), read_trace(trace), model.robot, f"part {k + 1}",
                                 best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz))
     return out
 

@@ -1,0 +1,62 @@
+"""A small writer of QIF 3 results files for the tests, built with xml.etree after the standard's structure:
+units, a feature's definition (internal or external), nominal and item (its name), and a MeasurementResults
+whose measured feature references a measured point set as a whole or as a range."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+NS = "http://qifstandards.org/xsd/qif3"
+
+
+def _sub(parent, tag, text=None, **attrs):
+    el = ET.SubElement(parent, f"{{{NS}}}{tag}", {k: str(v) for k, v in attrs.items()})
+    if text is not None:
+        el.text = str(text)
+    return el
+
+
+def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensated=True, probe_radius=None,
+              diameter=None, internal=True, version="3.0.0", results=1, point_set_ref="20", point_range=None,
+              binary=False) -> Path:
+    """Write ``points`` (N, 3, in ``unit``) as the measured feature ``name`` of ``results`` MeasurementResults."""
+    ET.register_namespace("", NS)
+    root = ET.Element(f"{{{NS}}}QIFDocument", {"versionQIF": version, "idMax": "99"})
+    lin = _sub(_sub(_sub(root, "FileUnits"), "PrimaryUnits"), "LinearUnit")
+    _sub(lin, "SIUnitName", "meter")
+    _sub(lin, "UnitName", unit)
+    features = _sub(root, "Features")
+    d = _sub(_sub(features, "FeatureDefinitions", n=1), f"{kind}FeatureDefinition", id=1)
+    _sub(d, "InternalExternal", "INTERNAL" if internal else "EXTERNAL")
+    _sub(_sub(_sub(features, "FeatureNominals", n=1), f"{kind}FeatureNominal", id=2), "FeatureDefinitionId", 1)
+    item = _sub(_sub(features, "FeatureItems", n=1), f"{kind}FeatureItem", id=3)
+    _sub(item, "FeatureName", name)
+    _sub(item, "FeatureNominalId", 2)
+    rs = _sub(_sub(root, "MeasurementsResults", n=1), "MeasurementResultsSet", n=results)
+    for r in range(results):
+        mr = _sub(rs, "MeasurementResults", id=10 + 20 * r)
+        fm = _sub(_sub(mr, "MeasuredFeatures", n=1), f"{kind}FeatureMeasurement", id=11 + 20 * r)
+        _sub(fm, "FeatureItemId", 3)
+        if diameter is not None:
+            _sub(fm, "Diameter", f"{diameter:.9g}")
+        pl = _sub(fm, "PointList")
+        if point_set_ref is not None:
+            if point_range is None:
+                _sub(pl, "WholePointSetId", point_set_ref)
+            else:
+                _sub(pl, "RangePointSetId", point_set_ref, range=f"{point_range[0]} {point_range[1]}")
+        _sub(fm, "Compensated", "true" if compensated else "false")
+        if probe_radius is not None:
+            _sub(fm, "ProbeRadius", f"{probe_radius:.9g}")
+        ps = _sub(_sub(mr, "MeasuredPointSets", n=1), "MeasuredPointSet", id=20 + 20 * r)
+        if binary:
+            _sub(ps, "CombinedPointsBinary", "AAAA")
+            continue
+        pts = _sub(ps, "Points", n=len(points))
+        for p in np.asarray(points, dtype=float):
+            _sub(_sub(pts, "Point"), "XYZ", " ".join(f"{v:.10g}" for v in p))
+    ET.ElementTree(root).write(path, xml_declaration=True, encoding="utf-8")
+    return Path(path)
