@@ -227,8 +227,10 @@ def surface_points(feature: QifFeature, source: str = "") -> tuple[np.ndarray, s
     circle or cylinder move by the probe's radius along the fitted circle's radial direction in its plane:
     outward in a hole, inward on a boss."""
     p = feature.points_mm
-    if feature.compensated or feature.probe_radius_mm == 0.0:
+    if feature.compensated:
         return p, f"feature {feature.name}: points as measured (compensated for the probe)"
+    if feature.probe_radius_mm == 0.0:
+        return p, f"feature {feature.name}: points as measured (not compensated, but no ProbeRadius to move them by)"
     where = f"{source}: feature {feature.name}"
     if feature.type not in CIRCULAR:
         raise DataError(f"{where}: probe-centre points (Compensated false) on a {feature.type} are not moved to "

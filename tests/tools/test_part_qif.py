@@ -75,6 +75,19 @@ def test_a_range_of_a_point_set_reads_those_points(tmp_path):
     assert np.allclose(part.points_mm, pts[2:10])
 
 
+def test_results_and_feature_pick_by_number_and_id(tmp_path, capsys):
+    from stiffness.data.qif_part import read_qif, read_qif_part
+
+    pts = _ring(HOLE_D / 2)
+    path = write_qif(tmp_path / "two.qif", pts, results=2)
+    second = read_qif(path, 2)
+    assert second.results == 2 and [f.id for f in second.features] == ["31"]
+    part, _ = read_qif_part(path, 4.0, None, "31", 2)
+    assert np.allclose(part.points_mm, pts) and part.title == "QIF feature HOLE"
+    assert main(["part", "features", str(path), "--results", "3"]) == 2
+    assert "--results 3: the file holds 2 MeasurementResults" in capsys.readouterr().err
+
+
 @pytest.fixture(scope="module")
 def cut(tmp_path_factory):
     w = tmp_path_factory.mktemp("qif_learn")
@@ -99,7 +112,7 @@ def test_qif_and_csv_of_the_same_points_learn_the_same_model(cut, capsys):
     assert main([*args, str(c.part), "-o", str(w / "csv.yaml"), "--force"]) == 0
     assert main([*args, str(w / "A.qif"), "-o", str(w / "qif.yaml"), "--force", "--tool-radius-mm",
                  str(TOOL_RADIUS_MM), "--part-frame", *frame]) == 0
-    capsys.readouterr()
+    assert f"note: {w / 'A.qif'}: feature CONTOUR: points as measured" in capsys.readouterr().err
     csv_model, qif_model = StiffnessModel.from_yaml(w / "csv.yaml"), StiffnessModel.from_yaml(w / "qif.yaml")
     assert not np.allclose(csv_model.theta, StiffnessModel.from_yaml(w / "start.yaml").theta)
     assert np.allclose(csv_model.theta, qif_model.theta, rtol=1e-6, atol=0.0)
