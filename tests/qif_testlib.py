@@ -46,6 +46,8 @@ def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensate
         if point_set_ref is not None:
             if point_range is None:
                 _sub(pl, "WholePointSetId", point_set_ref)
+            elif point_range[0] == point_range[1]:
+                _sub(pl, "SinglePointSetId", point_set_ref, index=point_range[0])
             else:
                 _sub(pl, "RangePointSetId", point_set_ref, range=f"{point_range[0]} {point_range[1]}")
         _sub(fm, "Compensated", "true" if compensated else "false")

@@ -126,7 +126,8 @@ def _point_sets(path: Path, root) -> dict[str, list[tuple[float, float, float]]]
 def _feature_points(path: Path, fm, fid: str, sets) -> tuple[list, list[str]]:
     pts, labels = [], []
     refs = [(r, None) for r in fm.iter(_q("WholePointSetId"))] + \
-           [(r, r.get("range")) for r in fm.iter(_q("RangePointSetId"))]
+           [(r, r.get("range", "")) for r in fm.iter(_q("RangePointSetId"))] + \
+           [(r, f"{r.get('index', '')} {r.get('index', '')}") for r in fm.iter(_q("SinglePointSetId"))]
     for ref, rng in refs:
         sid = (ref.text or "").strip()
         if sid not in sets:

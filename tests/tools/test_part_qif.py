@@ -67,12 +67,14 @@ def test_inches_give_the_same_geometry_in_mm(tmp_path, capsys):
     assert "outward" in note and np.allclose(np.linalg.norm(a.points_mm - pts, axis=1), PROBE_R)
 
 
-def test_a_range_of_a_point_set_reads_those_points(tmp_path):
-    from stiffness.data.qif_part import read_qif_part
+def test_a_range_or_a_single_point_of_a_point_set_reads_those_points(tmp_path):
+    from stiffness.data.qif_part import read_qif, read_qif_part
 
     pts = _ring(HOLE_D / 2)
     part, _ = read_qif_part(write_qif(tmp_path / "r.qif", pts, point_range=(3, 10)), 4.0, None)
     assert np.allclose(part.points_mm, pts[2:10])
+    one = read_qif(write_qif(tmp_path / "s.qif", pts, point_range=(5, 5))).features[0]
+    assert np.allclose(one.points_mm, pts[4:5]) and one.labels == ["20:5"]
 
 
 def test_results_and_feature_pick_by_number_and_id(tmp_path, capsys):
