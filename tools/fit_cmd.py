@@ -7,7 +7,8 @@ import sys
 import numpy as np
 
 from stiffness.effects.joint_spring import COMPONENTS, JointSpring
-from stiffness.fit.identify import FitResult, fit
+from stiffness.fit.identify import fit
+from stiffness.fit.result import FitResult
 
 from .common import Progress, add_duplicates_option, load, print_json, write_output
 

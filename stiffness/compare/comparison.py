@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..data.measurements import COMPONENTS, Dataset
-from ..fit.identify import rms
+from ..fit.result import rms
 from ..kinematics.robot import BODIES
 from ..model.stiffness_model import StiffnessModel
 

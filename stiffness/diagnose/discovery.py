@@ -37,7 +37,8 @@ from ..data.measurements import Dataset
 from ..data.residuals import pure_error, worst
 from ..effects import EFFECTS, Effect
 from ..errors import DataError
-from ..fit.identify import FitResult, design, fit, jacobian, rms
+from ..fit.identify import design, fit, jacobian
+from ..fit.result import FitResult, rms
 from ..model.preload_term import PreloadTerm, held_preload, start_from_centres
 from ..model.prior import Prior
 from ..model.stiffness_model import StiffnessModel

@@ -43,7 +43,7 @@ from .gross_errors import gross_errors, robust_scale
 from .identifiability import IDENT_TOL, unidentifiable_information
 from .preload_fit import evidence, fresh_start
 from .preload_fit import notes as preload_notes
-from .result import FitResult, rms, rms_text, weights  # noqa: F401 (rms_text: the commands import it from here)
+from .result import FitResult, rms, weights
 from .sanity import noise_warning
 
 T_DETERMINED = 3.0  # |estimate| / standard error below this: the data cannot tell it from zero

@@ -25,7 +25,8 @@ from ..data.campaign import Context
 from ..data.measurements import Dataset
 from ..effects.base import Effect, Param
 from ..errors import ConfigError, StiffnessError
-from ..fit.identify import FitResult, fit, jacobian
+from ..fit.identify import fit, jacobian
+from ..fit.result import FitResult
 from ..model.prior import Prior, covariance_entry
 from ..model.stiffness_model import StiffnessModel
 from ..units import M_TO_MM

@@ -13,7 +13,7 @@ from stiffcomp_testlib import MODELS, ROOT
 from stiffness.data.measurements import COMPONENTS, read_measurements
 from stiffness.diagnose.discovery import diagnose
 from stiffness.diagnose.report import build_report
-from stiffness.fit.identify import rms
+from stiffness.fit.result import rms
 from stiffness.model.stiffness_model import StiffnessModel
 
 pytestmark = pytest.mark.slow
