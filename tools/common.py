@@ -91,6 +91,20 @@ def check_output_file(option: str, path: str | Path) -> Path:
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{option} {path}: is a folder; name a file in it")
+    return _in_a_folder(option, path)
+
+
+def check_output_folder(option: str, path: str | Path) -> Path:
+    """The output folder ``path`` given as ``option``: it may be new, but its parent must exist and it must not
+    be a file; OutputError naming the option otherwise (checked before any work starts)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{option} {path}: is a file; name a folder")
+    return _in_a_folder(option, path)
+
+
+def _in_a_folder(option: str, path: Path) -> Path:
+    """``path`` if its folder exists (nothing creates it); OutputError naming the option otherwise."""
     if not path.parent.is_dir():
         raise OutputError(f"{option} {path}: the folder {path.parent} does not exist (create it first)")
     return path

@@ -3,13 +3,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from plc_interface.plc_library import FORMATS, Endpoint, generate
 from service.config import DEFAULT_CONFIG, read_sections
-from stiffness.errors import OutputError
 
-from .common import write_output
+from .common import check_output_folder, write_output
 
 CHOICES = {"twincat": ("twincat",), "plcopen": ("plcopen",), "both": FORMATS}
 
@@ -20,17 +17,6 @@ def register(sub) -> None:
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config naming the register map")
     p.add_argument("--format", choices=list(CHOICES), default="both", help="what to write (default both)")
     p.set_defaults(func=run)
-
-
-def check_output_folder(option: str, path: str | Path) -> Path:
-    """The output folder ``path`` given as ``option``: it may be new, but its parent must exist and it must not
-    be a file; OutputError naming the option otherwise (checked before any work starts)."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise OutputError(f"{option} {path}: is a file; name a folder")
-    if not path.parent.is_dir():
-        raise OutputError(f"{option} {path}: the folder {path.parent} does not exist (create it first)")
-    return path
 
 
 def run(args) -> int:
