@@ -6,12 +6,14 @@ symbols the service serves; the committed plc/ files must equal what the shipped
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from pathlib import Path
 from xml.etree import ElementTree
 
 import pytest
+import xmlschema
 import yaml
 from plc_source import constant, constants, enum_values, packed, struct_fields, summary
 
@@ -23,7 +25,8 @@ from tools.cli import main
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "config" / "default.yaml"
 COMMITTED = ROOT / "plc"
-SCHEMA = Path(__file__).parent / "data" / "tc6_xml_v201.xsd"
+SCHEMA = ROOT / "tests" / "data" / "plcopen" / "tc6_xml_v201.xsd"    # PLCopen's, see the README beside it
+SCHEMA_SHA256 = "db546a6d1847fee06268fa29baf9f643c8bdd75b3ad083eb9ebd4bfa93cb6c9b"
 CONTRACT = "GVL_StiffCompContract"
 RECORDS = {"to_plc": "ST_StiffCompToPlc", "from_plc": "ST_StiffCompFromPlc"}
 TAGS = {"to_plc": "TO_PLC", "from_plc": "FROM_PLC"}
@@ -74,16 +77,75 @@ def test_every_twincat_file_parses_with_blark():
         p.stem for p in (COMMITTED / "twincat").iterdir()}
 
 
-@pytest.mark.skipif(not SCHEMA.exists(), reason=f"the PLCopen TC6 v2.01 schema is not at {SCHEMA}")
-def test_the_plcopen_file_validates_against_the_tc6_schema(tmp_path):
-    import xmlschema
+@pytest.fixture(scope="module")
+def tc6() -> xmlschema.XMLSchema:
+    return xmlschema.XMLSchema(SCHEMA)
 
-    schema = xmlschema.XMLSchema(SCHEMA)
-    schema.validate(COMMITTED / "plcopen" / "StiffComp.xml")
+
+def test_the_tc6_schema_is_the_copy_its_readme_names(tc6):
+    assert hashlib.sha256(SCHEMA.read_bytes()).hexdigest() == SCHEMA_SHA256, f"{SCHEMA} is not the copy it was"
+    assert SCHEMA_SHA256 in (SCHEMA.parent / "README.md").read_text()
+    assert tc6.target_namespace == NS
+
+
+def test_the_plcopen_file_validates_against_the_tc6_schema(tc6, tmp_path):
+    tc6.validate(COMMITTED / "plcopen" / "StiffComp.xml")
     cfg, _ = moved_map_config(tmp_path)
     assert generate(tmp_path / "out", cfg, "--format", "plcopen") == 0
-    schema.validate(tmp_path / "out" / "plcopen" / "StiffComp.xml")
+    tc6.validate(tmp_path / "out" / "plcopen" / "StiffComp.xml")
     assert not (tmp_path / "out" / "twincat").exists()
+
+
+def _first(root: ElementTree.Element, path: str) -> ElementTree.Element:
+    found = root.find(path, {"p": NS})
+    assert found is not None, path
+    return found
+
+
+def _drop(root: ElementTree.Element, parent: str, child: str) -> None:
+    node = _first(root, parent)
+    node.remove(_first(node, child))
+
+
+def _move_last(root: ElementTree.Element, parent: str, child: str) -> None:
+    node = _first(root, parent)
+    moved = _first(node, child)
+    node.remove(moved)
+    node.append(moved)
+
+
+def _retag(root: ElementTree.Element, path: str, tag: str) -> None:
+    _first(root, path).tag = f"{{{NS}}}{tag}"
+
+
+BREAKS = {       # each leaves the file well-formed XML that the schema must refuse
+    "no fileHeader": lambda root: _drop(root, ".", "p:fileHeader"),
+    "no coordinateInfo": lambda root: _drop(root, "p:contentHeader", "p:coordinateInfo"),
+    "a data type without its base type": lambda root: _drop(root, ".//p:dataType", "p:baseType"),
+    "a struct field without its type": lambda root: _drop(root, ".//p:struct/p:variable", "p:type"),
+    "a block's interface after its body": lambda root: _move_last(root, ".//p:pou", "p:interface"),
+    "an unknown pouType": lambda root: _first(root, ".//p:pou").set("pouType", "FUNCTION_BLOCK"),
+    "an unknown elementary type": lambda root: _retag(root, ".//p:struct/p:variable/p:type/p:UINT", "UINT16"),
+}
+
+
+@pytest.mark.parametrize("broken", BREAKS)
+def test_a_broken_plcopen_file_fails_the_schema(tc6, broken):
+    root = ElementTree.parse(COMMITTED / "plcopen" / "StiffComp.xml").getroot()
+    tc6.validate(root)                                  # whole, it passes as a tree as well as a file
+    BREAKS[broken](root)
+    with pytest.raises(xmlschema.XMLSchemaValidationError):
+        tc6.validate(root)
+
+
+def test_the_plcopen_bodies_are_the_twincat_files_text():
+    """The schema takes a body as free text, so the bodies blark parsed must be the very same."""
+    root = ElementTree.parse(COMMITTED / "plcopen" / "StiffComp.xml").getroot()
+    pous = root.findall(".//p:pou", {"p": NS})
+    assert {p.get("name") for p in pous} == {f.stem for f in (COMMITTED / "twincat").glob("*.TcPOU")}
+    for pou in pous:
+        tc = ElementTree.parse(COMMITTED / "twincat" / f"{pou.get('name')}.TcPOU").getroot()
+        assert "".join(_first(pou, "p:body/p:ST").itertext()) == tc.find("POU/Implementation/ST").text
 
 
 def test_a_struct_that_needs_packing_says_so_in_the_plcopen_file_too(tmp_path):
