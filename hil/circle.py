@@ -21,6 +21,7 @@ from .dynamics import (
     service_dynamics,
     structure_section,
 )
+from .iso9283 import circle_figures
 from .lockstep import run_lockstep
 from .report import end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
 from .run import Faults, HilError, PassResult, run_pass
@@ -68,7 +69,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                compensation: bool = True, report: Path | None = None, workdir: Path | None = None,
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
-               dynamic: DynamicOptions | None = None) -> CircleResult:
+               dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
+               repeat: int = 1) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -77,19 +79,31 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time. ``dynamic``: a
     third pass with the dynamic compensation (`hil.dynamics`): the modes identified from a tap test the
     stub answers, the delay measured on the static one (or ``dynamic.delay_ms``); the summary's figures are then the dynamic pass's, with the
-    static pass's as ``*_static`` twins.
+    static pass's as ``*_static`` twins. ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through
+    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`). ``repeat``:
+    each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
+    the first cut of each is the one every other figure, the trace and the part come from.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
     StiffnessModel.from_yaml(model_path)               # a bad model fails here, before any process starts
     if lockstep and faults is not None:
         raise HilError("faults are injected in real time only: run without --lockstep")
+    if lockstep and robot_interface is not None:
+        raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
     found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
     passes: dict[str, PassResult] = {}
+    again: dict[str, list[dict]] = {}                  # the evaluations of each pass's further repeats
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
         overrides = dict(service_overrides or {})
+
+        def cut_once(name: str, folder: Path, traced: Path | None) -> PassResult:
+            if lockstep:
+                return run_lockstep(scenario, truth, model_path, name != "uncompensated", folder, overrides, traced)
+            return run_pass(scenario, truth, model_path, name != "uncompensated", folder,
+                            faults if name == "compensated" else None, overrides, traced, robot_interface)
         for name in names:
             last = name == names[-1]
             if name == "dynamic":
@@ -97,19 +111,16 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                 delay_ms = service_delay_ms(dynamic, world, passes["compensated"].log)
                 overrides = deep_update(copy.deepcopy(overrides), service_dynamics(
                     found, delay_ms, dynamic, scenario, world, base / "dynamic"))
-            if lockstep:
-                passes[name] = run_lockstep(scenario, truth, model_path, name != "uncompensated", base / name,
-                                            overrides, trace if last else None)
-            else:
-                passes[name] = run_pass(scenario, truth, model_path, name != "uncompensated", base / name,
-                                        faults if name == "compensated" else None, overrides,
-                                        trace if last else None)
+            passes[name] = cut_once(name, base / name, trace if last else None)
+            again[name] = [evaluate_pass(scenario, truth, cut_once(name, base / f"{name}_{k}", None))[1]
+                           for k in range(2, repeat + 1)]
     evals, parts = {}, {}
     world = None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
-    summary = summarise(world, passes, evals, parts, lockstep)
+    summary = summarise(world, passes, evals, parts, lockstep, again)
+    summary["robot_interface"] = robot_interface or "none"
     if found is not None:
         summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
                                "predictor": dynamic.predictor, "feedforward": dynamic.feedforward,
@@ -122,9 +133,11 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     return CircleResult(summary, passes, evals, world, parts)
 
 
-def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool) -> dict:
+def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
+              again: dict | None = None) -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
-    uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``."""
+    uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
+    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -139,14 +152,30 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
         summary.update(mean_error_mm_static=round(mean_s, 4), max_error_mm_static=round(max_s, 4))
     for name, suffix in twins:
         summary.update({k + suffix: round(v, 4) for k, v in window_errors(world, evals[name]).items()})
+        iso = circle_figures(world.path, [evals[name], *(again or {}).get(name, [])], len(world.path.phi) - 1)
+        summary["path_accuracy_mm" + suffix] = round(iso.accuracy, 4)
+        summary["path_repeatability_mm" + suffix] = None if iso.repeatability is None else round(iso.repeatability, 4)
+    summary["repeats"] = 1 + len((again or {}).get(last, []))
     delay = end_to_end_delay(world, passes["compensated"].log) if "compensated" in passes else None
     summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
+    summary.update(robot_road(passes[last].log))
     summary["part_error_mm"] = round(parts[last].part_error_mm, 4)
     summary["part_error_mm_uncompensated"] = round(parts["uncompensated"].part_error_mm, 4)
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
                          {"exceeded_share": 0.0, "trustworthy": True,
                           "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
     return summary
+
+
+def robot_road(log: dict) -> dict:
+    """The robot road's figures of a pass, from its virtual robot's log: the interface's answers that came late
+    (or not at all) and the 99th percentile of the answers' round trip at the robot, in ms (None with a PLC)."""
+    if "rtt_s" not in log:
+        return {"late_answers": None, "reply_latency_p99_ms": None}
+    rtt = np.asarray(log["rtt_s"])
+    ok = rtt[np.isfinite(rtt)]
+    return {"late_answers": int(log["late"]),
+            "reply_latency_p99_ms": round(1000.0 * float(np.percentile(ok, 99)), 3) if len(ok) else None}
 
 
 @dataclass

@@ -142,13 +142,19 @@ def _wait(event, proc, what: str, timeout: float = START_TIMEOUT_S) -> None:
 
 def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
              faults: Faults | None = None, service_overrides: dict | None = None,
-             trace: Path | None = None) -> PassResult:
+             trace: Path | None = None, robot_interface: str | None = None) -> PassResult:
     """Run the closed loop once in real time; returns the PLC's log and the service's stats. ``trace``: the
-    service records every cycle there (`stiffcomp run --trace`)."""
+    service records every cycle there (`stiffcomp run --trace`). ``robot_interface`` (``kuka_rsi``,
+    ``abb_egm``): the robot road instead of the PLC: a virtual robot of that interface (`hil.robot_process`)
+    drives the cut, the service has no PLC (``plc.role: none``) and its log stands for the PLC's."""
     faults = faults or Faults()
     folder.mkdir(parents=True, exist_ok=True)
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
     can_port, modbus_port = free_udp_port(), free_port()
+    if robot_interface is not None:
+        road = {"plc": {"role": "none", "enable_on_start": True},
+                "robot": {"interface": robot_interface, "port": free_udp_port()}}
+        service_overrides = deep_update(road, service_overrides or {})
     cfg_path = write_service_config(scenario, model_path, folder, group, can_port, modbus_port, service_overrides)
     cfg = load_config(cfg_path)
     robot_path = truth.robot.source
@@ -163,9 +169,13 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     sensor = ctx.Process(target=_sensor_entry, name="hil-sensor", args=(
         scenario, robot_path, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
         truth.input_map()))
-    plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
-        scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
-        plc_ready, faults.plc))
+    if robot_interface is None:
+        plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
+            scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
+            plc_ready, faults.plc))
+    else:
+        plc = ctx.Process(target=_robot_entry, name="hil-robot", args=(
+            scenario, robot_path, cfg.robot, cfg.robot.port, compensate, str(out_file), go, plc_ready))
     procs = [sensor, plc]
     try:
         sensor.start()
@@ -184,8 +194,8 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         world_len = scenario.circle.lead_s + 2 * np.pi * scenario.circle.radius_mm / scenario.circle.feed_mm_s
         plc.join(world_len + scenario.circle.tail_s + 60.0)
         if plc.exitcode != 0:
-            raise HilError(f"the PLC process ended with {plc.exitcode}")
-        unmapped = probe_unmapped(modbus_port, cfg.register_map())
+            raise HilError(f"the {'PLC' if robot_interface is None else 'robot'} process ended with {plc.exitcode}")
+        unmapped = probe_unmapped(modbus_port, cfg.register_map()) if cfg.plc.role == "server" else []
     finally:
         stop.set()
         for s in services:
@@ -239,6 +249,12 @@ def _sleep_until(t: float) -> None:
 
 def _sensor_entry(scenario, robot_path, bus_kw, ati, go, ready, stop, fault, input_map) -> None:
     sensor_main(scenario, load_robot(robot_path), bus_kw, ati, go, ready, stop, fault, input_map)
+
+
+def _robot_entry(scenario, robot_path, settings, port, compensate, out_file, go, ready) -> None:
+    from .robot_process import robot_main
+
+    robot_main(scenario, load_robot(robot_path), settings, port, compensate, out_file, go, ready)
 
 
 def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:

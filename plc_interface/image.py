@@ -313,6 +313,18 @@ class ProcessImage:
         master[: len(words)] = [int(v) & 0xFFFF for v in words]
         self._publish("from_plc", master)
 
+    def write_values(self, values: dict[str, float]) -> None:
+        """Set named from_plc values and publish the block (the robot road: the joints of each packet, and
+        the command word and heartbeat when no PLC writes them). Names the map leaves out are skipped."""
+        codec, master = self.in_codec, self._inputs_master()
+        current = codec.decode(master)
+        for name, v in values.items():
+            k = codec.index.get(name)
+            if k is not None:
+                current[k] = v
+        master[: codec.words] = codec.encode(current)
+        self._publish("from_plc", master)
+
     def to_plc_words(self) -> list[int]:
         """The to_plc block's mapped words (the client role writes them into the PLC)."""
         got = None

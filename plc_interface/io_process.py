@@ -91,6 +91,10 @@ def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format:
         ready.send(f"the I/O process failed: {e!r}")
     finally:
         image.close()
+    try:
+        ready.send(server.final_stats)          # the counts, for the service's --stats-json
+    except (OSError, ValueError):
+        pass
     if orphaned:
         log.error("the cycle process (pid %d) died: the I/O process stops with exit code 1; the PLC sees the "
                   "service's heartbeat stop", parent)
@@ -116,6 +120,7 @@ class IoProcess:
         ctx = multiprocessing.get_context("spawn")
         self.settings = settings
         self._stop = ctx.Event()
+        self.final_stats: dict = {}         # what the parts counted, sent by the child as it ends
         self._ready, self._child_end = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=_main, args=(image, settings, logging.getLogger().getEffectiveLevel(),
                                                      current_format(), self._stop, self._child_end),
@@ -144,6 +149,13 @@ class IoProcess:
             if self._proc.is_alive():       # it ignores SIGTERM (see the module docstring)
                 self._proc.kill()
                 self._proc.join(2.0)
+        try:
+            while self._ready.poll():       # the child's last words: the parts' counts (`IoServer.stats`)
+                got = self._ready.recv()
+                if isinstance(got, dict):
+                    self.final_stats = got
+        except (EOFError, OSError):
+            pass
         self._ready.close()
         self._child_end.close()
 

@@ -29,6 +29,7 @@ class IoSettings:
     plc: PlcSettings = field(default_factory=PlcSettings)
     ads: Any = None                 # plc_interface.ads.AdsSettings, or None (no ADS server)
     monitoring: Any = None          # plc_interface.settings.MonitoringSettings, or None
+    robot: Any = None               # plc_interface.robot.road.RoadSettings, or None (no robot road)
     avoid_cpu: int | None = None    # keep the I/O process off the cycle's CPU when it is pinned
 
 
@@ -45,6 +46,7 @@ class IoServer:
         self.image = image
         self.settings = settings
         self.parts: list[Any] = []
+        self.final_stats: dict = {}
         self.metrics = None
         if settings.monitoring is not None and settings.monitoring.metrics:
             from .metrics import ServiceMetrics
@@ -64,6 +66,10 @@ class IoServer:
                 await self._add(ModbusClient(self.image, s.plc.host, s.plc.port, s.plc.device_id,
                                              c.period_ms / 1000.0, c.timeout_s, c.write_start, c.read_table,
                                              c.read_start))
+            if s.robot is not None and s.robot.robot.enabled:
+                from .robot.road import RobotRoad
+
+                await self._add(RobotRoad(self.image, s.robot, self.metrics))
             if s.ads is not None and s.ads.enabled:
                 await self._add(_Ads(self.image, s.ads, self._count_ads))
             if s.monitoring is not None and s.monitoring.enabled:
@@ -119,7 +125,12 @@ class IoServer:
         await part.start()
         self.parts.append(part)
 
+    def stats(self) -> dict:
+        """What the parts counted that the service's ``--stats-json`` reports (the robot road's answers)."""
+        return {p.protocol: p.stats() for p in self.parts if hasattr(p, "stats")}
+
     async def stop(self) -> None:
+        self.final_stats = self.stats()
         for part in reversed(self.parts):
             try:
                 await part.stop()

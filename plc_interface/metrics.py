@@ -27,6 +27,7 @@ from .contract import FAULT_BITS
 #: µs bucket bounds for exec time and jitter: fine below the 1 ms period, coarse above it
 EXEC_BUCKETS_US = (25, 50, 75, 100, 150, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1500, 2000,
                    5000, 10000)
+ANSWER_BUCKETS_US = (10, 25, 50, 100, 200, 300, 500, 750, 1000, 2000, 4000, 12000)
 JITTER_BUCKETS_US = (5, 10, 25, 50, 100, 200, 300, 500, 750, 1000, 2000, 5000, 10000)
 JOINTS = tuple(f"q{i}" for i in range(1, 7))
 WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
@@ -86,6 +87,12 @@ class ServiceMetrics:
                            ["axis"], registry=r)
         self.moment = Gauge(p + "wrench_moment_newton_metres", "filtered, gravity-compensated moment, Nm",
                             ["axis"], registry=r)
+        self.robot_answer_us = Histogram(p + "robot_answer_microseconds", "robot road: a packet's arrival in the "
+                                         "I/O loop to its answer's send, us", buckets=ANSWER_BUCKETS_US, registry=r)
+        self.robot_late = Counter(p + "robot_late_answers", "robot road: answers late or missing, by how it is "
+                                  "known: reported (the robot's own count, RSI Delay), stamp_gap (robot packets "
+                                  "missing, IPOC or seqno skipped), slow (an answer that took over the robot's "
+                                  "cycle here)", ["kind"], registry=r)
         for proto in protocols:
             self.clients.labels(proto).set(0)
         for kind in self._fault_bits:
@@ -146,6 +153,14 @@ class ServiceMetrics:
     def count_refused(self, protocol: str, reason: str, n: int = 1) -> None:
         """``n`` requests refused for ``reason`` (e.g. "illegal_address", "unknown_route")."""
         self.refused.labels(protocol, reason).inc(n)
+
+    def observe_robot_answer(self, us: float) -> None:
+        """One robot packet answered ``us`` microseconds after it arrived in the I/O loop."""
+        self.robot_answer_us.observe(us)
+
+    def count_robot_late(self, kind: str, n: int = 1) -> None:
+        """``n`` robot answers late or missing, known as ``kind`` (reported, stamp_gap, slow)."""
+        self.robot_late.labels(kind).inc(n)
 
     def count_connection_refused(self, protocol: str, reason: str) -> None:
         """One connection refused before its first request (e.g. "no client certificate")."""

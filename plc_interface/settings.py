@@ -50,6 +50,14 @@ def peer_address(peer_ip: str) -> IpAddress:
     return ip
 
 
+def is_loopback(host: str) -> bool:
+    """Whether a bind address ``host`` reaches only this machine (127.0.0.0/8, ::1, ``localhost``)."""
+    try:
+        return peer_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
 class TlsSettings(Strict):
     """``plc.tls``: Modbus/TCP Security, Modbus TCP in TLS with client certificates (docs/security.md).
 
@@ -145,14 +153,9 @@ class PlcSettings(ClientLimits):
 
     def exposure_warning(self) -> str | None:
         """The warning for plain Modbus TCP served beyond this machine with no ``writers``, or None."""
-        if self.role != "server" or self.writers is not None or (self.tls.enabled and not self.tls.plain):
+        if (self.role != "server" or self.writers is not None or (self.tls.enabled and not self.tls.plain)
+                or is_loopback(self.host)):
             return None
-        try:
-            if peer_address(self.host).is_loopback:
-                return None
-        except ValueError:
-            if self.host == "localhost":
-                return None
         return (f"plain Modbus TCP listens on {self.host}:{self.port} and plc.writers is not set: every host "
                 "that reaches this port can write the command word (enable, tare, reset faults), the joint "
                 "positions and the payload index; set plc.writers to the PLC's address (docs/security.md)")

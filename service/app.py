@@ -5,7 +5,7 @@ Two processes, as TwinCAT separates its real-time task from the ADS router and t
 * this process runs the 1 ms cycle (`CyclicTask`) and nothing else while it runs: no server, no notifier
   thread, no file or socket I/O but the sensor's non-blocking reads; log lines only on state changes;
 * the I/O process (`plc_interface.io_process.IoProcess`) serves Modbus TCP (or the Modbus client
-  role) and ADS on one asyncio loop.
+  role), ADS and the robot road on one asyncio loop (`service.io_config`).
 
 They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
 builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
@@ -16,12 +16,11 @@ caller of `Service.watch_io`, between its waits) notices an I/O process that die
 ``faults.io_restarts`` times, or fails the service (`failure`; `stiffcomp run` exits 1). The I/O process
 exits with code 1 when this one dies (`plc_interface.io_process`).
 
-Start-up validates everything before anything starts: the config, the model (and whether the
-real-time predictor supports all its effects), the register map against the contract and the F/T
-source. Then the I/O process starts, then the cycle. With ``cycle.compiled`` the signal path is compiled
-(`service.kernel`: numba loads it from its disk cache, or compiles it the first time) in a thread that
-runs while the I/O process starts, and the cycle starts when it is done: the first cycle never waits
-for a compiler. A model with no compiled form runs on the Python path, with one log line that says why.
+Start-up validates everything first: the config, the model (and whether the real-time predictor supports
+all its effects), the register map against the contract and the F/T source. Then the I/O process starts,
+then the cycle. With ``cycle.compiled`` the signal path is compiled (`service.kernel`: numba loads it from
+its disk cache, or compiles it the first time) in a thread that runs while the I/O process starts, so the
+first cycle never waits for a compiler; a model with no compiled form runs on the Python path (one log line).
 """
 
 from __future__ import annotations
@@ -43,6 +42,7 @@ from .compensation import load_model
 from .config import ServiceConfig
 from .cycle_rules import task_row
 from .errors import ServiceConfigError
+from .io_config import io_settings
 from .pipeline import Cycle
 from .sources import make_source
 from .task import CyclicTask, TaskInfo
@@ -100,6 +100,7 @@ class Service:
         self.failure: str | None = None         # why the service failed, in words (--stats-json)
         self.io_deaths: list[str] = []          # how each I/O process ended that died
         self.io_restarts = 0
+        self.road_stats: dict | None = None     # the robot road's counts, from the last I/O process that ended
         self._closed = False
         self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
         self.pending: list = []         # a prepared reload the cycle takes (pop, atomic) and swaps in (service.reload)
@@ -244,15 +245,6 @@ class Service:
         self.failed.set()
 
     # -- life cycle -----------------------------------------------------------------------------
-    def io_settings(self) -> IoSettings | None:
-        """What the I/O process serves, or None when there is nothing to serve."""
-        cfg = self.cfg
-        if cfg.plc.role == "none" and not cfg.ads.enabled and not cfg.monitoring.enabled:
-            return None
-        tls = cfg.plc.tls.model_copy(update={k: str(cfg.resolve(v)) for k, v in cfg.plc.tls.files().items()})
-        return IoSettings(plc=cfg.plc.model_copy(update={"tls": tls}), ads=cfg.ads, monitoring=cfg.monitoring,
-                          avoid_cpu=cfg.cycle.cpu)
-
     def start(self) -> None:
         self.image.publish(self.record, time.time_ns())
         if self.trace is not None:
@@ -263,7 +255,7 @@ class Service:
                 self.trace_writer = None
                 self.stop()
                 raise
-        settings = self.io_settings()
+        settings = io_settings(self.cfg, self.model.robot)
         if settings is not None:
             try:
                 self.io = self._start_io(settings)
@@ -278,9 +270,11 @@ class Service:
         self.task.start()
         p = self.cfg.plc
         a = self.cfg.ads
-        log.info("service running: %.3f ms cycle, source %s, PLC %s%s", self.period * 1000, self.cfg.source.type,
+        r = self.cfg.robot
+        log.info("service running: %.3f ms cycle, source %s, PLC %s%s%s", self.period * 1000, self.cfg.source.type,
                  p.role if self.io is None else p.served(),
-                 f", ADS {a.host}:{a.port} ({a.net_id}:{a.ams_port})" if a.enabled else "")
+                 f", ADS {a.host}:{a.port} ({a.net_id}:{a.ams_port})" if a.enabled else "",
+                 f", robot {r.served()}" if r.enabled else "")
 
     def stop(self) -> None:
         """Ask the cycle to ramp the correction to zero and end, publish the stopped state, stop the I/O.
@@ -298,7 +292,7 @@ class Service:
             self.record = stopped(self.record)
             self.image.publish(self.record, time.time_ns())
         if self.io is not None:
-            self.io.stop()
+            self._stop_io(self.io)
         if self.trace_writer is not None:
             self.trace_counts = self.trace_writer.stop()
         if self.trace is not None:
@@ -317,6 +311,10 @@ class Service:
         io.start()
         log.info("I/O process running (pid %d)", io.pid)
         return io
+
+    def _stop_io(self, io) -> None:
+        io.stop()
+        self.road_stats = io.final_stats.get("robot", self.road_stats)
 
     def _fail(self, reason: str) -> bool:
         """The service failed for ``reason`` (`failure`, ``--stats-json``; `stiffcomp run` exits 1)."""
@@ -343,7 +341,7 @@ class Service:
         log.error("%s; fault io_process latched, the correction ramps to zero", message)
         self.cycle.supervisor.held = ((Fault.IO_PROCESS, message),)
         self._wait_ramped_for_io()
-        io.stop()
+        self._stop_io(io)
         self.io = None
         if self.io_restarts >= limit:
             return self._fail(f"the I/O process died ({how}) and faults.io_restarts = {limit} allows no "
@@ -351,7 +349,7 @@ class Service:
         self.io_restarts += 1
         log.warning("restarting the I/O process (%d of faults.io_restarts = %d)", self.io_restarts, limit)
         try:
-            self.io = self._start_io(self.io_settings())
+            self.io = self._start_io(io_settings(self.cfg, self.model.robot))
         except PlcError as e:
             return self._fail(f"the I/O process died ({how}) and did not start again: {e}")
         self.cycle.supervisor.held = ()
@@ -394,6 +392,8 @@ class Service:
         stats["status"] = "stopped" if self.task_state == TaskState.STOP else "running"
         stats["failure"] = self.failure
         stats["io_process"] = {"deaths": self.io_deaths, "restarts": self.io_restarts}
+        if self.cfg.robot.enabled:
+            stats["robot"] = self.road_stats
         if self.trace_counts is not None:
             stats["trace"] = {"file": str(self.trace_options.path), **self.trace_counts}
         Path(path).write_text(json.dumps(stats, indent=2) + "\n")

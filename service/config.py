@@ -27,6 +27,7 @@ from plc_interface.ads.settings import AdsSettings
 from plc_interface.endpoints import SHIPPED_CONFIG, load_register_map, resolve_path
 from plc_interface.errors import RegisterMapError
 from plc_interface.register_map import RegisterMap
+from plc_interface.robot.settings import RobotSettings
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError, quote
 from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
@@ -59,6 +60,7 @@ class ServiceConfig(Strict):
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
     monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)
+    robot: RobotSettings = Field(default_factory=RobotSettings)
 
     # set by load_config: where the file was, for relative paths and messages
     path: Path = Field(default=Path("<config>"), exclude=True)
@@ -173,6 +175,11 @@ def check_consistency(cfg: ServiceConfig) -> None:
     if 0 < hb <= cfg.cycle.period_ms:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer "
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
+    r = cfg.robot
+    if r.enabled and 0 < hb <= 2 * r.cycle_ms:
+        raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer than two "
+                                 f"of the robot's cycles ({r.interface} cycle_ms = {r.cycle_ms}): the robot's silence "
+                                 "is what it counts")
     missing = [f"{key} = {quote(rel)}" for key, rel in cfg.files().items() if not cfg.resolve(rel).exists()]
     if missing:
         raise ServiceConfigError(

@@ -30,6 +30,9 @@ def register(sub) -> None:
                    help="write the cut part as the virtual CMM measures it (docs/part_format.md)")
     c.add_argument("--extra-delay-ms", type=float, default=None, metavar="MS",
                    help="the virtual PLC applies each correction this much later (the scenario's plc.extra_delay_ms)")
+    c.add_argument("--robot-interface", choices=("kuka_rsi", "abb_egm"), default=None,
+                   help="cut through the robot road instead of the PLC: a virtual KUKA RSI or ABB EGM robot on its "
+                        "own 4 ms clock, the service without a PLC (docs/robot.md)")
     c.add_argument("--lockstep", action="store_true",
                    help="step the service, sensor and PLC together in one process, as fast as the host runs "
                         "them (deterministic; no real time, no protocols' transport)")
@@ -156,7 +159,7 @@ def run(args) -> int:
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
-                     lockstep=args.lockstep, dynamic=dynamic)
+                     lockstep=args.lockstep, dynamic=dynamic, robot_interface=args.robot_interface)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
@@ -175,6 +178,9 @@ def run(args) -> int:
                   f"{s['exit_peak_mm']:.3f} mm; end-to-end delay {s['delay_ms']} ms")
         print(f"part error (virtual CMM, mean |normal deviation|): {s['part_error_mm']:.3f} mm")
         print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded: {s['timing']['verdict']}")
+        if args.robot_interface:
+            print(f"robot road {args.robot_interface}: {s['late_answers']} late answers, answer round trip p99 "
+                  f"{s['reply_latency_p99_ms']} ms at the robot")
         if args.trace:
             print(f"trace: {args.trace}")
         if args.cmm:

@@ -1,0 +1,168 @@
+"""Virtual robot controllers that speak the real robot interfaces: KUKA RSI and ABB EGM over UDP.
+
+The robot is the clock. Every ``cycle_ms`` (4 ms) the controller sends its packet to the sensor (the
+service's robot road) and takes the answer that arrives before its next cycle:
+
+* **KUKA RSI**: ``<Rob>`` with the axes' setpoints (``ASPos``: the programmed joints plus the correction the
+  robot holds), ``Delay`` (late answers so far) and ``IPOC`` (ms); the answer must repeat the IPOC. ``AK`` is
+  the joint correction, ``RKorr`` the TCP's (base frame), absolute (the whole offset) or relative (added up).
+* **ABB EGM**: ``EgmRobot`` with its seqno, its clock, the planned joints and pose (the programmed path) and
+  the feedback; joint mode takes the answer's joints as the position to hold; path mode takes the
+  correction across the path (the path frame's y and z; its x, along the motion, is not corrected).
+
+A missing or late answer leaves the correction as it was (relative RSI: adds nothing) and is counted; after
+``timeout_count`` of them in a row the robot stops (RSI's ETHERNET timeout, EGM's comm timeout): it sends no
+more packets and holds its last position, and `stopped_at` says when.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import numpy as np
+
+from plc_interface.robot import rsi
+from plc_interface.robot.answers import tcp_motion
+from plc_interface.robot.packets import PacketError
+from plc_interface.robot.settings import RobotSettings
+from stiffness.kinematics.spatial import damped_pinv_solve
+
+IPOC0 = 1_000_000          # the controller's clock (ms) at program time 0: a stamp never below zero
+
+
+def tcp_jacobian(robot, q_deg, rows: slice = slice(0, 6)) -> np.ndarray:
+    """d(tcp_motion)/d(dq) at ``q_deg`` (mm and deg per deg), by central differences of the exact motion."""
+    h = 1e-4
+    cols = [(tcp_motion(robot, q_deg, h * e) - tcp_motion(robot, q_deg, -h * e))[rows] / (2 * h) for e in np.eye(6)]
+    return np.column_stack(cols)
+
+
+def joints_for(robot, q_deg, target, rows: slice = slice(0, 6)) -> np.ndarray:
+    """The joint correction (deg) whose TCP motion at ``q_deg`` is ``target`` (rows ``rows`` of the motion)."""
+    dq = np.zeros(6)
+    for _ in range(2):                      # Newton on the exact motion, from the linear step
+        J = tcp_jacobian(robot, np.add(q_deg, dq), rows)
+        dq = dq + damped_pinv_solve(J, 1e-6, np.asarray(target) - tcp_motion(robot, q_deg, dq)[rows])
+    return dq
+
+
+class RobotController:
+    """The controller's side of one interface: its packets, and what an answer does to the correction.
+
+    Parameters
+    ----------
+    settings : RobotSettings
+        The same section the service reads (interface, cycle, absolute/relative, joint/Cartesian/path).
+    robot : Robot, for the Cartesian and path answers (the controller's own kinematics)
+    """
+
+    def __init__(self, settings: RobotSettings, robot):
+        self.s, self.robot = settings, robot
+        self.kind = settings.interface
+        if self.kind == "abb_egm":
+            from plc_interface.robot import egm
+
+            self.egm = egm
+        self.period = settings.cycle_ms / 1000.0
+        self.applied = np.zeros(6)              # the joint correction the robot holds (deg)
+        self._cart = np.zeros(6)                # relative RKorr: the TCP correction added up
+        self.stamp = 0
+        self.late = 0
+        self._pose_prev = None
+
+    def packet(self, t: float, q_ref) -> bytes:
+        """The packet of the cycle at program time ``t`` (s) with programmed joints ``q_ref`` (deg)."""
+        setpoint = np.add(q_ref, self.applied)
+        if self.kind == "kuka_rsi":
+            self.stamp = IPOC0 + round(1000.0 * t)
+            return rsi.robot_packet(self.stamp, setpoint, setpoint, self.late)
+        self.stamp += 1
+        return self.egm.robot_packet(self.stamp, IPOC0 + round(1000.0 * t), list(q_ref), list(setpoint), self.pose(q_ref))
+
+    def pose(self, q_ref) -> tuple[float, ...]:
+        """The planned TCP pose: x, y, z (mm) and the quaternion qw, qx, qy, qz."""
+        import pinocchio as pin
+
+        T = self.robot.frames(np.radians(np.asarray(q_ref))[None])[0, 7]
+        c = pin.Quaternion(T[:3, :3]).coeffs()            # x, y, z, w
+        return (*(1000.0 * T[:3, 3]), c[3], c[0], c[1], c[2])
+
+    def take(self, data: bytes, q_ref) -> bool:
+        """Apply one answer to the packet just sent; False when it is not that packet's answer."""
+        try:
+            if self.kind == "kuka_rsi":
+                ipoc, tag, values = rsi.read_answer(data)
+                if ipoc != self.stamp:
+                    return False
+                return self._rsi(tag, np.array(values), q_ref)
+            _, kind, values, _ = self.egm.read_answer(data)
+        except PacketError:
+            return False
+        if kind == "joints":
+            self.applied = np.subtract(values, q_ref)
+        else:
+            pose = self.pose(q_ref)
+            R = np.asarray(self.egm.path_frame(self._pose_prev, pose))
+            self._pose_prev = pose
+            d = R[:, 1] * values[1] + R[:, 2] * values[2]       # across the path only
+            self.applied = joints_for(self.robot, q_ref, d, slice(0, 3))
+        return True
+
+    def _rsi(self, tag: str, values: np.ndarray, q_ref) -> bool:
+        relative = self.s.kuka_rsi.correction == "relative"
+        if tag == "AK":
+            self.applied = self.applied + values if relative else values
+            return True
+        m = np.array([*values[:3], values[5], values[4], values[3]])      # X Y Z, then C B A: about x, y, z
+        self._cart = self._cart + m if relative else m
+        self.applied = joints_for(self.robot, q_ref, self._cart)
+        return True
+
+
+class VirtualRobot:
+    """A robot controller on its own clock, sending to the service's robot road over UDP.
+
+    Parameters
+    ----------
+    controller : RobotController
+    host, port : the service's robot road
+    reference : t -> six programmed joints (deg)
+    timeout_count : late answers in a row after which the robot stops
+    """
+
+    def __init__(self, controller: RobotController, host: str, port: int, reference, timeout_count: int = 100):
+        self.c = controller
+        self.address = (host, port)
+        self.reference = reference
+        self.timeout_count = int(timeout_count)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.in_a_row = 0
+        self.stopped_at: float | None = None
+
+    def close(self) -> None:
+        self.sock.close()
+
+    def cycle(self, t: float, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
+        """Send the packet of program time ``t``, take its answer until clock time ``answer_by``:
+        (answered, round trip in s; NaN when late)."""
+        q_ref = self.reference(t)
+        t_send = clock()
+        self.sock.sendto(self.c.packet(t, q_ref), self.address)
+        while (left := answer_by - clock()) > 0:
+            self.sock.settimeout(left)
+            try:
+                data = self.sock.recv(65536)
+            except TimeoutError:
+                break
+            except OSError:                         # ICMP unreachable: the service is not there (yet)
+                break
+            if self.c.take(data, q_ref):
+                self.in_a_row = 0
+                return True, clock() - t_send
+        self.c.late += 1
+        self.in_a_row += 1
+        if self.in_a_row >= self.timeout_count and self.stopped_at is None:
+            self.stopped_at = t
+        return False, float("nan")
