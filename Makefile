@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: install test test-fast node-deps mbpoll run walk bench bench-service lint clean demo image image-test
+.PHONY: install test test-fast node-deps mbpoll run walk bench bench-service lint clean demo image image-test egm-proto
 
 install: $(STAMP)
 
@@ -93,6 +93,11 @@ image:
 # host; one line per check.
 image-test: image $(STAMP)
 	$(PY) deploy/image_test.py --image $(IMAGE)
+
+# The ABB EGM packets' Python code from plc_interface/robot/egm.proto, by grpcio-tools' protoc (test extras);
+# the protobuf floor in pyproject.toml is the runtime the file demands (tests/plc_interface/test_egm.py checks both)
+egm-proto: $(STAMP)
+	$(PY) -m grpc_tools.protoc -Iplc_interface/robot --python_out=plc_interface/robot plc_interface/robot/egm.proto
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
