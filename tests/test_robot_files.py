@@ -1,0 +1,236 @@
+"""The robot-side files in robot/ (what an integrator loads into a KUKA or ABB controller) are held to the
+shipped service configs that answer them.
+
+`kuka_mismatches` and `abb_mismatches` list every value that differs between a config's ``robot`` section and
+the files; the shipped pair must give none, and a copy drifted in one value must name that value.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import defusedxml.ElementTree as DET
+import pytest
+import yaml
+from stiffcomp_testlib import ROOT
+
+from plc_interface.robot.settings import RobotSettings
+from service.config import load_config
+
+KUKA, ABB = ROOT / "robot" / "kuka_rsi", ROOT / "robot" / "abb_egm"
+CONFIGS = {"kuka_rsi": ROOT / "config" / "robot_kuka_rsi.yaml", "abb_egm": ROOT / "config" / "robot_abb_egm.yaml"}
+AXES, CARTESIAN = [f"AK.A{i}" for i in range(1, 7)], [f"RKorr.{c}" for c in "XYZABC"]
+SENSOR_MODE = {4: "IPO_FAST", 12: "IPO"}
+
+
+def robot_section(path: Path) -> RobotSettings:
+    return RobotSettings.model_validate(yaml.safe_load(path.read_text())["robot"])
+
+
+def drift(r: RobotSettings, **changes) -> RobotSettings:
+    """``r`` with some keys changed; ``kuka_rsi__cartesian=True`` reaches into a sub-section."""
+    top = {k: v for k, v in changes.items() if "__" not in k}
+    for key, value in changes.items():
+        if "__" in key:
+            sub, name = key.split("__")
+            top[sub] = top.get(sub, getattr(r, sub)).model_copy(update={name: value})
+    return r.model_copy(update=top)
+
+
+# -- KUKA RSI ---------------------------------------------------------------------------------------------
+def krl_code(text: str) -> str:
+    """A KRL program without its comments (``;`` to the end of the line)."""
+    return "\n".join(line.split(";", 1)[0] for line in text.splitlines())
+
+
+def kuka_mismatches(r: RobotSettings, xml_text: str, krl_text: str) -> list[str]:
+    """Each value of StiffComp.xml and StiffCompCut.src that differs from the config's ``robot`` section."""
+    k, out = r.kuka_rsi, []
+    root = DET.fromstring(xml_text, forbid_dtd=True)
+    cfg = root.find("CONFIG")
+    for tag, want, key in (("IP_NUMBER", r.host, "robot.host"), ("PORT", str(r.port), "robot.port"),
+                           ("SENTYPE", k.sen_type, "robot.kuka_rsi.sen_type"), ("ONLYSEND", "FALSE", "answers")):
+        got = (cfg.findtext(tag) or "").strip()
+        if got != want:
+            out.append(f"{tag} {got!r} but {key} wants {want!r}")
+    sent = {e.get("TAG"): e.get("INDX") for e in root.iterfind("SEND/ELEMENTS/ELEMENT")}
+    for tag in (f"DEF_{k.joints}", "DEF_Delay"):
+        if sent.get(tag) != "INTERNAL":
+            out.append(f"SEND lacks {tag} (robot.kuka_rsi.joints {k.joints}, the late count)")
+    for name in ("command", "heartbeat", "payload"):
+        tag = getattr(k, f"{name}_element")
+        if tag is not None and not (sent.get(tag) or "INTERNAL").isdigit():
+            out.append(f"SEND lacks a numbered element {tag} (robot.kuka_rsi.{name}_element)")
+    received = list(root.iterfind("RECEIVE/ELEMENTS/ELEMENT"))
+    want_tags = CARTESIAN if k.cartesian else AXES
+    if [e.get("TAG") for e in received] != want_tags:
+        out.append(f"RECEIVE {[e.get('TAG') for e in received]} but robot.kuka_rsi.cartesian {k.cartesian} "
+                   f"wants {want_tags}")
+    holdon = "1" if k.correction == "absolute" else "0"
+    if any(e.get("HOLDON") != holdon for e in received):
+        out.append(f"RECEIVE HOLDON is not {holdon} for robot.kuka_rsi.correction {k.correction}")
+    calls = re.findall(r"RSI_ON\s*\(\s*#(\w+)\s*(?:,\s*#(\w+)\s*)?\)", krl_code(krl_text))
+    if len(calls) != 1:
+        out.append(f"{len(calls)} RSI_ON calls in the KRL program, not one")
+    for mode, sensor in calls:
+        if mode != k.correction.upper():
+            out.append(f"RSI_ON(#{mode}) but robot.kuka_rsi.correction is {k.correction}")
+        if (sensor or "IPO_FAST") != SENSOR_MODE[k.cycle_ms]:
+            out.append(f"RSI_ON's #{sensor or 'IPO_FAST'} but robot.kuka_rsi.cycle_ms is {k.cycle_ms}")
+    return out
+
+
+def kuka_shipped() -> tuple[RobotSettings, str, str]:
+    return (robot_section(CONFIGS["kuka_rsi"]), (KUKA / "StiffComp.xml").read_text(),
+            (KUKA / "StiffCompCut.src").read_text())
+
+
+def test_the_kuka_files_match_the_shipped_config():
+    r, xml_text, krl_text = kuka_shipped()
+    assert r.interface == "kuka_rsi"
+    assert kuka_mismatches(r, xml_text, krl_text) == []
+
+
+@pytest.mark.parametrize("changes, named", [
+    ({"port": 49153}, "PORT"),
+    ({"host": "192.168.1.11"}, "IP_NUMBER"),
+    ({"kuka_rsi__sen_type": "Other"}, "SENTYPE"),
+    ({"kuka_rsi__cartesian": True}, "RKorr.X"),
+    ({"kuka_rsi__correction": "relative"}, "HOLDON"),
+    ({"kuka_rsi__correction": "relative"}, "RSI_ON(#ABSOLUTE)"),
+    ({"kuka_rsi__cycle_ms": 12}, "#IPO_FAST"),
+    ({"kuka_rsi__command_element": "StiffCmd"}, "StiffCmd"),
+])
+def test_a_kuka_config_that_drifts_is_named(changes, named):
+    r, xml_text, krl_text = kuka_shipped()
+    found = kuka_mismatches(drift(r, **changes), xml_text, krl_text)
+    assert any(named in m for m in found), found
+
+
+def test_a_kuka_file_that_drifts_is_named():
+    r, xml_text, krl_text = kuka_shipped()
+    assert any("SENTYPE" in m for m in kuka_mismatches(r, xml_text.replace("ImFree", "ImFixed"), krl_text))
+    assert any("PORT" in m for m in kuka_mismatches(r, xml_text.replace("49152", "49160"), krl_text))
+    assert any("HOLDON" in m for m in kuka_mismatches(r, xml_text.replace('HOLDON="1"', 'HOLDON="0"'), krl_text))
+    no_setpoints = re.sub(r'<ELEMENT TAG="DEF_ASPos"[^>]*>', "", xml_text)
+    assert any("DEF_ASPos" in m for m in kuka_mismatches(r, no_setpoints, krl_text))
+    relative = krl_text.replace("RSI_ON(#ABSOLUTE", "RSI_ON(#RELATIVE")
+    assert any("RSI_ON(#RELATIVE)" in m for m in kuka_mismatches(r, xml_text, relative))
+
+
+def test_the_commented_command_element_works_once_uncommented():
+    r, xml_text, krl_text = kuka_shipped()
+    line = '<ELEMENT TAG="StiffCmd" TYPE="LONG" INDX="1" />'
+    assert xml_text.count(line) == 1 and DET.fromstring(xml_text).find(".//ELEMENT[@TAG='StiffCmd']") is None
+    uncommented = xml_text.replace(line, "-->" + line + "<!--")
+    assert kuka_mismatches(drift(r, kuka_rsi__command_element="StiffCmd"), uncommented, krl_text) == []
+
+
+# -- ABB EGM ----------------------------------------------------------------------------------------------
+def cfg_instances(text: str, type_name: str) -> list[dict[str, str]]:
+    """The instances of one type of an ABB .cfg file (``-Key value`` pairs; a flag without a value is "")."""
+    text = re.sub(r"\\\s*\n\s*", " ", text)                     # a line ending in \ goes on on the next
+    out, current = [], None
+    for line in text.splitlines():
+        if line.startswith("#") or not line.strip():
+            continue
+        if re.match(r"^\w+:\s*$", line):
+            current = line.strip()[:-1]
+        elif current == type_name and line.strip().startswith("-"):
+            pairs = re.findall(r'-(\w+)(?:\s+("[^"]*"|(?!-)\S+))?', line)
+            out.append({key: value.strip('"') for key, value in pairs})
+    return out
+
+
+def rapid_code(text: str) -> tuple[str, dict[str, str]]:
+    """A RAPID module without its comments (``!`` to the end of the line, outside strings), and its CONSTs."""
+    code = "\n".join(re.sub(r'^((?:[^"!]|"[^"]*")*)!.*$', r"\1", line) for line in text.splitlines())
+    consts = dict(re.findall(r"CONST\s+(?:string|num)\s+(\w+)\s*:=\s*\"?([^\";]*)\"?\s*;", code))
+    return code, consts
+
+
+def abb_mismatches(r: RobotSettings, sio_text: str, moc_text: str, rapid_text: str) -> list[str]:
+    """Each value of the UDP unit, the motion profiles and the RAPID module that differs from the config."""
+    out = []
+    units = [u for u in cfg_instances(sio_text, "COM_TRP") if u.get("Type") == "UDPUC"]
+    if len(units) != 1:
+        return [f"{len(units)} UDPUC units in the SIO.cfg fragment, not one"]
+    unit = units[0]
+    for key, want, name in (("RemoteAdress", r.host, "robot.host"), ("RemotePortNumber", str(r.port), "robot.port")):
+        if unit.get(key) != want:
+            out.append(f"{key} {unit.get(key)!r} but {name} wants {want!r}")
+    levels = {p["name"]: p.get("ext_motion_level") for p in cfg_instances(moc_text, "EXT_MOTION_DATA")}
+    code, consts = rapid_code(rapid_text)
+
+    def value(arg: str) -> str:                                 # a CONST's value, or the literal itself
+        return consts.get(arg, arg.strip('"'))
+
+    setups = re.findall(r"EGMSetupUC\s+ROB_1\s*,\s*\w+\s*,\s*(\S+?)\s*,\s*(\S+?)\s*\\(\w+)", code)
+    for profile, device, switch in setups:
+        if value(device) != unit.get("Name"):
+            out.append(f"EGMSetupUC names the unit {value(device)!r}, the SIO.cfg fragment defines {unit.get('Name')!r}")
+        if value(profile) not in levels:
+            out.append(f"EGMSetupUC's profile {value(profile)!r} is not in the MOC.cfg fragment")
+        elif switch == "PathCorr" and levels[value(profile)] != "2":
+            out.append(f"EGMSetupUC's PathCorr profile {value(profile)!r} is at level {levels[value(profile)]}, "
+                       "not 2 (path)")
+    mode = {"path": ("PathCorr", "EGMActMove"), "joint": ("Joint", "EGMActJoint")}[r.abb_egm.mode]
+    if mode[0] not in {s for _, _, s in setups}:
+        out.append(f"no EGMSetupUC \\{mode[0]} for robot.abb_egm.mode {r.abb_egm.mode}")
+    rates = [value(v) for v in re.findall(rf"{mode[1]}\b[^;]*\\SampleRate:=(\w+)", code)]
+    if rates != [str(r.abb_egm.cycle_ms)]:
+        out.append(f"{mode[1]}'s \\SampleRate {rates} but robot.abb_egm.cycle_ms is {r.abb_egm.cycle_ms}")
+    return out
+
+
+def abb_shipped() -> tuple[RobotSettings, str, str, str]:
+    return (robot_section(CONFIGS["abb_egm"]), (ABB / "StiffCompUdpuc.cfg").read_text(),
+            (ABB / "StiffCompMoc.cfg").read_text(), (ABB / "StiffCompEgm.modx").read_text())
+
+
+def test_the_abb_files_match_the_shipped_config():
+    r, *files = abb_shipped()
+    assert r.interface == "abb_egm" and r.abb_egm.mode == "path"
+    assert abb_mismatches(r, *files) == []
+    # the module's joint mode matches the same config switched to joint mode at its 4 ms
+    assert abb_mismatches(drift(r, abb_egm__mode="joint", abb_egm__cycle_ms=4), *files) == []
+
+
+@pytest.mark.parametrize("changes, named", [
+    ({"port": 6510}, "RemotePortNumber"),
+    ({"host": "192.168.10.21"}, "RemoteAdress"),
+    ({"abb_egm__cycle_ms": 24}, "SampleRate"),
+    ({"abb_egm__mode": "joint"}, "EGMActJoint's \\SampleRate ['4'] but robot.abb_egm.cycle_ms is 48"),
+])
+def test_an_abb_config_that_drifts_is_named(changes, named):
+    r, *files = abb_shipped()
+    found = abb_mismatches(drift(r, **changes), *files)
+    assert any(named in m for m in found), found
+
+
+def test_an_abb_file_that_drifts_is_named():
+    r, sio, moc, rapid = abb_shipped()
+    assert any("names the unit" in m for m in abb_mismatches(r, sio.replace('"StiffComp"', '"EGMsensor"'), moc, rapid))
+    assert any("RemotePortNumber" in m for m in abb_mismatches(r, sio.replace("6511", "6512"), moc, rapid))
+    assert any("PathCorr profile" in m for m in abb_mismatches(r, sio, moc.replace("level 2", "level 1"), rapid))
+    rate = rapid.replace("PATH_SAMPLE_MS := 48", "PATH_SAMPLE_MS := 72")
+    assert any("SampleRate ['72']" in m for m in abb_mismatches(r, sio, moc, rate))
+
+
+def test_the_cfg_reader_joins_continued_lines_and_keeps_flags():
+    text = 'MOC:CFG_1.0::\n#\nEXT_MOTION_DATA:\n\n  -name "a" -flag\\\n    -level 2\n  -name "b"\n'
+    assert cfg_instances(text, "EXT_MOTION_DATA") == [{"name": "a", "flag": "", "level": "2"}, {"name": "b"}]
+
+
+# -- the configs as the service loads them ----------------------------------------------------------------
+@pytest.mark.parametrize("interface", sorted(CONFIGS))
+def test_the_robot_configs_load_and_differ_from_default_only_in_plc_and_robot(interface):
+    path = CONFIGS[interface]
+    cfg = load_config(path)
+    assert cfg.robot.interface == interface and cfg.plc.role == "none" and cfg.plc.enable_on_start
+    assert cfg.robot.peer is not None and cfg.robot.exposure_warning() is None
+    ours, default = yaml.safe_load(path.read_text()), yaml.safe_load((ROOT / "config" / "default.yaml").read_text())
+    assert {k: v for k, v in ours.items() if k not in ("plc", "robot")} == \
+        {k: v for k, v in default.items() if k not in ("plc", "robot")}
+
