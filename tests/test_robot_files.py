@@ -1,5 +1,5 @@
 """The robot-side files in robot/ (what an integrator loads into a KUKA or ABB controller) are held to the
-shipped service configs that answer them.
+shipped service configs that answer them, and docs/robot.md to the `robot` schema.
 
 `kuka_mismatches` and `abb_mismatches` list every value that differs between a config's ``robot`` section and
 the files; the shipped pair must give none, and a copy drifted in one value must name that value.
@@ -13,6 +13,7 @@ from pathlib import Path
 import defusedxml.ElementTree as DET
 import pytest
 import yaml
+from pydantic import BaseModel
 from stiffcomp_testlib import ROOT
 
 from plc_interface.robot.settings import RobotSettings
@@ -233,4 +234,22 @@ def test_the_robot_configs_load_and_differ_from_default_only_in_plc_and_robot(in
     ours, default = yaml.safe_load(path.read_text()), yaml.safe_load((ROOT / "config" / "default.yaml").read_text())
     assert {k: v for k, v in ours.items() if k not in ("plc", "robot")} == \
         {k: v for k, v in default.items() if k not in ("plc", "robot")}
+
+
+# -- the docs ---------------------------------------------------------------------------------------------
+def leaf_defaults(model: type[BaseModel] = RobotSettings, prefix: str = "") -> dict[str, object]:
+    """Every leaf key of the ``robot`` schema (dotted below ``robot``) and its default."""
+    out = {}
+    for name, field in model.model_fields.items():
+        sub = field.annotation if isinstance(field.annotation, type) and issubclass(field.annotation, BaseModel) \
+            else None
+        out |= leaf_defaults(sub, f"{prefix}{name}.") if sub else {prefix + name: field.default}
+    return out
+
+
+def test_every_robot_key_docs_robot_md_names_exists():
+    text = (ROOT / "docs" / "robot.md").read_text()
+    named = set(re.findall(r"`robot\.([a-z_]+(?:\.[a-z_]+)*)", text))
+    assert len(named) >= 10
+    assert sorted(named - set(leaf_defaults())) == []
 
