@@ -1,5 +1,5 @@
 """The robot-side files in robot/ (what an integrator loads into a KUKA or ABB controller) are held to the
-shipped service configs that answer them, and docs/robot.md to the `robot` schema.
+shipped service configs that answer them, and docs/robot.md and docs/config.md to the `robot` schema.
 
 `kuka_mismatches` and `abb_mismatches` list every value that differs between a config's ``robot`` section and
 the files; the shipped pair must give none, and a copy drifted in one value must name that value.
@@ -253,3 +253,14 @@ def test_every_robot_key_docs_robot_md_names_exists():
     assert len(named) >= 10
     assert sorted(named - set(leaf_defaults())) == []
 
+
+def shown(value) -> str:
+    """A default as docs/config.md writes it (YAML's null, true, false)."""
+    return "null" if value is None else str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def test_docs_config_md_gives_each_robot_key_its_default():
+    text = (ROOT / "docs" / "config.md").read_text()
+    section = text[text.index("## `robot`"):]
+    rows = dict(re.findall(r"^\| `([a-z_.]+)` \| ([^|]+?) \|", section, re.MULTILINE))
+    assert rows == {k: shown(v) for k, v in leaf_defaults().items()}
