@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from plc_interface.robot import rsi
-from plc_interface.robot.answers import tcp_motion
+from plc_interface.robot.answers import TcpJacobian
 from plc_interface.robot.packets import PacketError
 from plc_interface.robot.settings import RobotSettings
 from stiffness.kinematics.spatial import damped_pinv_solve
@@ -31,20 +31,10 @@ from stiffness.kinematics.spatial import damped_pinv_solve
 IPOC0 = 1_000_000          # the controller's clock (ms) at program time 0: a stamp never below zero
 
 
-def tcp_jacobian(robot, q_deg, rows: slice = slice(0, 6)) -> np.ndarray:
-    """d(tcp_motion)/d(dq) at ``q_deg`` (mm and deg per deg), by central differences of the exact motion."""
-    h = 1e-4
-    cols = [(tcp_motion(robot, q_deg, h * e) - tcp_motion(robot, q_deg, -h * e))[rows] / (2 * h) for e in np.eye(6)]
-    return np.column_stack(cols)
-
-
-def joints_for(robot, q_deg, target, rows: slice = slice(0, 6)) -> np.ndarray:
-    """The joint correction (deg) whose TCP motion at ``q_deg`` is ``target`` (rows ``rows`` of the motion)."""
-    dq = np.zeros(6)
-    for _ in range(2):                      # Newton on the exact motion, from the linear step
-        J = tcp_jacobian(robot, np.add(q_deg, dq), rows)
-        dq = dq + damped_pinv_solve(J, 1e-6, np.asarray(target) - tcp_motion(robot, q_deg, dq)[rows])
-    return dq
+def joints_for(jacobian: TcpJacobian, q_deg, target, rows: slice = slice(0, 6)) -> np.ndarray:
+    """The joint correction (deg) whose TCP motion at ``q_deg`` (rows ``rows`` of J(q) dq) is ``target``: the
+    controller's own inverse of the road's Cartesian answer (damped least squares)."""
+    return damped_pinv_solve(jacobian(q_deg)[rows], 1e-6, np.asarray(target, dtype=float))
 
 
 class RobotController:
@@ -59,6 +49,7 @@ class RobotController:
 
     def __init__(self, settings: RobotSettings, robot):
         self.s, self.robot = settings, robot
+        self.jacobian = TcpJacobian(robot) if settings.cartesian else None
         self.kind = settings.interface
         if self.kind == "abb_egm":
             from plc_interface.robot import egm
@@ -68,8 +59,10 @@ class RobotController:
         self.applied = np.zeros(6)              # the joint correction the robot holds (deg)
         self._cart = np.zeros(6)                # relative RKorr: the TCP correction added up
         self.stamp = 0
+        self.tm = 0
         self.late = 0
-        self._pose_prev = None
+        self.answer: tuple[float, ...] = ()     # the values of the last answer taken (AK, RKorr, joints, path)
+        self._pose_prev = self._pose = self._x_prev = self.frame = None     # EGM path: the path frame (rows: x, y, z)
 
     def packet(self, t: float, q_ref) -> bytes:
         """The packet of the cycle at program time ``t`` (s) with programmed joints ``q_ref`` (deg)."""
@@ -78,7 +71,9 @@ class RobotController:
             self.stamp = IPOC0 + round(1000.0 * t)
             return rsi.robot_packet(self.stamp, setpoint, setpoint, self.late)
         self.stamp += 1
-        return self.egm.robot_packet(self.stamp, IPOC0 + round(1000.0 * t), list(q_ref), list(setpoint), self.pose(q_ref))
+        self.tm = IPOC0 + round(1000.0 * t)
+        self._pose_prev, self._pose = self._pose, self.pose(q_ref)
+        return self.egm.robot_packet(self.stamp, self.tm, list(q_ref), list(setpoint), self._pose)
 
     def pose(self, q_ref) -> tuple[float, ...]:
         """The planned TCP pose: x, y, z (mm) and the quaternion qw, qx, qy, qz."""
@@ -95,18 +90,22 @@ class RobotController:
                 ipoc, tag, values = rsi.read_answer(data)
                 if ipoc != self.stamp:
                     return False
+                self.answer = values
                 return self._rsi(tag, np.array(values), q_ref)
-            _, kind, values, _ = self.egm.read_answer(data)
+            _, kind, values, _, tm = self.egm.read_answer(data)
         except PacketError:
             return False
+        if tm != self.tm:                          # an answer to an earlier packet, late
+            return False
+        self.answer = tuple(values)
         if kind == "joints":
             self.applied = np.subtract(values, q_ref)
         else:
-            pose = self.pose(q_ref)
-            R = np.asarray(self.egm.path_frame(self._pose_prev, pose))
-            self._pose_prev = pose
-            d = R[:, 1] * values[1] + R[:, 2] * values[2]       # across the path only
-            self.applied = joints_for(self.robot, q_ref, d, slice(0, 3))
+            # the path frame from the planned poses of this packet and the one before, as the road reads them
+            frame = self.egm.path_frame(self._pose_prev or self._pose, self._pose, self._x_prev)
+            self._x_prev, self.frame = frame[0], frame
+            d = self.egm.to_base(frame, (0.0, values[1], values[2]))      # across the path only
+            self.applied = joints_for(self.jacobian, q_ref, d, slice(0, 3))
         return True
 
     def _rsi(self, tag: str, values: np.ndarray, q_ref) -> bool:
@@ -116,7 +115,7 @@ class RobotController:
             return True
         m = np.array([*values[:3], values[5], values[4], values[3]])      # X Y Z, then C B A: about x, y, z
         self._cart = self._cart + m if relative else m
-        self.applied = joints_for(self.robot, q_ref, self._cart)
+        self.applied = joints_for(self.jacobian, q_ref, self._cart)
         return True
 
 
@@ -144,10 +143,23 @@ class VirtualRobot:
     def close(self) -> None:
         self.sock.close()
 
+    def _drain(self) -> None:
+        """Answers that came after their cycle ended: counted late already, and left unapplied (an EGM answer
+        names no packet, so one taken in the next cycle would pass for that cycle's)."""
+        self.sock.setblocking(False)
+        try:
+            while True:
+                self.sock.recv(65536)
+        except (BlockingIOError, OSError):
+            pass
+        finally:
+            self.sock.setblocking(True)
+
     def cycle(self, t: float, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
         """Send the packet of program time ``t``, take its answer until clock time ``answer_by``:
         (answered, round trip in s; NaN when late)."""
         q_ref = self.reference(t)
+        self._drain()
         t_send = clock()
         self.sock.sendto(self.c.packet(t, q_ref), self.address)
         while (left := answer_by - clock()) > 0:
@@ -158,9 +170,10 @@ class VirtualRobot:
                 break
             except OSError:                         # ICMP unreachable: the service is not there (yet)
                 break
+            t_got = clock()
             if self.c.take(data, q_ref):
                 self.in_a_row = 0
-                return True, clock() - t_send
+                return True, t_got - t_send
         self.c.late += 1
         self.in_a_row += 1
         if self.in_a_row >= self.timeout_count and self.stopped_at is None:

@@ -130,9 +130,10 @@ def robot_packet(seqno: int, tm_ms: int, planned_deg, feedback_deg, pose=None) -
     return msg.SerializeToString()
 
 
-def read_answer(data: bytes) -> tuple[int, str, tuple[float, ...], int | None]:
-    """(seqno, ``joints`` or ``path``, the six joints or the path offset x, y, z, the age in ms or None) of a
-    sensor's answer, told apart by its header type; PacketError when it is not one."""
+def read_answer(data: bytes) -> tuple[int, str, tuple[float, ...], int | None, int | None]:
+    """(seqno, ``joints`` or ``path``, the six joints or the path offset x, y, z, the age in ms or None, the
+    header's tm or None) of a sensor's answer, told apart by its header type; PacketError when it is not one.
+    The road's answers repeat, in tm, the tm of the robot's packet they answer (`plc_interface.robot.answers`)."""
     for cls, mtype in ((pb.EgmSensor, CORRECTION), (pb.EgmSensorPathCorr, PATH_CORRECTION)):
         msg = cls()
         try:
@@ -142,11 +143,12 @@ def read_answer(data: bytes) -> tuple[int, str, tuple[float, ...], int | None]:
         h = msg.header
         if len(data) > MAX_BYTES or h.mtype != mtype or not h.HasField("seqno"):
             continue
+        tm = h.tm if h.HasField("tm") else None
         if mtype == CORRECTION and msg.planned.HasField("joints"):
-            return h.seqno, "joints", _joints(msg.planned.joints.joints, "planned.joints"), None
+            return h.seqno, "joints", _joints(msg.planned.joints.joints, "planned.joints"), None, tm
         if mtype == PATH_CORRECTION and msg.HasField("pathCorr"):
             p = msg.pathCorr
-            return h.seqno, "path", (p.pos.x, p.pos.y, p.pos.z), p.age
+            return h.seqno, "path", (p.pos.x, p.pos.y, p.pos.z), p.age, tm
     raise PacketError("malformed", "not an EgmSensor (MSGTYPE_CORRECTION, planned.joints) nor an "
                       "EgmSensorPathCorr (MSGTYPE_PATH_CORRECTION, pathCorr) with header.seqno")
 

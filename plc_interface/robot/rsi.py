@@ -92,7 +92,7 @@ def answer(sen_type: str, ipoc: int, values, cartesian: bool) -> bytes:
 def robot_packet(ipoc: int, setpoint_deg, actual_deg, delay: int = 0, extra: dict[str, int] | None = None) -> bytes:
     """A ``<Rob TYPE="KUKA">`` packet as a KR C4 sends it, with ``extra`` elements (name: value)."""
     def axes(tag: str, q) -> str:
-        return f"<{tag} " + " ".join(f'{a}="{v:.4f}"' for a, v in zip(AXES, q)) + " />"
+        return f"<{tag} " + " ".join(f'{a}="{v:.6f}"' for a, v in zip(AXES, q)) + " />"
     more = "".join(f"<{k}>{int(v)}</{k}>" for k, v in (extra or {}).items())
     return (f'<Rob TYPE="KUKA">{axes("AIPos", actual_deg)}{axes("ASPos", setpoint_deg)}'
             f'<Delay D="{int(delay)}" />{more}<IPOC>{int(ipoc)}</IPOC></Rob>').encode()

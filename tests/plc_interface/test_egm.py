@@ -125,7 +125,7 @@ def test_robot_packet_parses_back(seqno, tm, planned, feedback, pose):
 @given(seqno=st.integers(0, 2**40), q=six, tm=st.none() | u32)
 def test_joint_answer_reads_back(seqno, q, tm):
     data = egm.joint_answer(seqno, q, tm)
-    assert egm.read_answer(data) == (seqno % 2**32, "joints", q, None)
+    assert egm.read_answer(data) == (seqno % 2**32, "joints", q, None, tm)
     msg = pb.EgmSensor.FromString(data)
     assert msg.header.mtype == pb.EgmHeader.MSGTYPE_CORRECTION
     assert msg.header.HasField("tm") == (tm is not None)
@@ -134,7 +134,7 @@ def test_joint_answer_reads_back(seqno, q, tm):
 @given(seqno=u32, pos=st.tuples(mm, mm, mm), age=st.integers(-100, 2**33))
 def test_path_answer_reads_back(seqno, pos, age):
     data = egm.path_answer(seqno, pos, age)
-    assert egm.read_answer(data) == (seqno, "path", pos, min(max(age, 0), 2**32 - 1))
+    assert egm.read_answer(data) == (seqno, "path", pos, min(max(age, 0), 2**32 - 1), None)
     assert pb.EgmSensorPathCorr.FromString(data).header.mtype == pb.EgmHeader.MSGTYPE_PATH_CORRECTION
 
 

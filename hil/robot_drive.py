@@ -1,0 +1,55 @@
+"""A virtual robot driven for a while on its own clock, each packet and answer recorded (tests, benchmarks)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from plc_interface.deadlines import Deadlines
+
+from .virtual_robot import VirtualRobot
+
+
+@dataclass
+class Drive:
+    """Per robot cycle: when the packet left (unix s), its stamp, the programmed joints, whether its answer came
+    in its cycle, the answer's values (NaN when none), the round trip (s; NaN when late) and, for an EGM path
+    correction, the path frame the robot read it in."""
+
+    sent_unix: np.ndarray
+    stamp: np.ndarray
+    q_ref: np.ndarray
+    answered: np.ndarray
+    answer: np.ndarray
+    rtt_s: np.ndarray
+    frames: np.ndarray
+
+    @property
+    def late(self) -> int:
+        return int((~self.answered).sum())
+
+
+def drive(vr: VirtualRobot, seconds: float, t0: float | None = None) -> Drive:
+    """Run ``vr`` for ``seconds`` of its cycles (program time from ``t0``, clock time, default now): each packet
+    sent on its deadline, its answer awaited until the next one."""
+    c = vr.c
+    n = max(int(seconds / c.period), 1)
+    sent, stamp, rtt = np.zeros(n), np.zeros(n, dtype=np.int64), np.full(n, np.nan)
+    q_ref, answered = np.zeros((n, 6)), np.zeros(n, dtype=bool)
+    answer, frames = np.full((n, 6), np.nan), np.full((n, 3, 3), np.nan)
+    t0 = time.monotonic() if t0 is None else t0
+    deadlines = Deadlines(c.period, start=time.monotonic())
+    for k in range(n):
+        deadlines.sleep_until()
+        t = deadlines.due - t0
+        sent[k], q_ref[k] = time.time(), vr.reference(t)
+        answered[k], rtt[k] = vr.cycle(t, deadlines.due + c.period)
+        stamp[k] = c.stamp
+        if answered[k]:
+            answer[k, :len(c.answer)] = c.answer
+            if c.frame is not None:
+                frames[k] = c.frame
+        deadlines.advance(time.monotonic())
+    return Drive(sent, stamp, q_ref, answered, answer, rtt, frames)

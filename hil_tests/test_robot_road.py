@@ -1,0 +1,198 @@
+"""The robot road against the running service (`stiffcomp run`, plc.role none): a virtual KUKA RSI or ABB EGM
+robot on its own 4 ms clock, every packet answered in its cycle with the newest correction, the programmed
+joints in the trace, and the safe state when the robot falls silent or sends what is not the robot's."""
+
+from __future__ import annotations
+
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from hil.robot_drive import Drive, drive
+from hil.run import ServiceProcess
+from hil.testing import free_port, write_config
+from hil.virtual_robot import RobotController, VirtualRobot
+from plc_interface.endpoints import read_probe
+from plc_interface.robot import rsi
+from plc_interface.robot.answers import TcpJacobian
+from plc_interface.robot.settings import RobotSettings
+from stiffness.kinematics.robot import load_robot
+
+ROBOT = load_robot(Path(__file__).resolve().parent.parent / "config" / "robots" / "kr125.yaml")
+Q0 = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
+RAMP_S = 0.2                        # limits.fault_ramp_s: the answers ramp in over this
+
+
+def reference(t: float) -> list[float]:
+    """Programmed joints that move (deg): the trace's rows can only match the packet they came from."""
+    return list(Q0 + np.array([0.3, 0.2, -0.2, 0.4, 0.3, -0.5]) * np.sin(2.0 * t))
+
+
+def start(tmp_path: Path, robot: dict, faults_ms: float = 200.0) -> tuple[ServiceProcess, RobotSettings]:
+    port = free_port(socket.SOCK_DGRAM)
+    section = {"port": port, **robot}
+    cfg = write_config(tmp_path, {"plc": {"role": "none", "enable_on_start": True}, "robot": section,
+                                  "faults": {"plc_heartbeat_timeout_ms": faults_ms}, "monitoring": {"metrics": True}})
+    service = ServiceProcess(cfg, tmp_path, trace=tmp_path / "trace.parquet")
+    try:
+        service.wait_running()
+    except BaseException:
+        service.stop()
+        raise
+    return service, RobotSettings.model_validate(section)
+
+
+def trace(tmp_path: Path) -> dict[str, np.ndarray]:
+    t = pq.read_table(tmp_path / "trace.parquet")
+    return {c: t.column(c).to_numpy() for c in t.column_names}
+
+
+def rows_before(tr: dict, sent_unix: float, back_s: float = 0.1) -> np.ndarray:
+    """The trace rows of the cycles run in the ``back_s`` before ``sent_unix`` (and 5 ms after: the clocks)."""
+    u = tr["unix_time_s"]
+    return np.flatnonzero((u >= sent_unix - back_s) & (u <= sent_unix + 0.005))
+
+
+def corrections(tr: dict, rows: np.ndarray) -> np.ndarray:
+    return np.column_stack([tr[f"c{i}_deg"][rows] for i in range(1, 7)])
+
+
+def check_answers_are_cycles_corrections(d: Drive, tr: dict, settings: RobotSettings) -> int:
+    """Every answer after the ramp-in is, as the interface carries it, the correction of one of the service's
+    cycles of the 100 ms before its packet; the number of answers checked."""
+    jac = TcpJacobian(ROBOT)
+    checked = 0
+    for k in np.flatnonzero(d.answered & (d.sent_unix > d.sent_unix[0] + RAMP_S + 0.05)):
+        rows = rows_before(tr, d.sent_unix[k])
+        c = corrections(tr, rows)
+        if settings.interface == "kuka_rsi":
+            err = np.abs(c - d.answer[k]).max(axis=1)                        # AK, 6 decimals
+            tol = 2e-6
+        elif settings.abb_egm.mode == "joint":
+            err = np.abs(c - (d.answer[k] - d.q_ref[k])).max(axis=1)       # planned joints + correction
+            tol = 1e-9
+        else:
+            motion = (jac(d.q_ref[k])[:3] @ c.T).T                         # TCP motion, base axes, mm
+            err = np.abs(motion @ d.frames[k].T - d.answer[k, :3]).max(axis=1)     # in the path frame
+            tol = 1e-6
+        assert err.min() <= tol, (k, err.min())
+        checked += 1
+    return checked
+
+
+@pytest.mark.parametrize("robot", [
+    {"interface": "kuka_rsi"},
+    {"interface": "abb_egm", "abb_egm": {"mode": "joint"}},
+    {"interface": "abb_egm", "abb_egm": {"mode": "path"}},
+], ids=["kuka_rsi", "abb_egm_joint", "abb_egm_path"])
+def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_traced(tmp_path, robot):
+    service, settings = start(tmp_path, robot)
+    vr = VirtualRobot(RobotController(settings, ROBOT), "127.0.0.1", settings.port, reference)
+    try:
+        d = drive(vr, 20.0)
+    finally:
+        vr.close()
+        service.stop()
+    stats, _ = service.result()
+    road = stats["robot"]
+    # every packet reached the road and was answered (none dropped), and the answers came in their cycle
+    assert road["packets"] == road["answered"] == len(d.answered), road
+    assert road["dropped"] == {} and road["sessions"] == 1, road
+    assert d.late <= 0.005 * len(d.answered), f"{d.late} of {len(d.answered)} answers late"
+    # (an RSI answer counts as answered only with its own packet's IPOC: `RobotController.take`)
+    assert np.all(np.diff(d.stamp) > 0)
+    tr = trace(tmp_path)
+    assert np.abs(corrections(tr, np.arange(len(tr["cycle"])))).max() > 1e-3     # a correction to find
+    assert check_answers_are_cycles_corrections(d, tr, settings) > 0.95 * len(d.answered) - 100
+    # the trace's joints are the robot's programmed joints (RSI: its setpoints less the correction it holds)
+    u = tr["unix_time_s"]
+    for r in np.flatnonzero((u > d.sent_unix[0] + 0.02) & (u < d.sent_unix[-1]))[::7]:
+        near = np.flatnonzero((d.sent_unix >= tr["unix_time_s"][r] - 0.1) & (d.sent_unix <= tr["unix_time_s"][r]))
+        q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
+        assert np.abs(d.q_ref[near] - q).max(axis=1).min() <= 1e-4, r
+
+
+def health(service: ServiceProcess) -> dict:
+    return read_probe(*service.health_at, timeout_s=2.0)
+
+
+def metric(service: ServiceProcess, key: str) -> float:
+    import urllib.request
+
+    text = urllib.request.urlopen(f"http://127.0.0.1:{service.health_at[1]}/metrics", timeout=2).read().decode()
+    return next((float(line.split()[-1]) for line in text.splitlines() if line.startswith(key + " ")), 0.0)
+
+
+def refused(service: ServiceProcess, reason: str) -> float:
+    return metric(service, f'stiffcomp_requests_refused_total{{protocol="robot",reason="{reason}"}}')
+
+
+def ramped_to_zero(service: ServiceProcess) -> bool:
+    return all(metric(service, f'stiffcomp_correction_degrees{{joint="q{i}"}}') == 0.0 for i in range(1, 7))
+
+
+def until(what, timeout_s: float = 20.0, step_s: float = 0.01):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        got = what()
+        if got:
+            return got
+        time.sleep(step_s)
+    raise AssertionError(f"not within {timeout_s} s: {what}")
+
+
+def test_a_silent_robot_latches_the_fault_and_what_is_not_the_robots_changes_nothing(tmp_path):
+    service, settings = start(tmp_path, {"interface": "kuka_rsi", "peer": "127.0.0.1"}, faults_ms=100.0)
+    vr = VirtualRobot(RobotController(settings, ROBOT), "127.0.0.1", settings.port, reference)
+    stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    stranger.bind(("127.0.0.2", 0))
+    try:
+        t0 = time.monotonic()
+        before = drive(vr, 1.0, t0)
+        assert health(service)["faults"] == [] and np.abs(before.answer[-10:]).max() > 1e-3
+        silent_from = time.time()
+        until(lambda: "plc_heartbeat" in health(service)["faults"])          # latched, the robot silent
+        until(lambda: ramped_to_zero(service))
+        again = drive(vr, 1.0, t0)
+        # a new session: answered from zero correction, ramping in; the fault reset by the robot's return
+        assert np.all(again.answer[0] == 0.0) and np.abs(again.answer[-10:]).max() > 1e-3
+        until(lambda: health(service)["faults"] == [])
+        bad_q = [7.75] * 6
+        stranger.sendto(rsi.robot_packet(vr.c.stamp + 4, bad_q, bad_q), ("127.0.0.1", settings.port))
+        until(lambda: refused(service, "peer") == 1)
+        vr.sock.sendto(b"<Rob TYPE='KUKA'><IPOC>12", ("127.0.0.1", settings.port))
+        until(lambda: refused(service, "malformed") == 1)
+        nan_q = [float("nan"), *bad_q[1:]]
+        vr.sock.sendto(rsi.robot_packet(vr.c.stamp + 8, nan_q, nan_q), ("127.0.0.1", settings.port))
+        until(lambda: refused(service, "joints") == 1)
+        for s in (stranger, vr.sock):                       # none of them was answered
+            s.setblocking(False)
+            with pytest.raises(BlockingIOError):
+                s.recv(4096)
+            s.setblocking(True)
+        vr.c.stamp += 8
+        after = drive(vr, 0.3, t0)
+        assert after.late == 0 or after.late <= 2
+    finally:
+        vr.close()
+        stranger.close()
+        service.stop()
+    stats, _ = service.result()
+    assert stats["robot"]["dropped"] == {"peer": 1, "malformed": 1, "joints": 1}
+    assert stats["robot"]["sessions"] == 2
+    tr = trace(tmp_path)
+    q = np.column_stack([tr[f"q{i}_deg"] for i in range(1, 7)])
+    assert np.all(np.isfinite(q)) and not np.any(np.isclose(q[:, 1:], 7.75).all(axis=1))
+    # the silence: the fault latched about 100 ms after the last packet, and the correction ramped to zero
+    # over limits.fault_ramp_s, never rising
+    fault = np.flatnonzero((tr["unix_time_s"] > silent_from) & (tr["fault_word"] != 0))[0]
+    assert 0.09 <= tr["unix_time_s"][fault] - before.sent_unix[-1] <= 0.5
+    down = np.flatnonzero((np.arange(len(tr["cycle"])) >= fault) & (tr["unix_time_s"] < again.sent_unix[0]))
+    c = np.abs(corrections(tr, down))
+    assert np.all(np.diff(c, axis=0) <= 1e-7) and np.all(c[-1] == 0.0) and c[0].max() > 1e-3
+    zero = down[np.flatnonzero(c.max(axis=1) == 0.0)[0]]
+    assert tr["unix_time_s"][zero] - tr["unix_time_s"][fault] <= RAMP_S + 0.01
