@@ -18,6 +18,7 @@ more packets and holds its last position, and `stopped_at` says when.
 from __future__ import annotations
 
 import socket
+import struct
 import time
 
 import numpy as np
@@ -28,6 +29,7 @@ from plc_interface.robot.packets import PacketError
 from plc_interface.robot.settings import RobotSettings
 from stiffness.kinematics.spatial import damped_pinv_solve
 
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)    # Linux's number where Python does not name it
 IPOC0 = 1_000_000          # the controller's clock (ms) at program time 0: a stamp never below zero
 
 
@@ -136,6 +138,7 @@ class VirtualRobot:
         self.reference = reference
         self.timeout_count = int(timeout_count)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
         self.sock.bind(("127.0.0.1", 0))
         self.in_a_row = 0
         self.stopped_at: float | None = None
@@ -156,26 +159,39 @@ class VirtualRobot:
             self.sock.setblocking(True)
 
     def cycle(self, t: float, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
-        """Send the packet of program time ``t``, take its answer until clock time ``answer_by``:
-        (answered, round trip in s; NaN when late)."""
+        """Send the packet of program time ``t``, take its answer if it arrives by clock time ``answer_by``:
+        (answered in its cycle, round trip in s; NaN when late). The round trip runs from the send to the
+        answer's arrival as the kernel stamped it (SO_TIMESTAMPNS), so a robot process that the host runs late
+        neither lengthens it nor takes a late answer for one in time."""
         q_ref = self.reference(t)
         self._drain()
-        t_send = clock()
-        self.sock.sendto(self.c.packet(t, q_ref), self.address)
+        packet = self.c.packet(t, q_ref)
+        wall_by = time.time_ns() + int(1e9 * (answer_by - clock()))
+        t_send = time.time_ns()
+        self.sock.sendto(packet, self.address)
         while (left := answer_by - clock()) > 0:
             self.sock.settimeout(left)
             try:
-                data = self.sock.recv(65536)
+                data, anc, _, _ = self.sock.recvmsg(65536, 64)
             except TimeoutError:
                 break
             except OSError:                         # ICMP unreachable: the service is not there (yet)
                 break
-            t_got = clock()
-            if self.c.take(data, q_ref):
+            t_got = arrival_ns(anc)
+            if t_got <= wall_by and self.c.take(data, q_ref):
                 self.in_a_row = 0
-                return True, t_got - t_send
+                return True, (t_got - t_send) / 1e9
         self.c.late += 1
         self.in_a_row += 1
         if self.in_a_row >= self.timeout_count and self.stopped_at is None:
             self.stopped_at = t
         return False, float("nan")
+
+
+def arrival_ns(ancillary) -> int:
+    """The kernel's receive stamp (ns, CLOCK_REALTIME) among a datagram's ancillary data; now without one."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
+            sec, nsec = struct.unpack("qq", data[:16])
+            return sec * 1_000_000_000 + nsec
+    return time.time_ns()

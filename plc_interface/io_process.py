@@ -18,6 +18,7 @@ heartbeat stop). The parent watches the child through `IoProcess.alive` and `IoP
 from __future__ import annotations
 
 import asyncio
+import gc
 import logging
 import multiprocessing
 import os
@@ -29,6 +30,7 @@ from .errors import PlcError
 from .image import ProcessImage
 from .io_server import IoServer, IoSettings, _serve
 from .log_format import configure_logging, current_format
+from .scheduling import set_fifo
 
 log = logging.getLogger("stiffcomp.io")
 
@@ -69,6 +71,8 @@ def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format:
                 os.sched_setaffinity(0, others)
         except (OSError, AttributeError):
             pass
+    if settings.robot is not None:          # the robot's clock: its answers before the other protocols' work
+        set_fifo(settings.robot.robot.realtime_priority, "I/O process (robot road)", log)
     parent = os.getppid()
     orphaned = []
     image.take_over_inputs()            # a predecessor killed mid-write must not leave its buffer half-locked
@@ -76,6 +80,8 @@ def _main(image: ProcessImage, settings: IoSettings, log_level: int, log_format:
 
     class Started:
         def set(self) -> None:
+            gc.collect()
+            gc.freeze()         # what start-up made is never scanned again: no long collection under the robot's clock
             ready.send("")
 
     def stop_requested() -> bool:

@@ -176,6 +176,10 @@ def check_consistency(cfg: ServiceConfig) -> None:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer "
                                  f"than cycle.period_ms ({cfg.cycle.period_ms:g})")
     r = cfg.robot
+    rt = cfg.cycle.realtime_priority
+    if r.enabled and r.realtime_priority > 0 and rt > 0 and r.realtime_priority >= rt:
+        raise ServiceConfigError(f"{src}: robot.realtime_priority = {r.realtime_priority} must be below "
+                                 f"cycle.realtime_priority ({rt}): the 1 ms cycle comes first")
     if r.enabled and 0 < hb <= 2 * r.cycle_ms:
         raise ServiceConfigError(f"{src}: faults.plc_heartbeat_timeout_ms = {hb:g} must be 0 (off) or longer than two "
                                  f"of the robot's cycles ({r.interface} cycle_ms = {r.cycle_ms}): the robot's silence "

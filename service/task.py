@@ -33,6 +33,7 @@ import numpy as np
 from pydantic import Field
 
 from plc_interface.deadlines import Deadlines
+from plc_interface.scheduling import set_fifo
 from stiffness.files.yaml_schema import Strict
 
 log = logging.getLogger("stiffcomp.task")
@@ -205,13 +206,7 @@ class CyclicTask:
                 os.sched_setaffinity(0, {self.cpu})
             except (OSError, AttributeError) as e:
                 log.warning("cannot pin the cycle thread to CPU %d (%s)", self.cpu, e)
-        if self.priority <= 0:
-            return
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
-            log.info("cycle thread runs with SCHED_FIFO priority %d", self.priority)
-        except (OSError, AttributeError) as e:
-            log.warning("cannot set SCHED_FIFO priority %d (%s); running with normal priority", self.priority, e)
+        set_fifo(self.priority, "cycle thread", log)
 
     def _run(self) -> None:
         self._set_priority()

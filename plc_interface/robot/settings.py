@@ -6,6 +6,8 @@ interface : ``none`` (the PLC alone, the default), ``kuka_rsi`` or ``abb_egm``
 host, port : where the service listens for the robot's UDP packets (the robot sends to this address)
 peer : the robot controller's IP address; packets from any other address are dropped, counted and logged
     once. None takes any sender (a warning at start when ``host`` is not a loopback address)
+realtime_priority : SCHED_FIFO priority of the I/O process, which answers the robot (0: normal scheduling);
+    below the cycle's ``cycle.realtime_priority``, so the 1 ms cycle still comes first
 kuka_rsi, abb_egm : each interface's own settings
 """
 
@@ -73,6 +75,7 @@ class RobotSettings(Strict):
     host: str = "127.0.0.1"
     port: int = Field(49152, ge=PORT_MIN, le=PORT_MAX)
     peer: str | None = None
+    realtime_priority: int = Field(0, ge=0, le=98)
     kuka_rsi: KukaRsiSettings = Field(default_factory=KukaRsiSettings)
     abb_egm: AbbEgmSettings = Field(default_factory=AbbEgmSettings)
 

@@ -1,0 +1,182 @@
+"""The robot road's answers, timed at the robot (a script, not a test; docs/robot.md).
+
+`stiffcomp run` serves a virtual KUKA RSI or ABB EGM robot at 4 ms (`hil.virtual_robot`) beside its usual PLC
+load: a Modbus TCP client reading the to_plc block every 4 ms (a PLC's cycle) and a pyads client reading a
+symbol every 10 ms. The robot times each answer from its packet's send to the answer's arrival (the round
+trip, which holds the reply latency and both kernels' UDP paths) and counts the answers that did not arrive
+within its cycle; the service's own count (from a packet's arrival in the I/O loop to its answer's send) comes
+from its --stats-json. ``--busy 1`` adds one process that spins on a core for the whole run.
+
+Priorities as a cell would set them: the cycle at SCHED_FIFO 50 (config/default.yaml), the I/O process that
+answers the robot at ``robot.realtime_priority`` (``--io-priority``, 40), and the virtual robot's own loop at
+SCHED_FIFO 45 (``--robot-priority``; a robot controller is a real-time machine of its own: on this shared
+host its loop must not wait behind the busy process, or its own lateness would pass for the service's).
+
+    .venv/bin/python benchmarks/bench_robot_road.py [--seconds 60] [--busy 0 1] [--interface kuka_rsi abb_egm]
+    .venv/bin/python benchmarks/bench_robot_road.py --circles      # the end-to-end delay of each road in the HIL
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import multiprocessing
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+
+def spin(stop) -> None:
+    """One busy process: a core's worth of arithmetic until ``stop``."""
+    x = 0
+    while not stop.is_set():
+        for _ in range(100_000):
+            x += 1
+
+
+def modbus_load(port: int, stop) -> None:
+    """A PLC's reads: the to_plc block every 4 ms on absolute deadlines."""
+    from pymodbus.client import ModbusTcpClient
+
+    from hil.testing import CONFIG
+    from plc_interface.deadlines import Deadlines
+    from plc_interface.register_map import RegisterMap
+
+    codec = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"]
+    c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
+    c.connect()
+    d = Deadlines(0.004)
+    while not stop.is_set():
+        try:
+            c.read_input_registers(codec.start, count=codec.words)
+        except Exception:  # noqa: BLE001 - a load, never stopped by an error
+            c.connect()
+        d.advance(time.monotonic())
+        d.sleep_until()
+    c.close()
+
+
+def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_priority: int) -> dict:
+    from hil.robot_drive import drive
+    from hil.run import ServiceProcess
+    from hil.testing import free_port, write_config
+    from hil.virtual_robot import RobotController, VirtualRobot
+    from plc_interface.robot.settings import RobotSettings
+    from plc_interface.scheduling import set_fifo
+    from stiffness.kinematics.robot import load_robot
+
+    robot = load_robot(ROOT / "config" / "robots" / "kr125.yaml")
+    with tempfile.TemporaryDirectory(prefix="bench-robot-") as tmp:
+        folder = Path(tmp)
+        section = {"interface": interface, "port": free_port(socket.SOCK_DGRAM), "realtime_priority": io_priority}
+        modbus, ads = free_port(), free_port()
+        cfg = write_config(folder, {"plc": {"port": modbus, "enable_on_start": True}, "robot": section,
+                                    "ads": {"port": ads}})
+        service = ServiceProcess(cfg, folder)
+        ctx = multiprocessing.get_context("spawn")
+        stop = ctx.Event()
+        loads = [ctx.Process(target=modbus_load, args=(modbus, stop)),
+                 *([ctx.Process(target=spin, args=(stop,))] if busy else [])]
+        try:
+            service.wait_running()
+            for p in loads:
+                p.start()
+            ads_proc = subprocess.Popen([sys.executable, "-c", ADS_LOAD.format(port=ads, seconds=seconds + 2)],
+                                        cwd=ROOT)
+            settings = RobotSettings.model_validate(section)
+            vr = VirtualRobot(RobotController(settings, robot), "127.0.0.1", settings.port,
+                              lambda t: [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
+            fifo = set_fifo(robot_priority, "virtual robot", logging.getLogger("bench"))
+            try:
+                d = drive(vr, seconds)
+            finally:
+                if fifo:
+                    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+                vr.close()
+        finally:
+            stop.set()
+            for p in loads:
+                p.join(10)
+            service.stop()
+        ads_proc.wait(30)
+        stats, _ = service.result()
+    rtt = d.rtt_s[np.isfinite(d.rtt_s)] * 1000.0
+    road = stats.get("robot", {})
+    return {"interface": interface, "busy": busy, "seconds": seconds, "io_priority": io_priority,
+            "robot_priority": robot_priority, "packets": len(d.answered),
+            "late": d.late, "late_share": d.late / len(d.answered),
+            "rtt_ms": {"p50": float(np.percentile(rtt, 50)), "p99": float(np.percentile(rtt, 99)),
+                       "max": float(rtt.max())},
+            "service_answer_us": road.get("latency_us"), "service_exceed_count": stats.get("exceed_count"),
+            "service_cycles": stats.get("cycles")}
+
+
+ADS_LOAD = """
+import time, pyads
+with pyads.Connection("127.0.0.1.1.1", 851, "127.0.0.1:{port}") as plc:
+    t_end = time.monotonic() + {seconds}
+    while time.monotonic() < t_end:
+        try:
+            plc.read_by_name("TwinCAT_SystemInfoVarList._TaskInfo[1].CycleCount", pyads.PLCTYPE_UDINT)
+        except pyads.ADSError:
+            pass
+        time.sleep(0.01)
+"""
+
+
+def circles() -> list[dict]:
+    """`stiffcomp hil circle --json` through the PLC and through each robot road: path errors and delay."""
+    out = []
+    for road in (None, "kuka_rsi", "abb_egm"):
+        cmd = [sys.executable, "-m", "tools.cli", "hil", "circle", "--json",
+               *(["--robot-interface", road] if road else [])]
+        s = json.loads(subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True).stdout)
+        out.append({"road": road or "plc", "mean_error_mm": s["mean_error_mm"],
+                    "mean_error_mm_uncompensated": s["mean_error_mm_uncompensated"],
+                    "reduction_pct": round(100 * (1 - s["mean_error_mm"] / s["mean_error_mm_uncompensated"]), 1),
+                    "delay_ms": s["delay_ms"], "late_answers": s["late_answers"],
+                    "reply_latency_p99_ms": s["reply_latency_p99_ms"]})
+        print(json.dumps(out[-1]), flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--busy", type=int, nargs="+", default=[0, 1], choices=(0, 1))
+    ap.add_argument("--interface", nargs="+", default=["kuka_rsi", "abb_egm"], choices=("kuka_rsi", "abb_egm"))
+    ap.add_argument("--io-priority", type=int, default=40, help="robot.realtime_priority of the service")
+    ap.add_argument("--robot-priority", type=int, default=45, help="SCHED_FIFO of the virtual robot's loop")
+    ap.add_argument("--circles", action="store_true", help="the HIL circle through each road instead")
+    ap.add_argument("--json", default=None, metavar="FILE")
+    args = ap.parse_args(argv)
+    if args.circles:
+        res = circles()
+    else:
+        res = []
+        for busy in args.busy:
+            for interface in args.interface:
+                r = one(interface, args.seconds, bool(busy), args.io_priority, args.robot_priority)
+                res.append(r)
+                s = r["service_answer_us"] or {}
+                print(f"{interface:8s} {'busy ' if busy else 'quiet'}: round trip at the robot p50 {r['rtt_ms']['p50']:.3f} "
+                      f"p99 {r['rtt_ms']['p99']:.3f} max {r['rtt_ms']['max']:.2f} ms; late {r['late']} of {r['packets']} "
+                      f"({100 * r['late_share']:.3f} %); in the service p50/p99/max {s.get('p50')}/{s.get('p99')}/"
+                      f"{s.get('max')} us", flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,34 @@
+"""`stiffcomp hil circle --robot-interface`: the paper's circle cut through the robot road, a virtual KUKA RSI or
+ABB EGM robot on its own 4 ms clock in the PLC's place, the service without a PLC. With the truth as the model
+the mean path error falls by >= 90 %, as through the PLC; the summary names the road, its late answers and the
+answers' round trip at the robot, and the end-to-end delay is measured."""
+
+from __future__ import annotations
+
+import pytest
+from hil_lib import EXAMPLES, scenario
+
+from hil.circle import run_circle
+from tools.cli import main
+
+TRUTH = EXAMPLES / "truth_reference.yaml"
+
+
+@pytest.mark.parametrize("interface", ["kuka_rsi", "abb_egm"])
+def test_the_robot_road_cuts_the_mean_path_error_by_90_percent(tmp_path, interface):
+    s = run_circle(scenario(), TRUTH, TRUTH, workdir=tmp_path / "run", robot_interface=interface).summary
+    assert s["robot_interface"] == interface
+    assert s["mean_error_mm_uncompensated"] > 0.2, s
+    assert 1.0 - s["mean_error_mm"] / s["mean_error_mm_uncompensated"] >= 0.90, s
+    assert s["cycles"] > 1000 and 0.0 < s["reply_latency_p99_ms"] <= 4.0, s       # answered within the cycle
+    # ~1,400 robot cycles in a pass; the virtual robot runs below the service's priority on this shared host,
+    # so a loaded run sees some late (the benchmark measures them with the robot as a real-time device)
+    assert 0 <= s["late_answers"] <= 0.05 * 1400, s
+    assert s["delay_ms"] is not None and 0.0 < s["delay_ms"] < 30.0, s
+
+
+def test_the_robot_road_has_no_lock_step(capsys, tmp_path):
+    assert main(["hil", "circle", "--lockstep", "--robot-interface", "abb_egm", "--report", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the robot road runs on the robot's clock, in real time only" in err, err
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,161 @@
+"""The robot road's decisions, packet by packet, on a process image (no sockets: `RobotRoad.received`), and the
+answers read back by the virtual robot's controller as a robot applies them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hil.testing import CONFIG
+from hil.virtual_robot import RobotController
+from plc_interface.contract import Command, to_plc
+from plc_interface.image import ProcessImage
+from plc_interface.register_map import RegisterMap
+from plc_interface.robot import egm, rsi
+from plc_interface.robot.answers import Answerer, TcpJacobian
+from plc_interface.robot.road import RoadSettings, RobotRoad
+from plc_interface.robot.settings import RobotSettings
+from stiffness.kinematics.robot import load_robot
+
+ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
+Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]
+ROBOT_AT = ("127.0.0.1", 40000)
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+@pytest.fixture
+def image():
+    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    yield im
+    im.close()
+
+
+def road_on(image, clock=None, **robot) -> RobotRoad:
+    section = RobotSettings.model_validate({"interface": "kuka_rsi", **robot})
+    limits = [(float(lo), float(hi)) for lo, hi in ROBOT.limits_deg]
+    return RobotRoad(image, RoadSettings(section, enable_on_start=True, silence_s=0.1, ramp_s=0.2, limits_deg=limits,
+                                         robot_file=str(ROBOT.source)), clock=clock or Clock())
+
+
+def publish(image, correction, fault_word: int = 0) -> None:
+    image.publish(to_plc(fault_word=fault_word, **{f"correction_q{i + 1}": v for i, v in enumerate(correction)}))
+
+
+def q_of(image) -> list[float]:
+    i = image.inputs()
+    return [i.q1, i.q2, i.q3, i.q4, i.q5, i.q6]
+
+
+def test_a_packet_from_another_address_changes_nothing(image):
+    road = road_on(image, peer="127.0.0.1")
+    before = image.inputs()
+    assert road.received(rsi.robot_packet(1000, Q, Q), ("127.0.0.2", 40000)) is None
+    assert image.inputs() == before and road.counts["dropped"] == {"peer": 1}
+    assert road.received(rsi.robot_packet(1000, Q, Q), ("::ffff:127.0.0.1", 40000)) is not None    # IPv4-mapped
+
+
+@pytest.mark.parametrize("data, reason", [
+    (rsi.robot_packet(1004, [math.nan, *Q[1:]], Q), "joints"),
+    (rsi.robot_packet(1004, [0.0, -60.0, 90.0, 0.0, 60.0, 1e6], Q), "joints"),        # beyond A6's limits
+    (rsi.robot_packet(1000, Q, Q), "stamp"),                                           # IPOC not rising
+    (b"<Rob TYPE='KUKA'><IPOC>1004</IPOC>", "malformed"),
+    (b'<!DOCTYPE r [<!ENTITY a "aaaa">]><Rob>&a;</Rob>', "malformed"),
+])
+def test_a_bad_packet_is_counted_and_dropped_unanswered(image, data, reason):
+    road = road_on(image)
+    assert road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT) is not None
+    before = image.inputs()
+    assert road.received(data, ROBOT_AT) is None
+    assert image.inputs() == before and road.counts["dropped"] == {reason: 1}
+
+
+def test_commands_and_heartbeat_without_a_plc_and_a_new_session_after_silence(image):
+    clock = Clock()
+    road = road_on(image, clock)
+    publish(image, [0.5] * 6)
+    first = rsi.read_answer(road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT))
+    i = image.inputs()
+    assert first[2] == (0.0,) * 6                                   # a session begins from zero correction
+    assert i.command_word == int(Command.ENABLE | Command.RESET) and i.plc_heartbeat == 1
+    clock.t += 0.1                                                  # half the ramp, within the silence
+    half = rsi.read_answer(road.received(rsi.robot_packet(1004, Q, Q), ROBOT_AT))
+    assert half[2] == pytest.approx((0.25,) * 6)
+    assert image.inputs().command_word == int(Command.ENABLE) and image.inputs().plc_heartbeat == 2
+    for ipoc in (1008, 1012):                                       # within the silence, past the ramp
+        clock.t += 0.075
+        got = rsi.read_answer(road.received(rsi.robot_packet(ipoc, [q + 0.5 for q in Q], Q), ROBOT_AT))
+    assert got[2] == (0.5,) * 6
+    road.received(rsi.robot_packet(1016, [q + 0.5 for q in Q], Q), ROBOT_AT)
+    assert q_of(image) == pytest.approx(Q, abs=1e-5)              # its setpoints less the correction it holds
+    clock.t += 0.15                                                 # silent beyond faults.plc_heartbeat_timeout_ms
+    publish(image, [0.5] * 6, fault_word=1 << 5)
+    again = rsi.read_answer(road.received(rsi.robot_packet(1500, Q, Q), ROBOT_AT))
+    assert again[2] == (0.0,) * 6 and road.counts["sessions"] == 2
+    assert image.inputs().command_word & Command.RESET              # the latched fault is reset by the return
+    clock.t += 0.01
+    road.received(rsi.robot_packet(1504, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word & Command.RESET              # held while a fault remains
+
+
+def test_the_robots_own_command_heartbeat_and_payload_elements(image):
+    road = road_on(image, kuka_rsi={"command_element": "Cmd", "heartbeat_element": "Hb", "payload_element": "Pay"})
+    road.received(rsi.robot_packet(1000, Q, Q, extra={"Cmd": 0, "Hb": 17, "Pay": 2}), ROBOT_AT)
+    i = image.inputs()
+    assert (i.command_word, i.plc_heartbeat, i.payload_index) == (int(Command.RESET), 17, 2)
+
+
+def test_with_a_plc_beside_the_road_writes_the_joints_only(image):
+    road = road_on(image)
+    road.settings.owns_commands = False
+    image.write_values({"command_word": 0, "plc_heartbeat": 9})
+    road.received(rsi.robot_packet(1000, [q + 1 for q in Q], Q), ROBOT_AT)
+    i = image.inputs()
+    assert (i.command_word, i.plc_heartbeat) == (0, 9) and q_of(image) == pytest.approx([q + 1 for q in Q])
+
+
+corrections = st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6)
+joints = st.lists(st.floats(-20.0, 20.0), min_size=6, max_size=6).map(lambda d: list(np.add(Q, d)))
+
+
+@pytest.mark.parametrize("section", [
+    {"interface": "kuka_rsi"},
+    {"interface": "kuka_rsi", "kuka_rsi": {"correction": "relative"}},
+    {"interface": "kuka_rsi", "kuka_rsi": {"cartesian": True}},
+    {"interface": "kuka_rsi", "kuka_rsi": {"cartesian": True, "correction": "relative"}},
+    {"interface": "abb_egm", "abb_egm": {"mode": "joint"}},
+    {"interface": "abb_egm", "abb_egm": {"mode": "path"}},
+], ids=["rsi_ak", "rsi_ak_relative", "rsi_rkorr", "rsi_rkorr_relative", "egm_joint", "egm_path"])
+@settings(max_examples=25, deadline=None)
+@given(steps=st.lists(st.tuples(joints, corrections), min_size=1, max_size=4))
+def test_the_robot_holds_the_correction_the_road_answers(section, steps):
+    """Answer after answer, what the controller applies is the joint correction behind the answer: exactly for
+    the joint answers, as the same TCP motion for RKorr, and across the path for an EGM path correction."""
+    settings_ = RobotSettings.model_validate(section)
+    road, robot = Answerer(settings_, str(ROBOT.source)), RobotController(settings_, ROBOT)
+    jac = TcpJacobian(ROBOT)
+    for k, (q, dq) in enumerate(steps):
+        p = road.parse(robot.packet(0.004 * k, q))
+        q_prog = road.programmed(p.joints_deg)
+        assert q_prog == pytest.approx(q, abs=2e-6)
+        assert robot.take(road.answer(p, q_prog, dq, 0.0), q)
+        if settings_.interface == "kuka_rsi" and not settings_.kuka_rsi.cartesian:
+            assert robot.applied == pytest.approx(dq, abs=3e-6)           # AK has six decimals
+        elif settings_.interface == "abb_egm" and settings_.abb_egm.mode == "joint":
+            assert robot.applied == pytest.approx(dq, abs=1e-9)
+        elif settings_.interface == "kuka_rsi":
+            assert jac.motion(q, robot.applied) == pytest.approx(jac.motion(q, dq), abs=2e-5)
+        else:
+            along = egm.to_path(robot.frame, jac.motion(q, robot.applied)[:3])
+            wanted = egm.to_path(robot.frame, jac.motion(q, dq)[:3])
+            assert along[1:] == pytest.approx(wanted[1:], abs=1e-7) and abs(along[0]) <= 1e-7
