@@ -124,6 +124,18 @@ def check_number(option: str, value: float, unit: str, *, above: float | None = 
     return value
 
 
+def check_count(option: str, text: str, *, at_least: int = 1) -> int:
+    """``text`` given as ``option`` read as a whole number of at least ``at_least``; ConfigError naming the
+    option otherwise (called right after parsing, before any work starts)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = None
+    if n is None or n < at_least:
+        raise ConfigError(f"{option} {text}: must be a whole number, at least {at_least}")
+    return n
+
+
 def to_jsonable(x: Any) -> Any:
     if isinstance(x, dict):
         return {k: to_jsonable(v) for k, v in x.items()}

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from hil.scenario import DEFAULT_SCENARIO, load_scenario
 
-from .common import check_number, check_output_file
+from .common import check_count, check_number, check_output_file
 
 
 def register(sub) -> None:
@@ -28,6 +28,9 @@ def register(sub) -> None:
                    help="the service records every cycle of the (compensated) cut to FILE (.csv or .parquet)")
     c.add_argument("--cmm", default=None, metavar="FILE.csv",
                    help="write the cut part as the virtual CMM measures it (docs/part_format.md)")
+    c.add_argument("--repeat", default="1", metavar="N",
+                   help="cut each pass N times (ISO 9283's cycles) for path_accuracy_mm and path_repeatability_mm "
+                        "(default 1: no repeatability)")
     c.add_argument("--extra-delay-ms", type=float, default=None, metavar="MS",
                    help="the virtual PLC applies each correction this much later (the scenario's plc.extra_delay_ms)")
     c.add_argument("--robot-interface", choices=("kuka_rsi", "abb_egm"), default=None,
@@ -135,6 +138,17 @@ def _check_outputs_and_reach(args, scenario) -> None:
                           f"arm); put its centre where the arm reaches all round (the scenario's: {own})") from e
 
 
+def _iso_line(s: dict, compensated: bool) -> str:
+    """The ISO 9283 path figures of the summary ``s`` in one line."""
+    def both(key: str) -> str:
+        if s[key] is None:
+            return "-"
+        return f"{s[key + '_uncompensated']:.3f} / {s[key]:.3f} mm" if compensated else f"{s[key]:.3f} mm"
+
+    return (f"ISO 9283 over {s['repeats']} cut(s) of each pass{', without / with compensation' if compensated else ''}"
+            f": path accuracy AT_p {both('path_accuracy_mm')}, path repeatability RT_p {both('path_repeatability_mm')}")
+
+
 def run(args) -> int:
     from hil.circle import run_circle
 
@@ -144,6 +158,7 @@ def run(args) -> int:
     if args.extra_delay_ms is not None:
         scenario.plc = _validated(scenario.plc, "plc", "extra_delay_ms", args.extra_delay_ms, "--extra-delay-ms")
     _check_dynamic_options(args)
+    repeat = check_count("--repeat", args.repeat)
     if args.trace is not None:
         from service.trace import TraceOptions
 
@@ -159,7 +174,7 @@ def run(args) -> int:
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
-                     lockstep=args.lockstep, dynamic=dynamic, robot_interface=args.robot_interface)
+                     lockstep=args.lockstep, dynamic=dynamic, repeat=repeat, robot_interface=args.robot_interface)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
@@ -177,6 +192,7 @@ def run(args) -> int:
                   f"max {s['max_error_mm']:.3f} mm ({red:.0f} % less); entry/exit peaks {s['entry_peak_mm']:.3f} / "
                   f"{s['exit_peak_mm']:.3f} mm; end-to-end delay {s['delay_ms']} ms")
         print(f"part error (virtual CMM, mean |normal deviation|): {s['part_error_mm']:.3f} mm")
+        print(_iso_line(s, not args.no_compensation))
         print(f"service: {s['cycles']} cycles, {s['exceed_count']} exceeded: {s['timing']['verdict']}")
         if args.robot_interface:
             print(f"robot road {args.robot_interface}: {s['late_answers']} late answers, answer round trip p99 "

@@ -1,8 +1,9 @@
 """`stiffcomp hil circle`'s options are checked before any pass runs: a value outside what the scenario or
 the service takes, an option of the dynamic pass without it, and the dynamic pass without the static one it
-builds on each exit 2 naming the option (nothing is ignored in silence, nothing starts). So do a circle the
-arm cannot follow from --center-q (the inverse kinematics fails), a --cmm or --modes-data file in a folder that
-does not exist (written at the end of the cut), and --added-damping or --mode-error the service would refuse
+builds on each exit 2 naming the option (nothing is ignored in silence, nothing starts). So do a --repeat that
+is not a whole number of 1 or more, a circle the arm cannot follow from --center-q (the inverse kinematics
+fails), a --cmm or --modes-data file in a folder that does not exist (written at the end of the cut), and
+--added-damping or --mode-error the service would refuse
 (after two passes, naming its temporary config)."""
 
 from __future__ import annotations
@@ -35,9 +36,12 @@ from tools.cli import main
     (["--dynamic-compensation", "--mode-error", "-1"], (r"--mode-error -1: must be a finite number above -1 \(the "
      r"service's mode frequencies are the identified ones times 1 \+ F")),
     (["--dynamic-compensation", "--mode-error", "nan"], r"--mode-error nan: must be a finite number above -1"),
+    (["--repeat", "0"], r"--repeat 0: must be a whole number, at least 1"),
+    (["--repeat", "2.5"], r"--repeat 2\.5: must be a whole number, at least 1"),
+    (["--repeat", "three"], r"--repeat three: must be a whole number, at least 1"),
 ], ids=["delay<0", "delay>100", "center-nan", "service-delay<0", "delay-alone", "dynamic-options-alone",
         "dynamic-without-static", "center-out-of-reach", "cmm-folder", "modes-data-folder", "added-damping<0",
-        "added-damping>2", "mode-error=-1", "mode-error=nan"])
+        "added-damping>2", "mode-error=-1", "mode-error=nan", "repeat=0", "repeat=2.5", "repeat=three"])
 def test_a_bad_option_exits_2_naming_it_before_any_pass(args, message, capsys, tmp_path):
     refused(args, message, capsys, tmp_path)
 
