@@ -1,15 +1,34 @@
 """A small writer of QIF 3 results files for the tests, built with xml.etree after the standard's structure:
 units, a feature's definition (internal or external), nominal and item (its name), and a MeasurementResults
-whose measured feature references a measured point set as a whole or as a range."""
+whose measured feature references a measured point set as a whole or as a range. And the QIF 3.0 schema
+(tests/data/qif3) to validate a file against."""
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 NS = "http://qifstandards.org/xsd/qif3"
+QIF3_XSD = Path(__file__).resolve().parent / "data" / "qif3" / "QIFApplications" / "QIFDocument.xsd"
+
+
+@functools.cache
+def qif3_schema():
+    """The QIF 3.0 schema, loaded once (a few seconds). xmlschema ties an identity constraint whose selector
+    ends in a wildcard (``t:Features/t:FeatureItems/t:*``) to the head of the substitution group there (the
+    abstract FeatureItem) but not to its members (CircleFeatureItem, ...), so it would collect no key from
+    them and refuse every valid reference to one; each member is given its head's constraints, as the schema
+    means (libxml2 validates the same files as valid)."""
+    import xmlschema
+
+    schema = xmlschema.XMLSchema(QIF3_XSD)
+    for head in schema.maps.elements.values():
+        for member in head.iter_substitutes():
+            member.selected_by.update(head.selected_by)
+    return schema
 
 
 def _sub(parent, tag, text=None, **attrs):
@@ -21,8 +40,11 @@ def _sub(parent, tag, text=None, **attrs):
 
 def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensated=True, probe_radius=None,
               diameter=None, internal=True, version="3.0.0", results=1, point_set_ref="20", point_range=None,
-              binary=False) -> Path:
-    """Write ``points`` (N, 3, in ``unit``) as the measured feature ``name`` of ``results`` MeasurementResults."""
+              binary=False, flat=False, count=None) -> Path:
+    """Write ``points`` (N, 3, in ``unit``) as the measured feature ``name`` of ``results`` MeasurementResults.
+    ``flat``: as the QIF 3.0 schema has a measured point set, its ``Points`` one list of x y z triples (of
+    ``count`` points, default N) and ``Compensated`` and ``ProbeRadius`` on the set, not on the feature;
+    ``internal`` None writes InternalExternal NOT_APPLICABLE."""
     ET.register_namespace("", NS)
     root = ET.Element(f"{{{NS}}}QIFDocument", {"versionQIF": version, "idMax": "99"})
     lin = _sub(_sub(_sub(root, "FileUnits"), "PrimaryUnits"), "LinearUnit")
@@ -30,7 +52,7 @@ def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensate
     _sub(lin, "UnitName", unit)
     features = _sub(root, "Features")
     d = _sub(_sub(features, "FeatureDefinitions", n=1), f"{kind}FeatureDefinition", id=1)
-    _sub(d, "InternalExternal", "INTERNAL" if internal else "EXTERNAL")
+    _sub(d, "InternalExternal", "NOT_APPLICABLE" if internal is None else "INTERNAL" if internal else "EXTERNAL")
     _sub(_sub(_sub(features, "FeatureNominals", n=1), f"{kind}FeatureNominal", id=2), "FeatureDefinitionId", 1)
     item = _sub(_sub(features, "FeatureItems", n=1), f"{kind}FeatureItem", id=3)
     _sub(item, "FeatureName", name)
@@ -50,10 +72,17 @@ def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensate
                 _sub(pl, "SinglePointSetId", point_set_ref, index=point_range[0])
             else:
                 _sub(pl, "RangePointSetId", point_set_ref, range=f"{point_range[0]} {point_range[1]}")
-        _sub(fm, "Compensated", "true" if compensated else "false")
-        if probe_radius is not None:
-            _sub(fm, "ProbeRadius", f"{probe_radius:.9g}")
+        where = fm
         ps = _sub(_sub(mr, "MeasuredPointSets", n=1), "MeasuredPointSet", id=20 + 20 * r)
+        if flat:
+            ps.set("count", str(len(points) if count is None else count))
+            _sub(ps, "Points", " ".join(f"{v:.10g}" for v in np.asarray(points, dtype=float).ravel()))
+            where = ps
+        _sub(where, "Compensated", "true" if compensated else "false")
+        if probe_radius is not None:
+            _sub(where, "ProbeRadius", f"{probe_radius:.9g}")
+        if flat:
+            continue
         if binary:
             _sub(ps, "CombinedPointsBinary", "AAAA")
             continue

@@ -26,8 +26,9 @@ def register(sub) -> None:
     c.add_argument("--json", action="store_true", help="print the summary as JSON")
     c.add_argument("--trace", default=None, metavar="FILE",
                    help="the service records every cycle of the (compensated) cut to FILE (.csv or .parquet)")
-    c.add_argument("--cmm", default=None, metavar="FILE.csv",
-                   help="write the cut part as the virtual CMM measures it (docs/part_format.md)")
+    c.add_argument("--cmm", default=None, metavar="FILE.csv|FILE.qif",
+                   help="write the cut part as the virtual CMM measures it: a part CSV, or QIF 3 results to a .qif "
+                        "file (docs/part_format.md)")
     c.add_argument("--repeat", default="1", metavar="N",
                    help="cut each pass N times (ISO 9283's cycles) for path_accuracy_mm and path_repeatability_mm "
                         "(default 1: no repeatability)")
@@ -200,7 +201,9 @@ def run(args) -> int:
         if args.trace:
             print(f"trace: {args.trace}")
         if args.cmm:
-            print(f"part measurement: {args.cmm}")
+            qif = args.cmm.lower().endswith(".qif")
+            print(f"part measurement: {args.cmm}" + (f" (QIF 3; `stiffcomp part` reads it with "
+                                                       f"{res.cmm[list(res.passes)[-1]].qif_options})" if qif else ""))
         if args.report:
             print(f"report: {Path(args.report) / 'hil_circle.png'}, {Path(args.report) / 'summary.json'}")
     return 0

@@ -106,25 +106,48 @@ def _number(path: Path, where: str, text: str) -> float:
     return v
 
 
-def _point_sets(path: Path, root) -> dict[str, list[tuple[float, float, float]]]:
+@dataclass
+class _PointSet:
+    """A MeasuredPointSet: its points in file units (None: binary, not read) and what it says of them."""
+
+    points: list | None
+    compensated: str | None
+    probe_radius: str | None
+
+
+def _xyz_triples(path: Path, sid: str, el) -> list[tuple[float, float, float]]:
+    """The set's points: QIF 3's ``Points`` list of x y z triples, or Point/XYZ elements."""
+    if el is not None and el.find(_q("Point")) is None:
+        vals = (el.text or "").split()
+        if len(vals) % 3:
+            raise DataError(f"{path}: MeasuredPointSet {sid}: Points holds {len(vals)} numbers, not x y z triples")
+        nums = [_number(path, f"MeasuredPointSet {sid} point {k // 3 + 1}", v) for k, v in enumerate(vals)]
+        return [tuple(nums[k:k + 3]) for k in range(0, len(nums), 3)]
+    pts = []
+    for k, xyz in enumerate((el if el is not None else []).iter(_q("XYZ"))):
+        vals = (xyz.text or "").split()
+        if len(vals) != 3:
+            raise DataError(f"{path}: MeasuredPointSet {sid} point {k + 1}: XYZ {xyz.text!r} is not 'x y z'")
+        pts.append(tuple(_number(path, f"MeasuredPointSet {sid} point {k + 1}", v) for v in vals))
+    return pts
+
+
+def _point_sets(path: Path, root) -> dict[str, _PointSet]:
     sets = {}
     for ps in root.iter(_q("MeasuredPointSet")):
         sid = ps.get("id", "")
-        if ps.find(f".//{_q('CombinedPointsBinary')}") is not None or ps.find(f".//{_q('PointsBinary')}") is not None:
-            sets[sid] = None     # refused only when a feature uses it
-            continue
-        pts = []
-        for k, xyz in enumerate(ps.iter(_q("XYZ"))):
-            vals = (xyz.text or "").split()
-            if len(vals) != 3:
-                raise DataError(f"{path}: MeasuredPointSet {sid} point {k + 1}: XYZ {xyz.text!r} is not 'x y z'")
-            pts.append(tuple(_number(path, f"MeasuredPointSet {sid} point {k + 1}", v) for v in vals))
-        sets[sid] = pts
+        binary = any(ps.find(f".//{_q(t)}") is not None for t in ("CombinedPointsBinary", "PointsBinary",
+                                                                   "BinaryPoints"))
+        pts = None if binary else _xyz_triples(path, sid, ps.find(_q("Points")))   # binary: refused when used
+        count = ps.get("count")
+        if pts is not None and count is not None and count.strip() != str(len(pts)):
+            raise DataError(f"{path}: MeasuredPointSet {sid}: count {count!r} but {len(pts)} points")
+        sets[sid] = _PointSet(pts, _text(ps, "Compensated"), _text(ps, "ProbeRadius"))
     return sets
 
 
-def _feature_points(path: Path, fm, fid: str, sets) -> tuple[list, list[str]]:
-    pts, labels = [], []
+def _feature_points(path: Path, fm, fid: str, sets) -> tuple[list, list[str], list[_PointSet]]:
+    pts, labels, used = [], [], []
     refs = [(r, None) for r in fm.iter(_q("WholePointSetId"))] + \
            [(r, r.get("range", "")) for r in fm.iter(_q("RangePointSetId"))] + \
            [(r, f"{r.get('index', '')} {r.get('index', '')}") for r in fm.iter(_q("SinglePointSetId"))]
@@ -132,21 +155,35 @@ def _feature_points(path: Path, fm, fid: str, sets) -> tuple[list, list[str]]:
         sid = (ref.text or "").strip()
         if sid not in sets:
             raise DataError(f"{path}: feature {fid}: point set id {sid!r} does not resolve to a MeasuredPointSet")
-        if sets[sid] is None:
-            raise DataError(f"{path}: MeasuredPointSet {sid}: CombinedPointsBinary is not read; export the points "
-                            "as text (Point/XYZ)")
-        lo, hi = 1, len(sets[sid])
+        points = sets[sid].points
+        if points is None:
+            raise DataError(f"{path}: MeasuredPointSet {sid}: binary points (CombinedPointsBinary, BinaryPoints) "
+                            "are not read; export the points as text (Points)")
+        lo, hi = 1, len(points)
         if rng is not None:
             try:
                 lo, hi = (int(v) for v in rng.split())
             except ValueError:
                 raise DataError(f"{path}: feature {fid}: RangePointSetId range {rng!r} is not 'start end'") from None
-            if not 1 <= lo <= hi <= len(sets[sid]):
+            if not 1 <= lo <= hi <= len(points):
                 raise DataError(f"{path}: feature {fid}: RangePointSetId range {rng!r} is outside point set {sid}'s "
-                                f"{len(sets[sid])} points (from 1)")
-        pts += sets[sid][lo - 1: hi]
+                                f"{len(points)} points (from 1)")
+        pts += points[lo - 1: hi]
         labels += [f"{sid}:{k}" for k in range(lo, hi + 1)]
-    return pts, labels
+        used.append(sets[sid])
+    return pts, labels, used
+
+
+def _of_sets(path: Path, fid: str, tag: str, own: str | None, of_sets: list[str | None]) -> str | None:
+    """The feature's own ``tag`` (Compensated, ProbeRadius), else what its point sets say (QIF 3 puts it
+    there), which must agree."""
+    if own is not None:
+        return own
+    said = set(of_sets) - {None}
+    if len(said) > 1:
+        raise DataError(f"{path}: feature {fid}: its point sets differ in {tag} ({', '.join(sorted(said))}); "
+                        "export them as one set")
+    return said.pop() if said else None
 
 
 def _names(root) -> tuple[dict[str, str], dict[str, bool]]:
@@ -159,9 +196,9 @@ def _names(root) -> tuple[dict[str, str], dict[str, bool]]:
         names[iid] = _text(item, "FeatureName") or iid
         nominal = by_id.get(_text(item, "FeatureNominalId") or "")
         definition = by_id.get(_text(nominal, "FeatureDefinitionId") or "") if nominal is not None else None
-        ie = _text(definition, "InternalExternal") if definition is not None else None
-        if ie is not None:
-            internal[iid] = ie.upper() == "INTERNAL"
+        ie = (_text(definition, "InternalExternal") or "").upper() if definition is not None else ""
+        if ie in ("INTERNAL", "EXTERNAL"):             # NOT_APPLICABLE says no more than an absent one
+            internal[iid] = ie == "INTERNAL"
     return names, internal
 
 
@@ -195,12 +232,13 @@ def read_qif(path: str | Path, results: int | None = None) -> QifResults:
         kind = _local(fm.tag).removesuffix("FeatureMeasurement")
         fid = fm.get("id", "")
         item = _text(fm, "FeatureItemId") or ""
-        pts, labels = _feature_points(path, fm, fid, sets)
-        radius = _text(fm, "ProbeRadius")
+        pts, labels, used = _feature_points(path, fm, fid, sets)
+        radius = _of_sets(path, fid, "ProbeRadius", _text(fm, "ProbeRadius"), [s.probe_radius for s in used])
         diameter = _text(fm, "Diameter")
         out.features.append(QifFeature(
             names.get(item, fid), fid, kind, np.array(pts, dtype=float).reshape(-1, 3) * scale, labels,
-            _bool(_text(fm, "Compensated"), True),
+            _bool(_of_sets(path, fid, "Compensated", _text(fm, "Compensated"), [s.compensated for s in used]),
+                  True),
             _number(path, f"feature {fid} ProbeRadius", radius) * scale if radius else 0.0,
             _number(path, f"feature {fid} Diameter", diameter) * scale if diameter else None,
             internal.get(item)))
