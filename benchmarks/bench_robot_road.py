@@ -66,6 +66,11 @@ def modbus_load(port: int, stop) -> None:
     c.close()
 
 
+def steal_ticks() -> int:
+    """The host's time taken from this VM's CPUs (the steal column of /proc/stat), in clock ticks."""
+    return int(Path("/proc/stat").read_text().split("\n")[0].split()[8])
+
+
 def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_priority: int) -> dict:
     from hil.robot_drive import drive
     from hil.run import ServiceProcess
@@ -97,8 +102,10 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
             vr = VirtualRobot(RobotController(settings, robot), "127.0.0.1", settings.port,
                               lambda t: [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
             fifo = set_fifo(robot_priority, "virtual robot", logging.getLogger("bench"))
+            steal0 = steal_ticks()
             try:
                 d = drive(vr, seconds)
+                steal_s = (steal_ticks() - steal0) / os.sysconf("SC_CLK_TCK")
             finally:
                 if fifo:
                     os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
@@ -114,7 +121,8 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
     road = stats.get("robot", {})
     return {"interface": interface, "busy": busy, "seconds": seconds, "io_priority": io_priority,
             "robot_priority": robot_priority, "packets": len(d.answered),
-            "late": d.late, "late_share": d.late / len(d.answered),
+            "late": d.late, "late_share": d.late / len(d.answered), "late_robot_on_time": d.late_on_time(),
+            "robot_sent_late_1ms": int((d.send_lag_s > 0.001).sum()), "steal_s": steal_s,
             "rtt_ms": {"p50": float(np.percentile(rtt, 50)), "p99": float(np.percentile(rtt, 99)),
                        "max": float(rtt.max())},
             "service_answer_us": road.get("latency_us"), "service_exceed_count": stats.get("exceed_count"),
@@ -171,7 +179,8 @@ def main(argv: list[str] | None = None) -> int:
                 s = r["service_answer_us"] or {}
                 print(f"{interface:8s} {'busy ' if busy else 'quiet'}: round trip at the robot p50 {r['rtt_ms']['p50']:.3f} "
                       f"p99 {r['rtt_ms']['p99']:.3f} max {r['rtt_ms']['max']:.2f} ms; late {r['late']} of {r['packets']} "
-                      f"({100 * r['late_share']:.3f} %); in the service p50/p99/max {s.get('p50')}/{s.get('p99')}/"
+                      f"({100 * r['late_share']:.3f} %), {r['late_robot_on_time']} to packets the robot sent on time (it sent "
+                      f"{r['robot_sent_late_1ms']} over 1 ms late; {r['steal_s']:.2f} s stolen by the VM's host); in the service p50/p99/max {s.get('p50')}/{s.get('p99')}/"
                       f"{s.get('max')} us", flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=2) + "\n")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import time
 from dataclasses import dataclass
 
@@ -25,10 +26,16 @@ class Drive:
     answer: np.ndarray
     rtt_s: np.ndarray
     frames: np.ndarray
+    send_lag_s: np.ndarray          # how long after its deadline each packet left (the robot's own lateness)
 
     @property
     def late(self) -> int:
         return int((~self.answered).sum())
+
+    def late_on_time(self, lag_s: float = 0.001) -> int:
+        """Late answers to packets the robot sent within ``lag_s`` of their deadline: the ones the robot's own
+        lateness (a loaded or stalled host under the virtual robot) does not explain."""
+        return int((~self.answered & (self.send_lag_s <= lag_s)).sum())
 
 
 def drive(vr: VirtualRobot, seconds: float, t0: float | None = None) -> Drive:
@@ -38,12 +45,15 @@ def drive(vr: VirtualRobot, seconds: float, t0: float | None = None) -> Drive:
     n = max(int(seconds / c.period), 1)
     sent, stamp, rtt = np.zeros(n), np.zeros(n, dtype=np.int64), np.full(n, np.nan)
     q_ref, answered = np.zeros((n, 6)), np.zeros(n, dtype=bool)
-    answer, frames = np.full((n, 6), np.nan), np.full((n, 3, 3), np.nan)
+    answer, frames, lag = np.full((n, 6), np.nan), np.full((n, 3, 3), np.nan), np.zeros(n)
     t0 = time.monotonic() if t0 is None else t0
+    gc.collect()
+    gc.freeze()             # a controller's loop: no long collection of what was there before it began
     deadlines = Deadlines(c.period, start=time.monotonic())
     for k in range(n):
         deadlines.sleep_until()
         t = deadlines.due - t0
+        lag[k] = time.monotonic() - deadlines.due
         sent[k], q_ref[k] = time.time(), vr.reference(t)
         answered[k], rtt[k] = vr.cycle(t, deadlines.due + c.period)
         stamp[k] = c.stamp
@@ -52,4 +62,4 @@ def drive(vr: VirtualRobot, seconds: float, t0: float | None = None) -> Drive:
             if c.frame is not None:
                 frames[k] = c.frame
         deadlines.advance(time.monotonic())
-    return Drive(sent, stamp, q_ref, answered, answer, rtt, frames)
+    return Drive(sent, stamp, q_ref, answered, answer, rtt, frames, lag)

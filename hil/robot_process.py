@@ -9,6 +9,7 @@ the robot stub and every figure of `stiffcomp hil circle` read it alike; plus ea
 
 from __future__ import annotations
 
+import gc
 import time
 
 import numpy as np
@@ -31,6 +32,8 @@ def robot_main(scenario, robot, settings: RobotSettings, port: int, compensate: 
     controller = RobotController(settings, robot)
     vr = VirtualRobot(controller, "127.0.0.1", port, world.path.q_ref_deg, TIMEOUT_COUNT)
     try:
+        gc.collect()
+        gc.freeze()         # a controller's loop: no long collection of the imports while it runs
         ready.set()
         while go_value.value <= 0:
             time.sleep(0.005)
