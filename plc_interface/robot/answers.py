@@ -85,9 +85,10 @@ class Answerer:
             return self.codec.parse(data, self.s.kuka_rsi)
         return self.codec.parse(data)
 
-    def programmed(self, joints_deg) -> list[float]:
-        """The programmed joints: RSI's setpoints less the correction the robot holds, when they include it."""
-        if self.kind == "kuka_rsi" and self.s.kuka_rsi.joints_include_correction:
+    def programmed(self, joints_deg, new_session: bool = False) -> list[float]:
+        """The programmed joints: RSI's setpoints less the correction the robot holds, when they include it (at
+        a session's first packet the robot holds none)."""
+        if self.kind == "kuka_rsi" and self.s.kuka_rsi.joints_include_correction and not new_session:
             return [q - h for q, h in zip(joints_deg, self.held)]
         return list(joints_deg)
 

@@ -126,16 +126,17 @@ class RobotRoad:
         try:
             p = self.answerer.parse(data)
             now = self.clock()
-            if self._last_t is None or now - self._last_t > self.settings.silence_s:
-                self._new_session(now)
-            elif self._last_stamp is not None and p.stamp <= self._last_stamp:
+            new = self._last_t is None or now - self._last_t > self.settings.silence_s
+            if not new and self._last_stamp is not None and p.stamp <= self._last_stamp:
                 raise PacketError("stamp", f"stamp {p.stamp} does not rise (last {self._last_stamp})")
-            q = self.answerer.programmed(p.joints_deg)
+            q = self.answerer.programmed(p.joints_deg, new)
             self._check_limits(q)
         except PacketError as e:
             self.errors.report(peer, e.reason, str(e))
             self._drop(e.reason)
             return None
+        if new:                             # only a packet taken begins a session
+            self._new_session(now)
         self._note_counts(p)
         self._last_t, self._last_stamp = now, p.stamp
         out = self.image.outputs()

@@ -159,3 +159,15 @@ def test_the_robot_holds_the_correction_the_road_answers(section, steps):
             along = egm.to_path(robot.frame, jac.motion(q, robot.applied)[:3])
             wanted = egm.to_path(robot.frame, jac.motion(q, dq)[:3])
             assert along[1:] == pytest.approx(wanted[1:], abs=1e-7) and abs(along[0]) <= 1e-7
+
+
+def test_a_refused_packet_after_a_silence_begins_no_session(image):
+    clock = Clock()
+    road = road_on(image, clock)
+    road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT)
+    clock.t += 0.5
+    assert road.received(rsi.robot_packet(1500, [math.nan, *Q[1:]], Q), ROBOT_AT) is None
+    assert road.counts["sessions"] == 1
+    publish(image, [0.5] * 6)
+    assert rsi.read_answer(road.received(rsi.robot_packet(1504, Q, Q), ROBOT_AT))[2] == (0.0,) * 6
+    assert road.counts["sessions"] == 2 and q_of(image) == pytest.approx(Q, abs=1e-5)
