@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import multiprocessing
 import os
 import socket
@@ -77,7 +76,6 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
     from hil.testing import free_port, write_config
     from hil.virtual_robot import RobotController, VirtualRobot
     from plc_interface.robot.settings import RobotSettings
-    from plc_interface.scheduling import set_fifo
     from stiffness.kinematics.robot import load_robot
 
     robot = load_robot(ROOT / "config" / "robots" / "kr125.yaml")
@@ -101,14 +99,11 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
             settings = RobotSettings.model_validate(section)
             vr = VirtualRobot(RobotController(settings, robot), "127.0.0.1", settings.port,
                               lambda t: [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
-            fifo = set_fifo(robot_priority, "virtual robot", logging.getLogger("bench"))
             steal0 = steal_ticks()
             try:
-                d = drive(vr, seconds)
+                d = drive(vr, seconds, priority=robot_priority)
                 steal_s = (steal_ticks() - steal0) / os.sysconf("SC_CLK_TCK")
             finally:
-                if fifo:
-                    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
                 vr.close()
         finally:
             stop.set()

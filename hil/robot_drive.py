@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import gc
+import logging
+import os
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from plc_interface.deadlines import Deadlines
+from plc_interface.scheduling import set_fifo
 
 from .virtual_robot import VirtualRobot
+
+log = logging.getLogger("stiffcomp.hil")
 
 
 @dataclass
@@ -38,9 +43,20 @@ class Drive:
         return int((~self.answered & (self.send_lag_s <= lag_s)).sum())
 
 
-def drive(vr: VirtualRobot, seconds: float, t0: float | None = None) -> Drive:
+def drive(vr: VirtualRobot, seconds: float, t0: float | None = None, priority: int = 0) -> Drive:
     """Run ``vr`` for ``seconds`` of its cycles (program time from ``t0``, clock time, default now): each packet
-    sent on its deadline, its answer awaited until the next one."""
+    sent on its deadline, its answer awaited until the next one. ``priority``: SCHED_FIFO for this thread while
+    it drives (a robot controller is a real-time machine of its own; where the host does not permit it, normal
+    scheduling, with one warning)."""
+    fifo = set_fifo(priority, "virtual robot", log)
+    try:
+        return _drive(vr, seconds, t0)
+    finally:
+        if fifo:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+
+
+def _drive(vr: VirtualRobot, seconds: float, t0: float | None) -> Drive:
     c = vr.c
     n = max(int(seconds / c.period), 1)
     sent, stamp, rtt = np.zeros(n), np.zeros(n, dtype=np.int64), np.full(n, np.nan)

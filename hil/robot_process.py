@@ -24,8 +24,7 @@ from .world import World
 TIMEOUT_COUNT = 100         # late answers in a row before the robot stops (RSI's ETHERNET default)
 
 
-def robot_main(scenario, robot, settings: RobotSettings, port: int, compensate: bool, out_file: str, go_value,
-               ready) -> None:
+def robot_main(scenario, robot, settings: RobotSettings, port: int, out_file: str, go_value, ready) -> None:
     """Process entry: report ready, wait for the start time in ``go_value``, run the cut, save the log."""
     below_the_service()
     world = World(scenario, robot)
@@ -37,15 +36,15 @@ def robot_main(scenario, robot, settings: RobotSettings, port: int, compensate: 
         ready.set()
         while go_value.value <= 0:
             time.sleep(0.005)
-        log = run(vr, world.t_start, world.t_end, go_value.value, compensate)
+        log = run(vr, world.t_start, world.t_end, go_value.value)
         np.savez(out_file, **log, written=np.array([], dtype=int), period=controller.period, t0=go_value.value)
     finally:
         vr.close()
 
 
-def run(vr: VirtualRobot, t_start: float, t_end: float, t0: float, compensate: bool) -> dict:
-    """The robot's cycles from program time ``t_start`` to ``t_end`` (t = clock - ``t0``) on absolute deadlines;
-    the uncompensated pass sends and answers alike but applies nothing."""
+def run(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> dict:
+    """The robot's cycles from program time ``t_start`` to ``t_end`` (t = clock - ``t0``) on absolute deadlines.
+    (In the uncompensated pass the service is not enabled, so its answers carry no correction.)"""
     c = vr.c
     n = int((t_end - t_start) / c.period) + 16
     t, q_ref, q_cmd, applied, rtt = (np.full(n, np.nan), np.zeros((n, 6)), np.zeros((n, 6)), np.zeros((n, 6)),
@@ -58,8 +57,6 @@ def run(vr: VirtualRobot, t_start: float, t_end: float, t0: float, compensate: b
         tk = deadlines.due - t0
         if vr.stopped_at is None:
             link[k], rtt[k] = vr.cycle(tk, deadlines.due + c.period)
-        if not compensate:
-            c.applied = np.zeros(6)
         t[k], q_ref[k], applied[k] = tk, vr.reference(tk), c.applied
         # a stopped robot holds where it stood
         q_cmd[k] = q_ref[k] + applied[k] if vr.stopped_at is None or k == 0 else q_cmd[k - 1]

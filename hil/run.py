@@ -152,7 +152,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
     can_port, modbus_port = free_udp_port(), free_port()
     if robot_interface is not None:
-        road = {"plc": {"role": "none", "enable_on_start": True},
+        road = {"plc": {"role": "none", "enable_on_start": compensate},      # uncompensated: never enabled
                 "robot": {"interface": robot_interface, "port": free_udp_port()}}
         service_overrides = deep_update(road, service_overrides or {})
     cfg_path = write_service_config(scenario, model_path, folder, group, can_port, modbus_port, service_overrides)
@@ -175,7 +175,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
             plc_ready, faults.plc))
     else:
         plc = ctx.Process(target=_robot_entry, name="hil-robot", args=(
-            scenario, robot_path, cfg.robot, cfg.robot.port, compensate, str(out_file), go, plc_ready))
+            scenario, robot_path, cfg.robot, cfg.robot.port, str(out_file), go, plc_ready))
     procs = [sensor, plc]
     try:
         sensor.start()
@@ -251,10 +251,10 @@ def _sensor_entry(scenario, robot_path, bus_kw, ati, go, ready, stop, fault, inp
     sensor_main(scenario, load_robot(robot_path), bus_kw, ati, go, ready, stop, fault, input_map)
 
 
-def _robot_entry(scenario, robot_path, settings, port, compensate, out_file, go, ready) -> None:
+def _robot_entry(scenario, robot_path, settings, port, out_file, go, ready) -> None:
     from .robot_process import robot_main
 
-    robot_main(scenario, load_robot(robot_path), settings, port, compensate, out_file, go, ready)
+    robot_main(scenario, load_robot(robot_path), settings, port, out_file, go, ready)
 
 
 def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:

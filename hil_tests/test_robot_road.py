@@ -25,6 +25,10 @@ from stiffness.kinematics.robot import load_robot
 ROBOT = load_robot(Path(__file__).resolve().parent.parent / "config" / "robots" / "kr125.yaml")
 Q0 = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
 RAMP_S = 0.2                        # limits.fault_ramp_s: the answers ramp in over this
+# the robot's loop at SCHED_FIFO 45 and the I/O process that answers it at 40, below the cycle's 50 (as
+# benchmarks/bench_robot_road.py): a robot controller is a real-time machine, and the suite runs beside busy
+# cores; where the host does not permit SCHED_FIFO both run at normal priority
+ROBOT_FIFO, IO_FIFO = 45, 40
 
 
 def reference(t: float) -> list[float]:
@@ -34,7 +38,7 @@ def reference(t: float) -> list[float]:
 
 def start(tmp_path: Path, robot: dict, faults_ms: float = 200.0) -> tuple[ServiceProcess, RobotSettings]:
     port = free_port(socket.SOCK_DGRAM)
-    section = {"port": port, **robot}
+    section = {"port": port, "realtime_priority": IO_FIFO, **robot}
     cfg = write_config(tmp_path, {"plc": {"role": "none", "enable_on_start": True}, "robot": section,
                                   "faults": {"plc_heartbeat_timeout_ms": faults_ms}, "monitoring": {"metrics": True}})
     service = ServiceProcess(cfg, tmp_path, trace=tmp_path / "trace.parquet")
@@ -93,7 +97,7 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     service, settings = start(tmp_path, robot)
     vr = VirtualRobot(RobotController(settings, ROBOT), "127.0.0.1", settings.port, reference)
     try:
-        d = drive(vr, 20.0)
+        d = drive(vr, 20.0, priority=ROBOT_FIFO)
     finally:
         vr.close()
         service.stop()
@@ -111,7 +115,8 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     # the trace's joints are the robot's programmed joints (RSI: its setpoints less the correction it holds)
     u = tr["unix_time_s"]
     for r in np.flatnonzero((u > d.sent_unix[0] + 0.02) & (u < d.sent_unix[-1]))[::7]:
-        near = np.flatnonzero((d.sent_unix >= tr["unix_time_s"][r] - 0.1) & (d.sent_unix <= tr["unix_time_s"][r]))
+        # the packets of the 100 ms before the row (and 5 ms after: the row's stamp and the packet's are two clocks)
+        near = np.flatnonzero((d.sent_unix >= u[r] - 0.1) & (d.sent_unix <= u[r] + 0.005))
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
         assert np.abs(d.q_ref[near] - q).max(axis=1).min() <= 1e-4, r
 
@@ -152,12 +157,12 @@ def test_a_silent_robot_latches_the_fault_and_what_is_not_the_robots_changes_not
     stranger.bind(("127.0.0.2", 0))
     try:
         t0 = time.monotonic()
-        before = drive(vr, 1.0, t0)
+        before = drive(vr, 1.0, t0, ROBOT_FIFO)
         assert health(service)["faults"] == [] and np.abs(before.answer[-10:]).max() > 1e-3
         silent_from = time.time()
         until(lambda: "plc_heartbeat" in health(service)["faults"])          # latched, the robot silent
         until(lambda: ramped_to_zero(service))
-        again = drive(vr, 1.0, t0)
+        again = drive(vr, 1.0, t0, ROBOT_FIFO)
         # a new session: answered from zero correction, ramping in; the fault reset by the robot's return
         assert np.all(again.answer[0] == 0.0) and np.abs(again.answer[-10:]).max() > 1e-3
         until(lambda: health(service)["faults"] == [])
@@ -175,7 +180,7 @@ def test_a_silent_robot_latches_the_fault_and_what_is_not_the_robots_changes_not
                 s.recv(4096)
             s.setblocking(True)
         vr.c.stamp += 8
-        after = drive(vr, 0.3, t0)
+        after = drive(vr, 0.3, t0, ROBOT_FIFO)
         assert after.late == 0 or after.late <= 2
     finally:
         vr.close()

@@ -7,12 +7,15 @@ the programmed joints, J(q) dq: so they hold the cycle's limits and ramps as the
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from .packets import RobotPacket
 from .settings import RobotSettings
 
 ZERO6 = (0.0,) * 6
+HISTORY = 64                    # answers remembered for a robot that reports it missed some (RSI's Delay)
 
 
 class TcpJacobian:
@@ -78,18 +81,28 @@ class Answerer:
         """A new session: the robot holds no correction, and the path's last pose is forgotten."""
         self.held = list(ZERO6)         # the joint correction behind the last answer (deg)
         self.sent = list(ZERO6)         # relative RSI: the total of the increments sent
+        # (held, sent) after each answer, newest last: what the robot holds if it missed the newest ones
+        self.history: deque[tuple[list[float], list[float]]] = deque([(self.held, self.sent)], maxlen=HISTORY)
         self.last_pose = self.last_x = None      # EGM path: the last planned pose and path frame's x
+
+    def missed(self, n: int) -> None:
+        """The robot says (RSI's ``Delay`` rose by ``n``) that it did not take the last ``n`` answers: it holds
+        what it held before them."""
+        for _ in range(min(n, len(self.history) - 1)):
+            self.history.pop()
+        self.held, self.sent = self.history[-1]
 
     def parse(self, data: bytes) -> RobotPacket:
         if self.kind == "kuka_rsi":
             return self.codec.parse(data, self.s.kuka_rsi)
         return self.codec.parse(data)
 
-    def programmed(self, joints_deg, new_session: bool = False) -> list[float]:
+    def programmed(self, joints_deg, new_session: bool = False, missed: int = 0) -> list[float]:
         """The programmed joints: RSI's setpoints less the correction the robot holds, when they include it (at
-        a session's first packet the robot holds none)."""
+        a session's first packet the robot holds none; having ``missed`` the last answers, what it held before)."""
         if self.kind == "kuka_rsi" and self.s.kuka_rsi.joints_include_correction and not new_session:
-            return [q - h for q, h in zip(joints_deg, self.held)]
+            held = self.history[-1 - min(missed, len(self.history) - 1)][0]
+            return [q - h for q, h in zip(joints_deg, held)]
         return list(joints_deg)
 
     def answer(self, p: RobotPacket, q: list[float], correction: list[float], age_ms: float) -> bytes:
@@ -106,6 +119,7 @@ class Answerer:
                 values = correction
             if k.correction == "relative":
                 values, self.sent = [v - s for v, s in zip(values, self.sent)], list(values)
+            self.history.append((self.held, self.sent))
             return self.codec.answer(k.sen_type, p.stamp, values, k.cartesian)
         self.seqno += 1
         if self.s.abb_egm.mode == "joint":

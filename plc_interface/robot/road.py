@@ -129,7 +129,8 @@ class RobotRoad:
             new = self._last_t is None or now - self._last_t > self.settings.silence_s
             if not new and self._last_stamp is not None and p.stamp <= self._last_stamp:
                 raise PacketError("stamp", f"stamp {p.stamp} does not rise (last {self._last_stamp})")
-            q = self.answerer.programmed(p.joints_deg, new)
+            missed = 0 if new else self._missed(p)
+            q = self.answerer.programmed(p.joints_deg, new, missed)
             self._check_limits(q)
         except PacketError as e:
             self.errors.report(peer, e.reason, str(e))
@@ -137,6 +138,8 @@ class RobotRoad:
             return None
         if new:                             # only a packet taken begins a session
             self._new_session(now)
+        elif missed:
+            self.answerer.missed(missed)
         self._note_counts(p)
         self._last_t, self._last_stamp = now, p.stamp
         out = self.image.outputs()
@@ -159,6 +162,10 @@ class RobotRoad:
         for j, (v, (lo, hi)) in enumerate(zip(q, self.settings.limits_deg)):
             if not lo <= v <= hi:
                 raise PacketError("joints", f"joint {j + 1} = {v:.3f} deg is outside the robot's limits [{lo:g}, {hi:g}]")
+
+    def _missed(self, p) -> int:
+        """How many answers the robot says it did not take since its last packet (RSI's ``Delay`` rose)."""
+        return max(p.late - self._last_late, 0) if p.late is not None and self._last_late is not None else 0
 
     def _note_counts(self, p) -> None:
         late = gaps = 0

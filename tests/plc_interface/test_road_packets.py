@@ -171,3 +171,27 @@ def test_a_refused_packet_after_a_silence_begins_no_session(image):
     publish(image, [0.5] * 6)
     assert rsi.read_answer(road.received(rsi.robot_packet(1504, Q, Q), ROBOT_AT))[2] == (0.0,) * 6
     assert road.counts["sessions"] == 2 and q_of(image) == pytest.approx(Q, abs=1e-5)
+
+
+@pytest.mark.parametrize("correction", ["absolute", "relative"])
+@settings(max_examples=30, deadline=None)
+@given(steps=st.lists(st.tuples(joints, corrections, st.booleans()), min_size=2, max_size=8))
+def test_answers_the_robot_missed_are_taken_off_as_its_delay_says(correction, steps):
+    """A robot that did not take an answer (late) reports it in ``Delay``; the road then takes off the setpoints
+    what the robot holds, not what it was sent, and a relative answer makes up the increment it missed."""
+    section = RobotSettings.model_validate({"interface": "kuka_rsi", "kuka_rsi": {"correction": correction}})
+    road, robot = Answerer(section), RobotController(section, ROBOT)
+    last_late = 0
+    for k, (q, dq, taken) in enumerate(steps):
+        p = road.parse(robot.packet(0.004 * k, q))
+        missed = p.late - last_late
+        last_late = p.late
+        if missed:
+            road.missed(missed)
+        q_prog = road.programmed(p.joints_deg)
+        assert q_prog == pytest.approx(q, abs=2e-6)
+        answer = road.answer(p, q_prog, dq, 0.0)
+        if taken:
+            assert robot.take(answer, q) and robot.applied == pytest.approx(dq, abs=3e-6)
+        else:
+            robot.late += 1                                  # as the controller counts an answer not in time
