@@ -22,6 +22,7 @@ import argparse
 import json
 import multiprocessing
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -163,6 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--circles", action="store_true", help="the HIL circle through each road instead")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))      # a stopped run still stops its services
     if args.circles:
         res = circles()
     else:
