@@ -10,4 +10,4 @@ DEFAULT_CONFIG = SHIPPED_CONFIG / "default.yaml"
 
 # the service config's top-level sections: `service.config.ServiceConfig`'s fields (a test holds them equal)
 SECTIONS = ("cycle", "model", "source", "filter", "gravity", "limits", "faults", "tare", "dynamics", "plc", "ads",
-            "monitoring")
+            "monitoring", "robot")
