@@ -231,12 +231,6 @@ class ProcessImage:
         self.stale_reads += 1
         return self._last_inputs
 
-    def set_inputs(self, values: dict[str, float]) -> None:
-        """Set named from_plc values before the I/O side starts (initial joint positions)."""
-        current = self.in_codec.decode(self._copy("from_plc", 0, self.in_codec.words)[2])
-        merged = [values.get(n, v) for n, v in zip(self.in_codec.names, current)]
-        self._publish("from_plc", self.in_codec.encode(merged))
-
     def outputs(self) -> dict[str, float]:
         """The newest to_plc values by name (logs, tests, tools); after `close`, the last this side published."""
         if self._h is None:
@@ -314,8 +308,9 @@ class ProcessImage:
         self._publish("from_plc", master)
 
     def write_values(self, values: dict[str, float]) -> None:
-        """Set named from_plc values and publish the block (the robot road: the joints of each packet, and
-        the command word and heartbeat when no PLC writes them). Names the map leaves out are skipped."""
+        """Set named from_plc values and publish the block: the initial joints before the I/O side starts, and
+        the robot road's joints of each packet (with the command word and heartbeat when no PLC writes them).
+        Names the map leaves out are skipped."""
         codec, master = self.in_codec, self._inputs_master()
         current = codec.decode(master)
         for name, v in values.items():

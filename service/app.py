@@ -109,7 +109,7 @@ class Service:
         # the checks that can fail come first; the image (shared memory) and then the source open last
         self.image = ProcessImage(self.rmap)
         try:
-            self.image.set_inputs({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
+            self.image.write_values({f"q{i + 1}": v for i, v in enumerate(cfg.plc.initial_q_deg)})
             self.source = make_source(cfg) if source is None else source
         except BaseException:
             self.image.close()

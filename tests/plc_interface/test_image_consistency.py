@@ -178,7 +178,7 @@ def test_a_map_without_payload_index_reads_it_as_0(tmp_path):
     (tmp_path / "old.yaml").write_text(dump_yaml(data))
     image = ProcessImage(RegisterMap.from_yaml(tmp_path / "old.yaml"))
     try:
-        image.set_inputs({"q1": 12.5})
+        image.write_values({"q1": 12.5})
         v = image.inputs()
         assert v.payload_index == 0.0 and v.q1 == 12.5
     finally:

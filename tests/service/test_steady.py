@@ -104,7 +104,7 @@ def test_steady_cycles_publish_what_the_glue_publishes(services):
                 got = prepare(s.cfg, s.model, s.rmap, s.cycle)
                 s.pending.append(got.swap)
         for s in services:
-            s.image.set_inputs(plc(k))
+            s.image.write_values(plc(k))
             assert s.work(t, exceeded)
         a, b = state(steady), state(glue)
         assert a == b, (k, [(x, y) for x, y in zip(a, b) if x != y])
@@ -138,7 +138,7 @@ def test_steady_cycles_allocate_nothing_that_stays(tmp_path):
         runs = []
         run = s._steady.run
         s._steady.run = lambda t, reading: runs.append(run(t, reading)) or runs[-1]
-        s.image.set_inputs({**plc(100), "plc_heartbeat": 0})
+        s.image.write_values({**plc(100), "plc_heartbeat": 0})
         k = 0
 
         def cycles(n: int) -> None:
