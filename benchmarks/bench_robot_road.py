@@ -5,7 +5,7 @@ load: a Modbus TCP client reading the to_plc block every 4 ms (a PLC's cycle) an
 symbol every 10 ms. The robot times each answer from its packet's send to the answer's arrival (the round
 trip, which holds the reply latency and both kernels' UDP paths) and counts the answers that did not arrive
 within its cycle; the service's own count (from a packet's arrival in the I/O loop to its answer's send) comes
-from its --stats-json. ``--busy 1`` adds one process that spins on a core for the whole run.
+from its --stats-json. ``--busy 1`` adds one busy process (``python3 -c 'while True: pass'``) for the whole run.
 
 Priorities as a cell would set them: the cycle at SCHED_FIFO 50 (config/default.yaml), the I/O process that
 answers the robot at ``robot.realtime_priority`` (``--io-priority``, 40), and the virtual robot's own loop at
@@ -34,14 +34,6 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-
-
-def spin(stop) -> None:
-    """One busy process: a core's worth of arithmetic until ``stop``."""
-    x = 0
-    while not stop.is_set():
-        for _ in range(100_000):
-            x += 1
 
 
 def modbus_load(port: int, stop) -> None:
@@ -89,12 +81,13 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
         service = ServiceProcess(cfg, folder)
         ctx = multiprocessing.get_context("spawn")
         stop = ctx.Event()
-        loads = [ctx.Process(target=modbus_load, args=(modbus, stop)),
-                 *([ctx.Process(target=spin, args=(stop,))] if busy else [])]
+        load = ctx.Process(target=modbus_load, args=(modbus, stop))
+        hog = None
         try:
             service.wait_running()
-            for p in loads:
-                p.start()
+            load.start()
+            if busy:            # the busy process, as bench_hil_deadlines.py makes it
+                hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
             ads_proc = subprocess.Popen([sys.executable, "-c", ADS_LOAD.format(port=ads, seconds=seconds + 2)],
                                         cwd=ROOT)
             settings = RobotSettings.model_validate(section)
@@ -108,8 +101,11 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
                 vr.close()
         finally:
             stop.set()
-            for p in loads:
-                p.join(10)
+            if load.pid is not None:
+                load.join(10)
+            if hog is not None:
+                hog.kill()
+                hog.wait()
             service.stop()
         ads_proc.wait(30)
         stats, _ = service.result()

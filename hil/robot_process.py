@@ -18,6 +18,7 @@ from plc_interface.deadlines import Deadlines
 from plc_interface.robot.settings import RobotSettings
 
 from .priority import below_the_service
+from .virtual_plc import CycleLog
 from .virtual_robot import RobotController, VirtualRobot
 from .world import World
 
@@ -43,26 +44,22 @@ def robot_main(scenario, robot, settings: RobotSettings, port: int, out_file: st
 
 
 def run(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> dict:
-    """The robot's cycles from program time ``t_start`` to ``t_end`` (t = clock - ``t0``) on absolute deadlines.
+    """The robot's cycles from program time ``t_start`` to ``t_end`` (t = clock - ``t0``) on absolute deadlines,
+    logged as the virtual PLC logs its own (`CycleLog`), with each answer's round trip beside.
     (In the uncompensated pass the service is not enabled, so its answers carry no correction.)"""
     c = vr.c
     n = int((t_end - t_start) / c.period) + 16
-    t, q_ref, q_cmd, applied, rtt = (np.full(n, np.nan), np.zeros((n, 6)), np.zeros((n, 6)), np.zeros((n, 6)),
-                                     np.full(n, np.nan))
-    link = np.zeros(n, dtype=bool)
+    lg, rtt = CycleLog(n, 0), np.full(n, np.nan)
     deadlines = Deadlines(c.period, start=t0 + t_start)
-    k = 0
-    while deadlines.due - t0 <= t_end and k < n:
+    while deadlines.due - t0 <= t_end and lg.k < n:
         deadlines.sleep_until()
-        tk = deadlines.due - t0
+        k, tk = lg.k, deadlines.due - t0
         if vr.stopped_at is None:
-            link[k], rtt[k] = vr.cycle(tk, deadlines.due + c.period)
-        t[k], q_ref[k], applied[k] = tk, vr.reference(tk), c.applied
+            lg.link[k], rtt[k] = vr.cycle(tk, deadlines.due + c.period)
+        lg.t[k], lg.t_read[k], lg.q_ref[k], lg.applied[k] = tk, deadlines.due, vr.reference(tk), c.applied
         # a stopped robot holds where it stood
-        q_cmd[k] = q_ref[k] + applied[k] if vr.stopped_at is None or k == 0 else q_cmd[k - 1]
-        k += 1
+        lg.q_cmd[k] = lg.q_ref[k] + lg.applied[k] if vr.stopped_at is None or k == 0 else lg.q_cmd[k - 1]
+        lg.k += 1
         deadlines.advance(time.monotonic())
-    return {"t": t[:k], "t_read": t[:k] + t0, "link": link[:k], "q_ref": q_ref[:k], "q_cmd": q_cmd[:k],
-            "applied": applied[:k], "to_plc": np.full((k, 0), np.nan), "rtt_s": rtt[:k], "late": c.late,
-            "overruns": deadlines.exceeded, "errors": c.late,
+    return {**lg.arrays(), "rtt_s": rtt[:lg.k], "late": c.late, "overruns": deadlines.exceeded, "errors": c.late,
             "stopped_at": np.nan if vr.stopped_at is None else vr.stopped_at}
