@@ -79,10 +79,9 @@ class Answerer:
 
     def restart(self) -> None:
         """A new session: the robot holds no correction, and the path's last pose is forgotten."""
-        self.held = list(ZERO6)         # the joint correction behind the last answer (deg)
-        self.sent = list(ZERO6)         # relative RSI: the total of the increments sent
-        # (held, sent) after each answer, newest last: what the robot holds if it missed the newest ones
-        self.history: deque[tuple[list[float], list[float]]] = deque([(self.held, self.sent)], maxlen=HISTORY)
+        # RSI, after each answer, newest last: (the joint correction behind it, the total of the relative
+        # increments sent); what the robot holds is the newest, or an older one if it missed the newest
+        self.history: deque[tuple[list[float], list[float]]] = deque([(list(ZERO6), list(ZERO6))], maxlen=HISTORY)
         self.last_pose = self.last_x = None      # EGM path: the last planned pose and path frame's x
 
     def missed(self, n: int) -> None:
@@ -90,7 +89,6 @@ class Answerer:
         what it held before them."""
         for _ in range(min(n, len(self.history) - 1)):
             self.history.pop()
-        self.held, self.sent = self.history[-1]
 
     def parse(self, data: bytes) -> RobotPacket:
         if self.kind == "kuka_rsi":
@@ -109,7 +107,6 @@ class Answerer:
         """The answer to packet ``p`` whose programmed joints are ``q``, for the joint ``correction`` (deg). It
         names its packet as the robot's interface lets it: RSI's IPOC repeated; EGM's header tm set to the
         packet's tm (the sensor's own rising seqno beside it), so the robot can tell its round trip."""
-        self.held = list(correction)
         if self.kind == "kuka_rsi":
             k = self.s.kuka_rsi
             if k.cartesian:
@@ -117,9 +114,10 @@ class Answerer:
                 values = [*m[:3], m[5], m[4], m[3]]        # RKorr A, B, C turn about Z, Y, X
             else:
                 values = correction
+            sent = list(values)                 # the total the robot holds once it takes this answer
             if k.correction == "relative":
-                values, self.sent = [v - s for v, s in zip(values, self.sent)], list(values)
-            self.history.append((self.held, self.sent))
+                values = [v - s for v, s in zip(values, self.history[-1][1])]
+            self.history.append((list(correction), sent))
             return self.codec.answer(k.sen_type, p.stamp, values, k.cartesian)
         self.seqno += 1
         if self.s.abb_egm.mode == "joint":
