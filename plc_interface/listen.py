@@ -30,14 +30,14 @@ def why_not_listening(host: str, port: int, key: str, error: BaseException | Non
     return str(error) if error is not None else "the address could not be listened on"
 
 
-def explain(e: OSError, host: str, port: int, key: str) -> str:
-    """An OS error of binding ``host:port`` in words, with what to do."""
+def explain(e: OSError, host: str, port: int, key: str, transport: str = "tcp") -> str:
+    """An OS error of binding ``host:port`` (``transport`` tcp or udp) in words, with what to do."""
     if e.errno in (errno.EACCES, errno.EPERM) and port < PRIVILEGED_BELOW:
         return (f"port {port} is a privileged port (below {PRIVILEGED_BELOW}): binding it needs root or the "
                 f"capability CAP_NET_BIND_SERVICE; set {key} to a port of {PRIVILEGED_BELOW} or above, or give "
                 "the service the capability (systemd: AmbientCapabilities=CAP_NET_BIND_SERVICE; docs/security.md)")
     if e.errno == errno.EADDRINUSE:
-        return (f"port {port} is in use by another process (ss -ltnp 'sport = :{port}' shows which); stop it "
+        return (f"port {port} is in use by another process (ss -l{transport[0]}np 'sport = :{port}' shows which); stop it "
                 f"or set {key} to a free port")
     if e.errno == errno.EADDRNOTAVAIL:
         return f"{host} is not an address of this machine: listen on one of its addresses (or 0.0.0.0), {key} {port}"

@@ -98,7 +98,8 @@ class RobotRoad:
         except OSError as e:
             from ..listen import explain
 
-            raise PlcError(f"cannot listen for the robot on {r.host}:{r.port}: {explain(e, r.host, r.port, 'robot.port')}") from e
+            raise PlcError(f"cannot listen for the robot on {r.host}:{r.port}: "
+                           f"{explain(e, r.host, r.port, 'robot.port', 'udp')}") from e
         log.info("robot road: %s%s", r.served(), f", packets from {r.peer} only" if r.peer else "")
 
     async def stop(self) -> None:

@@ -195,3 +195,22 @@ def test_answers_the_robot_missed_are_taken_off_as_its_delay_says(correction, st
             assert robot.take(answer, q) and robot.applied == pytest.approx(dq, abs=3e-6)
         else:
             robot.late += 1                                  # as the controller counts an answer not in time
+
+
+def test_a_robot_port_in_use_is_refused_naming_the_key_and_the_udp_listing(image):
+    import socket
+
+    from plc_interface.errors import PlcError
+    from plc_interface.io_server import IoSettings, IoThread
+    from plc_interface.settings import PlcSettings
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        road = RoadSettings(RobotSettings(interface="kuka_rsi", port=port))
+        io = IoThread(image, IoSettings(plc=PlcSettings(role="none"), robot=road))
+        with pytest.raises(PlcError) as e:
+            io.start()
+        io.stop()
+    assert f"cannot listen for the robot on 127.0.0.1:{port}" in str(e.value)
+    assert "robot.port" in str(e.value) and "ss -lunp" in str(e.value), str(e.value)
