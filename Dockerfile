@@ -101,8 +101,9 @@ write_config(Path('/etc/stiffcomp'), {'plc': {'host': '0.0.0.0', 'port': 5020}, 
 USER stiffcomp
 
 # Modbus TCP, ADS (AMS/TCP), HTTP health + metrics, Modbus/TCP Security (plc.tls, off until the site's
-# certificates are mounted; docs/security.md: as an unprivileged user 802 binds on a bridge network only)
-EXPOSE 5020 48898 9020 802
+# certificates are mounted; docs/security.md: as an unprivileged user 802 binds on a bridge network only), and
+# the robot road's UDP ports as the shipped robot sides name them (KUKA RSI 49152, ABB EGM 6511; docs/robot.md)
+EXPOSE 5020 48898 9020 802 49152/udp 6511/udp
 VOLUME ["/etc/stiffcomp"]
 # Liveness: the cycle count rises and the I/O process answers (/health/live). Not /health, whose exceed
 # bound a busy host can cross for a while: a restart would lose the tare, the hysteresis state and the

@@ -67,7 +67,7 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
     from hil.robot_drive import drive
     from hil.run import ServiceProcess
     from hil.testing import free_port, write_config
-    from hil.virtual_robot import RobotController, VirtualRobot
+    from hil.virtual_robot import VirtualRobot, controller_for
     from plc_interface.robot.settings import RobotSettings
     from stiffness.kinematics.robot import load_robot
 
@@ -91,7 +91,7 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
             ads_proc = subprocess.Popen([sys.executable, "-c", ADS_LOAD.format(port=ads, seconds=seconds + 2)],
                                         cwd=ROOT)
             settings = RobotSettings.model_validate(section)
-            vr = VirtualRobot(RobotController(settings, robot), "127.0.0.1", settings.port,
+            vr = VirtualRobot(controller_for(settings, robot), "127.0.0.1", settings.port,
                               lambda t: [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
             steal0 = steal_ticks()
             try:

@@ -212,8 +212,12 @@ def write_report(folder: Path, world: World, evals: dict, passes: dict, summary:
     detail["reduction_pct"] = (round(100.0 * (1 - summary["mean_error_mm"] / summary["mean_error_mm_uncompensated"]),
                                      1) if summary["mean_error_mm_uncompensated"] > 0 else None)
     detail["service_stats"] = {k: p.stats for k, p in passes.items()}
-    detail["plc"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
-                         "modbus_errors": int(p.log["errors"])} for k, p in passes.items()}
+    if "rtt_s" in next(iter(passes.values())).log:        # a virtual robot in the PLC's place
+        detail["robot"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
+                               "late_answers": int(p.log["late"])} for k, p in passes.items()}
+    else:
+        detail["plc"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
+                             "modbus_errors": int(p.log["errors"])} for k, p in passes.items()}
     (folder / "summary.json").write_text(json.dumps(detail, indent=2) + "\n")
     for k, ev in evals.items():
         c = ev["cut"]

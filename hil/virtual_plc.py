@@ -15,7 +15,7 @@ is zero. The applied correction moves towards its target at most ``max_rate_deg_
 a lost link brings the robot back to its uncorrected path without a jump. After a link loss, once
 the service answers again, the PLC raises the reset bit (the faults the loss caused in the service,
 e.g. plc_heartbeat, are cleared; a fault whose cause persists trips again) and holds it until it reads
-the fault word clear or ``reset_hold_s`` has passed: a one-cycle pulse could fall between two cycles
+the fault word clear or ``recovery.hold_s`` has passed (`plc_interface.recovery`): a one-cycle pulse could fall between two cycles
 of a service that a loaded host stalls for longer than a PLC cycle. The first contact
 counts as such a recovery: a PLC starting up resets the service's faults once as it enables.
 
@@ -37,6 +37,7 @@ from pymodbus.exceptions import ModbusException
 
 from plc_interface.contract import Command
 from plc_interface.deadlines import Deadlines
+from plc_interface.recovery import RecoveryReset
 from plc_interface.register_map import RegisterMap
 
 log = logging.getLogger("stiffcomp.virtual_plc")
@@ -88,8 +89,7 @@ class PlcLogic:
         self.hb_change_t: float | None = None
         self.was_lost = True            # the first contact counts as a recovery: reset, then enable
         self.reset_pulse = False
-        self.reset_hold_s = 0.25
-        self._reset_until = -np.inf
+        self.recovery = RecoveryReset()
         self._fw = self.out_names.index("fault_word")
         self.applied = [0.0] * 6
         self.t_prev: float | None = None
@@ -108,8 +108,8 @@ class PlcLogic:
             self.hb_change_t = t
         fresh = (to_plc is not None and self.hb_change_t is not None and t - self.hb_change_t <= self.timeout)
         if fresh and self.was_lost:
-            self._reset_until = t + self.reset_hold_s
-        self.reset_pulse = fresh and t <= self._reset_until and (self.was_lost or to_plc[self._fw] != 0)
+            self.recovery.recovered(t)
+        self.reset_pulse = fresh and self.recovery.bit(t, int(to_plc[self._fw]))
         if not fresh and self.hb_change_t is not None:
             self.was_lost = True
         elif fresh:

@@ -1,36 +1,46 @@
-"""Virtual robot controllers that speak the real robot interfaces: KUKA RSI and ABB EGM over UDP.
+"""Virtual robot controllers that speak the real robot interfaces over UDP, and the loop that drives one.
 
-The robot is the clock. Every ``cycle_ms`` (4 ms) the controller sends its packet to the sensor (the
-service's robot road) and takes the answer that arrives before its next cycle:
+The robot is the clock. The controller interpolates on its own cycle (`RobotController.period`: RSI's 4 or 12
+ms, EGM's 4 ms), sends its packet to the sensor (the service's robot road) every `RobotController.every`
+cycles (EGM path corrections: every 48 ms) and takes the answer that arrives within the cycle. What each
+interface's packets hold and what its answers do is the interface's own module, written from its maker's
+manual or a real recording, as the road's is (`plc_interface.robot.interface`):
 
-* **KUKA RSI**: ``<Rob>`` with the axes' setpoints (``ASPos``: the programmed joints plus the correction the
-  robot holds), ``Delay`` (late answers so far) and ``IPOC`` (ms); the answer must repeat the IPOC. ``AK`` is
-  the joint correction, ``RKorr`` the TCP's (base frame), absolute (the whole offset) or relative (added up).
-* **ABB EGM**: ``EgmRobot`` with its seqno, its clock, the planned joints and pose (the programmed path) and
-  the feedback; joint mode takes the answer's joints as the position to hold; path mode takes the
-  correction across the path (the path frame's y and z; its x, along the motion, is not corrected).
+* `hil.virtual_kuka.KukaController`: KUKA RSI as a real KR C4 behaves;
+* `hil.virtual_abb.AbbController`: ABB EGM as ABB's EGM manual defines it.
 
 A missing or late answer leaves the correction as it was (relative RSI: adds nothing) and is counted; after
-``timeout_count`` of them in a row the robot stops (RSI's ETHERNET timeout, EGM's comm timeout): it sends no
-more packets and holds its last position, and `stopped_at` says when.
+``timeout_count`` of them in a row the robot stops (RSI's ETHERNET ``Timeout``, EGM's ``\\CommTimeout``): it
+sends no more packets and holds its last position, and `VirtualRobot.stopped_at` says when.
 """
 
 from __future__ import annotations
 
+import importlib
 import socket
 import struct
 import time
+from collections import deque
 
 import numpy as np
 
-from plc_interface.robot import rsi
-from plc_interface.robot.answers import TcpJacobian
-from plc_interface.robot.packets import PacketError
+from plc_interface.deadlines import Deadlines
 from plc_interface.robot.settings import RobotSettings
+from plc_interface.robot.tcp import TcpJacobian
 from stiffness.kinematics.spatial import damped_pinv_solve
 
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)    # Linux's number where Python does not name it
-IPOC0 = 1_000_000          # the controller's clock (ms) at program time 0: a stamp never below zero
+CLOCK0_MS = 1_000_000      # the controller's clock (ms) at program time 0: a stamp never below zero
+TIMEOUT_COUNT = 100        # late answers in a row before the robot stops (the HIL's: a loaded host's stalls)
+
+# interface name -> "module:class" of its virtual controller (the road's registry's twin)
+CONTROLLERS = {"kuka_rsi": "hil.virtual_kuka:KukaController", "abb_egm": "hil.virtual_abb:AbbController"}
+
+
+def controller_for(settings: RobotSettings, robot, **options) -> RobotController:
+    """The virtual controller of ``settings.interface``, from the registry."""
+    module, cls = CONTROLLERS[settings.interface].split(":")
+    return getattr(importlib.import_module(module), cls)(settings, robot, **options)
 
 
 def joints_for(jacobian: TcpJacobian, q_deg, target, rows: slice = slice(0, 6)) -> np.ndarray:
@@ -39,86 +49,68 @@ def joints_for(jacobian: TcpJacobian, q_deg, target, rows: slice = slice(0, 6)) 
     return damped_pinv_solve(jacobian(q_deg)[rows], 1e-6, np.asarray(target, dtype=float))
 
 
+class Delayed:
+    """A value that takes effect ``delay_s`` after it was set (the HIL's ``--extra-delay-ms``)."""
+
+    def __init__(self, value, delay_s: float = 0.0):
+        self.delay = float(delay_s)
+        self._q: deque = deque([(-np.inf, value)])
+
+    def set(self, t: float, value) -> None:
+        self._q.append((t, value))
+
+    def at(self, t: float):
+        """The newest value set at or before ``t - delay_s``."""
+        while len(self._q) > 1 and self._q[1][0] <= t - self.delay + 1e-9:
+            self._q.popleft()
+        return self._q[0][1]
+
+
 class RobotController:
-    """The controller's side of one interface: its packets, and what an answer does to the correction.
+    """The controller's side of one interface: its cycle, its packets, and what an answer does.
 
     Parameters
     ----------
     settings : RobotSettings
-        The same section the service reads (interface, cycle, absolute/relative, joint/Cartesian/path).
-    robot : Robot, for the Cartesian and path answers (the controller's own kinematics)
+        The same section the service reads.
+    robot : Robot, the controller's own kinematics (the Cartesian and path answers)
+    delay_s : the answers take effect this much later (an extra delay of the robot's own)
     """
 
-    def __init__(self, settings: RobotSettings, robot):
+    period = 0.004              # the interpolation cycle (s): the log's rows, the servo's steps
+    every = 1                   # a packet every this many cycles
+
+    def __init__(self, settings: RobotSettings, robot, delay_s: float = 0.0):
         self.s, self.robot = settings, robot
         self.jacobian = TcpJacobian(robot) if settings.cartesian else None
-        self.kind = settings.interface
-        if self.kind == "abb_egm":
-            from plc_interface.robot import egm
-
-            self.egm = egm
-        self.period = settings.cycle_ms / 1000.0
-        self.applied = np.zeros(6)              # the joint correction the robot holds (deg)
-        self._cart = np.zeros(6)                # relative RKorr: the TCP correction added up
+        self.delay_s = float(delay_s)
         self.stamp = 0
-        self.tm = 0
         self.late = 0
-        self.answer: tuple[float, ...] = ()     # the values of the last answer taken (AK, RKorr, joints, path)
-        self._pose_prev = self._pose = self._x_prev = self.frame = None     # EGM path: the path frame (rows: x, y, z)
+        self.answer: tuple[float, ...] = ()     # the values of the last answer taken
+        self.frame = None                       # EGM path: the path frame of the last answer (rows: x, y, z)
 
+    # -- the interface's hooks ----------------------------------------------------------------------
     def packet(self, t: float, q_ref) -> bytes:
         """The packet of the cycle at program time ``t`` (s) with programmed joints ``q_ref`` (deg)."""
-        setpoint = np.add(q_ref, self.applied)
-        if self.kind == "kuka_rsi":
-            self.stamp = IPOC0 + round(1000.0 * t)
-            return rsi.robot_packet(self.stamp, setpoint, setpoint, self.late)
-        self.stamp += 1
-        self.tm = IPOC0 + round(1000.0 * t)
-        self._pose_prev, self._pose = self._pose, self.pose(q_ref)
-        return self.egm.robot_packet(self.stamp, self.tm, list(q_ref), list(setpoint), self._pose)
+        raise NotImplementedError
 
-    def pose(self, q_ref) -> tuple[float, ...]:
-        """The planned TCP pose: x, y, z (mm) and the quaternion qw, qx, qy, qz."""
-        import pinocchio as pin
-
-        T = self.robot.frames(np.radians(np.asarray(q_ref))[None])[0, 7]
-        c = pin.Quaternion(T[:3, :3]).coeffs()            # x, y, z, w
-        return (*(1000.0 * T[:3, 3]), c[3], c[0], c[1], c[2])
-
-    def take(self, data: bytes, q_ref) -> bool:
+    def take(self, data: bytes, t: float, q_ref) -> bool:
         """Apply one answer to the packet just sent; False when it is not that packet's answer."""
-        try:
-            if self.kind == "kuka_rsi":
-                ipoc, tag, values = rsi.read_answer(data)
-                if ipoc != self.stamp:
-                    return False
-                self.answer = values
-                return self._rsi(tag, np.array(values), q_ref)
-            _, kind, values, _, tm = self.egm.read_answer(data)
-        except PacketError:
-            return False
-        if tm != self.tm:                          # an answer to an earlier packet, late
-            return False
-        self.answer = tuple(values)
-        if kind == "joints":
-            self.applied = np.subtract(values, q_ref)
-        else:
-            # the path frame from the planned poses of this packet and the one before, as the road reads them
-            frame = self.egm.path_frame(self._pose_prev or self._pose, self._pose, self._x_prev)
-            self._x_prev, self.frame = frame[0], frame
-            d = self.egm.to_base(frame, (0.0, values[1], values[2]))      # across the path only
-            self.applied = joints_for(self.jacobian, q_ref, d, slice(0, 3))
-        return True
+        raise NotImplementedError
 
-    def _rsi(self, tag: str, values: np.ndarray, q_ref) -> bool:
-        relative = self.s.kuka_rsi.correction == "relative"
-        if tag == "AK":
-            self.applied = self.applied + values if relative else values
-            return True
-        m = np.array([*values[:3], values[5], values[4], values[3]])      # X Y Z, then C B A: about x, y, z
-        self._cart = self._cart + m if relative else m
-        self.applied = joints_for(self.jacobian, q_ref, self._cart)
-        return True
+    def commanded(self, t: float, q_ref) -> np.ndarray:
+        """The joints the servos are commanded to at ``t`` (deg), after this cycle's answer; the servo state
+        (a filter, a lag) moves on by one cycle."""
+        raise NotImplementedError
+
+    def holds(self, t: float, q_ref) -> np.ndarray:
+        """The joint correction (deg) the last answer taken asks for at ``t``, at programmed joints ``q_ref``."""
+        raise NotImplementedError
+
+    def restart(self) -> None:
+        """The robot's program starts the interface again (RSI_ON, EGMRunJoint): its stamp starts again and it
+        holds no correction."""
+        raise NotImplementedError
 
 
 class VirtualRobot:
@@ -132,7 +124,8 @@ class VirtualRobot:
     timeout_count : late answers in a row after which the robot stops
     """
 
-    def __init__(self, controller: RobotController, host: str, port: int, reference, timeout_count: int = 100):
+    def __init__(self, controller: RobotController, host: str, port: int, reference,
+                 timeout_count: int = TIMEOUT_COUNT):
         self.c = controller
         self.address = (host, port)
         self.reference = reference
@@ -147,8 +140,7 @@ class VirtualRobot:
         self.sock.close()
 
     def _drain(self) -> None:
-        """Answers that came after their cycle ended: counted late already, and left unapplied (an EGM answer
-        names no packet, so one taken in the next cycle would pass for that cycle's)."""
+        """Answers that came after their cycle ended: counted late already, and left unapplied."""
         self.sock.setblocking(False)
         try:
             while True:
@@ -158,12 +150,11 @@ class VirtualRobot:
         finally:
             self.sock.setblocking(True)
 
-    def cycle(self, t: float, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
+    def exchange(self, t: float, q_ref, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
         """Send the packet of program time ``t``, take its answer if it arrives by clock time ``answer_by``:
         (answered in its cycle, round trip in s; NaN when late). The round trip runs from the send to the
         answer's arrival as the kernel stamped it (SO_TIMESTAMPNS), so a robot process that the host runs late
         neither lengthens it nor takes a late answer for one in time."""
-        q_ref = self.reference(t)
         self._drain()
         packet = self.c.packet(t, q_ref)
         wall_by = time.time_ns() + int(1e9 * (answer_by - clock()))
@@ -178,7 +169,7 @@ class VirtualRobot:
             except OSError:                         # ICMP unreachable: the service is not there (yet)
                 break
             t_got = arrival_ns(anc)
-            if t_got <= wall_by and self.c.take(data, q_ref):
+            if t_got <= wall_by and self.c.take(data, t, q_ref):
                 self.in_a_row = 0
                 return True, (t_got - t_send) / 1e9
         self.c.late += 1
@@ -186,6 +177,59 @@ class VirtualRobot:
         if self.in_a_row >= self.timeout_count and self.stopped_at is None:
             self.stopped_at = t
         return False, float("nan")
+
+
+class Cycles:
+    """Per interpolation cycle of a virtual robot's run, preallocated: the program time and its deadline, the
+    programmed and commanded joints and the correction applied; per packet (``sent``) its stamp, whether its
+    answer came in its cycle, the answer's values, the round trip (s), the path frame (EGM path) and how late
+    the packet left after its deadline (the robot's own lateness)."""
+
+    def __init__(self, n: int):
+        self.t, self.due, self.sent_unix = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        self.q_ref, self.q_cmd, self.applied = np.zeros((n, 6)), np.zeros((n, 6)), np.zeros((n, 6))
+        self.sent, self.answered = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        self.stamp = np.zeros(n, dtype=np.int64)
+        self.answer, self.frames = np.full((n, 6), np.nan), np.full((n, 3, 3), np.nan)
+        self.rtt_s, self.send_lag_s = np.full(n, np.nan), np.zeros(n)
+        self.k = 0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {name: v[:self.k] for name, v in vars(self).items() if isinstance(v, np.ndarray)}
+
+
+def run_cycles(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> Cycles:
+    """The robot's cycles from program time ``t_start`` to ``t_end`` (program time = clock - ``t0``) on
+    absolute deadlines: a packet every ``every`` cycles, its answer awaited until the next cycle is due. A
+    robot that stopped (too many late answers) sends nothing more and holds where it stood."""
+    c = vr.c
+    n = round((t_end - t_start) / c.period) + 1
+    log = Cycles(n)
+    deadlines = Deadlines(c.period, start=t0 + t_start)
+    for k in range(n):
+        deadlines.sleep_until()
+        t = deadlines.due - t0
+        log.t[k], log.due[k] = t, deadlines.due
+        log.send_lag_s[k] = time.monotonic() - deadlines.due
+        q_ref = np.asarray(vr.reference(t), dtype=float)
+        log.q_ref[k] = q_ref
+        if vr.stopped_at is None:
+            if k % c.every == 0:
+                log.sent[k], log.sent_unix[k] = True, time.time()
+                log.answered[k], log.rtt_s[k] = vr.exchange(t, q_ref, deadlines.due + c.period)
+                log.stamp[k] = c.stamp
+                if log.answered[k]:
+                    log.answer[k, :len(c.answer)] = c.answer
+                    if c.frame is not None:
+                        log.frames[k] = c.frame
+            log.q_cmd[k] = c.commanded(t, q_ref)
+        else:
+            log.q_cmd[k] = log.q_cmd[k - 1] if k else c.commanded(t, q_ref)
+        log.applied[k] = log.q_cmd[k] - q_ref
+        log.k = k + 1
+        deadlines.advance(time.monotonic())
+    log.overruns = deadlines.exceeded
+    return log
 
 
 def arrival_ns(ancillary) -> int:

@@ -202,7 +202,7 @@ def test_plc_pulses_reset_on_first_contact_and_after_a_loss_only():
 
 def test_plc_holds_reset_until_the_service_shows_the_faults_cleared():
     """A service stalled past one PLC cycle must still see the reset edge: the bit stays up while the fault
-    word reads nonzero, at most reset_hold_s, and drops at the first reading with the faults cleared."""
+    word reads nonzero, at most recovery.hold_s, and drops at the first reading with the faults cleared."""
     logic, dt = plc(), 0.004
     names = RMAP.codecs["to_plc"].names
 
@@ -216,7 +216,7 @@ def test_plc_holds_reset_until_the_service_shows_the_faults_cleared():
     assert [k for k, r in enumerate(resets) if r] == list(range(10))
     held = plc()
     resets = [step(held, k * dt, values(k, 0x20))[0]["command_word"] & Command.RESET for k in range(200)]
-    assert sum(1 for r in resets if r) == int(held.reset_hold_s / dt) + 1      # a persisting fault: capped
+    assert sum(1 for r in resets if r) == int(held.recovery.hold_s / dt) + 1      # a persisting fault: capped
 
 
 def test_plc_uncompensated_neither_enables_nor_applies():

@@ -93,6 +93,9 @@ class ServiceMetrics:
                                   "known: reported (the robot's own count, RSI Delay), stamp_gap (robot packets "
                                   "missing, IPOC or seqno skipped), slow (an answer that took over the robot's "
                                   "cycle here)", ["kind"], registry=r)
+        self.robot_contradictions = Counter(p + "robot_setting_contradicted", "robot road: the robot's packets "
+                                            "contradict a setting about what they hold (the key; the log names "
+                                            "the evidence)", ["key"], registry=r)
         for proto in protocols:
             self.clients.labels(proto).set(0)
         for kind in self._fault_bits:
@@ -161,6 +164,10 @@ class ServiceMetrics:
     def count_robot_late(self, kind: str, n: int = 1) -> None:
         """``n`` robot answers late or missing, known as ``kind`` (reported, stamp_gap, slow)."""
         self.robot_late.labels(kind).inc(n)
+
+    def count_robot_contradiction(self, key: str) -> None:
+        """The robot's packets contradict the setting ``key`` (e.g. joints_include_correction)."""
+        self.robot_contradictions.labels(key).inc()
 
     def count_connection_refused(self, protocol: str, reason: str) -> None:
         """One connection refused before its first request (e.g. "no client certificate")."""

@@ -82,6 +82,14 @@ class ServiceConfig(Strict):
         files |= {f"plc.tls.{k}": v for k, v in self.plc.tls.files().items()}
         return files
 
+    @property
+    def cycle_enables_on_start(self) -> bool:
+        """Whether the cycle acts as if the enable bit were set: ``plc.enable_on_start``, except where the robot
+        road writes the command word (``plc.role: none`` with a robot interface). There the road sets the enable
+        bit itself, the robot's own where it sends a command element, so that a robot program's 0 switches the
+        correction off (docs/robot.md)."""
+        return self.plc.enable_on_start and not (self.robot.enabled and self.plc.role == "none")
+
     def register_map(self) -> RegisterMap:
         """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
         naming this config file, the key and its value, then what is wrong in the map."""

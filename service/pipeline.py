@@ -332,7 +332,7 @@ class Cycle:
         dynamics = Dynamics(cfg.dynamics, period, cfg.resolve)
         if dynamics.active:
             log.info("%s", dynamics.describe())
-        return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.plc.enable_on_start),
+        return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.cycle_enables_on_start),
                    Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare, period,
                                            model, faults, dynamics if dynamics.active else None), vector)
 

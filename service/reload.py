@@ -210,7 +210,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
     filt = SosLowPass.from_config(new.filter, period) if LOWPASS.intersection(changes) else None
     spikes = SpikeRejector.from_config(new.filter.spike)
     limiter = CorrectionLimiter.from_config(new.limits, period)
-    sup = Supervisor.from_config(new.faults, cycle.faults, model.robot.limits_deg, new.plc.enable_on_start)
+    sup = Supervisor.from_config(new.faults, cycle.faults, model.robot.limits_deg, new.cycle_enables_on_start)
     timeout_s, tare_max = new.faults.sensor_timeout_ms / 1000.0, new.tare.max_force_N
     pred = None
     if any(k.startswith("model.") for k in changes):

@@ -264,3 +264,33 @@ def test_docs_config_md_gives_each_robot_key_its_default():
     section = text[text.index("## `robot`"):]
     rows = dict(re.findall(r"^\| `([a-z_.]+)` \| ([^|]+?) \|", section, re.MULTILINE))
     assert rows == {k: shown(v) for k, v in leaf_defaults().items()}
+
+
+# -- the files as the controllers' parsers read them ----------------------------------------------------------
+def test_the_rsi_xml_has_only_one_line_comments():
+    """Field-proven RSI configurations comment one line at a time; an element commented out inside a longer
+    comment is what a controller's parser may not skip."""
+    text = (KUKA / "StiffComp.xml").read_text()
+    for line in text.splitlines():
+        assert line.count("<!--") == line.count("-->"), line
+    assert text.count('<!-- <ELEMENT TAG="StiffCmd" TYPE="LONG" INDX="1" /> -->') == 1
+
+
+@pytest.mark.parametrize("name, domain", [("StiffCompMoc.cfg", "MOC"), ("StiffCompUdpuc.cfg", "SIO")])
+def test_the_abb_cfg_headers_carry_their_version(name, domain):
+    """A .cfg file as RobotStudio saves it starts with ``DOMAIN:CFG_1.0:<major>:<minor>::``."""
+    first = (ABB / name).read_text().splitlines()[0]
+    assert re.fullmatch(rf"{domain}:CFG_1\.0:\d+:\d+::", first), first
+
+
+@pytest.mark.parametrize("interface", sorted(CONFIGS))
+def test_the_robot_port_is_exposed_and_documented_where_the_others_are(interface):
+    """The shipped robot config's UDP port is in the Dockerfile's EXPOSE, docs/deploy.md's ports table, its
+    bridge -p line and its Kubernetes example (where only RSI's is shown)."""
+    port = robot_section(CONFIGS[interface]).port
+    expose = next(line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("EXPOSE"))
+    assert f"{port}/udp" in expose.split()
+    deploy = (ROOT / "docs" / "deploy.md").read_text()
+    assert re.search(rf"^\| [^|]*\b{port}/udp\b", deploy, re.M) and f"-p {port}:{port}/udp" in deploy
+    if interface == "kuka_rsi":
+        assert f"containerPort: {port}, protocol: UDP" in deploy

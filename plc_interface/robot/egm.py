@@ -79,7 +79,10 @@ def parse(data: bytes) -> RobotPacket:
         pose = (c.pos.x, c.pos.y, c.pos.z, c.orient.u0, c.orient.u1, c.orient.u2, c.orient.u3)
         if not all(math.isfinite(v) for v in pose):
             raise PacketError("malformed", f"planned.cartesian = {pose}: not finite")
-    return RobotPacket(h.seqno, q, None, tm_ms=h.tm if h.HasField("tm") else None, pose=pose)
+    fb = msg.feedBack.joints.joints if msg.HasField("feedBack") and msg.feedBack.HasField("joints") else ()
+    actual = tuple(fb) if len(fb) == AXES and all(math.isfinite(v) for v in fb) else None
+    return RobotPacket(h.seqno, q, None, tm_ms=h.tm if h.HasField("tm") else None, pose=pose, setpoint_deg=q,
+                       actual_deg=actual)
 
 
 def _header(h, seqno: int, mtype: int, tm_ms: int | None) -> None:

@@ -23,6 +23,8 @@ class RobotPacket(NamedTuple):
     command, heartbeat, payload : the optional values the robot's program sends (None: absent)
     tm_ms : the robot's clock (EGM's header tm, ms), or None
     pose : the planned TCP pose (x, y, z in mm, then the quaternion qw, qx, qy, qz), or None
+    setpoint_deg, actual_deg : the axes' setpoints and measured positions where the packet carries both (RSI's
+        ``ASPos`` and ``AIPos``; EGM's ``planned`` and ``feedBack``), for the checks of what the joints hold
     """
 
     stamp: int
@@ -33,3 +35,5 @@ class RobotPacket(NamedTuple):
     payload: int | None = None
     tm_ms: int | None = None
     pose: tuple[float, ...] | None = None
+    setpoint_deg: tuple[float, ...] | None = None
+    actual_deg: tuple[float, ...] | None = None

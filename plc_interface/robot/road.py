@@ -3,17 +3,21 @@
 The robot is the clock. `RobotRoad.received` runs for every datagram, in the I/O process's loop:
 
 1. a packet from an address other than ``robot.peer`` changes nothing (counted, logged once per address);
-2. the packet is read (`rsi.parse`, `egm.parse`); a malformed one, a stamp (IPOC, seqno) that does not rise,
-   or joints that are not finite or outside the robot's limits are counted and dropped, unanswered;
-3. the programmed joints go into the image's ``q1..q6`` (for RSI's setpoints, the correction the robot
-   already holds is taken off first), as a PLC's joints do. With ``plc.role: none`` the road also writes the
-   command word (the robot's own, else enable as ``plc.enable_on_start`` says) and steps ``plc_heartbeat``:
-   a robot that falls silent for ``faults.plc_heartbeat_timeout_ms`` latches the heartbeat fault and the
-   correction ramps, as for a lost PLC;
-4. the answer is the newest correction the cycle published, never waiting for the cycle.
+2. the interface (`plc_interface.robot.interface`, found by ``robot.interface``) reads the packet; a malformed
+   one, a stamp (IPOC, seqno) repeated or a little out of order, or programmed joints that are not finite or
+   outside the robot's limits are counted under their reason and dropped, unanswered;
+3. a stamp that fell back far (the robot's program started the interface again), or the first packet after a
+   silence of ``faults.plc_heartbeat_timeout_ms``, begins a new session: the robot holds no correction, and the
+   answers ramp in from zero over ``limits.fault_ramp_s``;
+4. the commanded joints, programmed plus the correction the robot holds, go into the image's ``q1..q6``, as a
+   PLC reports its joints: the cycle computes at them and the trace records them. With ``plc.role: none`` the
+   road also writes the command word (the robot's own element; without one, enable as ``plc.enable_on_start``
+   says) and steps ``plc_heartbeat``;
+5. the answer is the newest correction the cycle published, never waiting for the cycle.
 
-A robot that speaks again after such a silence starts a new session: the road raises the reset bit (as a
-PLC does after a lost link) and answers from zero correction, ramping in over ``limits.fault_ramp_s``.
+After a silence, a robot without a command element cannot acknowledge anything: the road raises the reset bit
+for it only while the latched fault is its own silence's (``plc_heartbeat``); any other latched fault stays, is
+logged, and waits for the robot's own reset bit or a restart.
 """
 
 from __future__ import annotations
@@ -25,18 +29,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..contract import Command
+from ..contract import Command, Fault
 from ..errors import PlcError
 from ..ratelog import RateLimitedLog
-from .answers import Answerer
+from ..recovery import RecoveryReset
+from .interface import ZERO6, interface_for
 from .packets import PacketError
 from .settings import RobotSettings
 
 log = logging.getLogger("stiffcomp.robot")
 
 LATENCY_RING = 1 << 16
-RESET_HOLD_S = 0.25         # the reset bit is held while faults remain, this long at most (as the HIL's PLC)
-_ENABLE, _RESET = int(Command.ENABLE), int(Command.RESET)
+CYCLE_CHECK_PACKETS = 16        # packets after which the robot's own cycle is compared with cycle_ms
+_ENABLE = int(Command.ENABLE)
 
 
 @dataclass
@@ -50,6 +55,16 @@ class RoadSettings:
     ramp_s: float = 0.2                 # limits.fault_ramp_s (the answer ramps in from zero)
     limits_deg: list[tuple[float, float]] = field(default_factory=lambda: [(-360.0, 360.0)] * 6)
     robot_file: str | None = None       # the model's robot, for the TCP motion of a Cartesian answer
+
+    def warnings(self) -> list[str]:
+        """What the road says at start about its settings (each one line)."""
+        r = self.robot
+        out = [w for w in (r.exposure_warning(), r.defaults_warning()) if w]
+        element = r.kuka_rsi.command_element if r.interface == "kuka_rsi" else None
+        if self.owns_commands and element and self.enable_on_start:
+            out.append(f"plc.enable_on_start: true is ignored: the robot's command element <{element}> "
+                       "(robot.kuka_rsi.command_element) switches the correction, its bit 0 the enable")
+        return out
 
 
 class RobotRoad:
@@ -68,28 +83,33 @@ class RobotRoad:
     def __init__(self, image, settings: RoadSettings, metrics=None, clock=time.monotonic):
         self.image, self.settings, self.metrics, self.clock = image, settings, metrics, clock
         r = settings.robot
-        self.answerer = Answerer(r, settings.robot_file)
+        self.iface = interface_for(r, settings.robot_file)
         self.transport = None
         self.errors = RateLimitedLog(log, 10.0)
-        self.counts = {"packets": 0, "answered": 0, "sessions": 0, "late_reported": 0, "stamp_gaps": 0,
-                       "slow_answers": 0, "dropped": {}}
+        self.counts = {"packets": 0, "answered": 0, "sessions": 0, "restarts": 0, "late_reported": 0,
+                       "stamp_gaps": 0, "slow_answers": 0, "dropped": {}}
         self.latency_us = np.zeros(LATENCY_RING)
         self._n_latency = 0
         self.heartbeat = 0
         self._strangers: set[str] = set()
-        self._last_t: float | None = None
+        self._last_t: float | None = None           # the last packet taken
+        self._heard_t: float | None = None          # the last packet from the robot's address, taken or not
         self._session_t = 0.0
         self._last_stamp: int | None = None
         self._last_late: int | None = None
+        self._steps: list[int] = []                 # the first stamp steps of a session (the robot's own cycle)
+        self.cycle_seen: float | None = None        # the robot's cycle as its stamps say, in stamp units
+        self._step = self.iface.stamp_step
         self._slow_ns = r.cycle_ms * 1_000_000
-        self._in = image.in_codec.index
         self._q_names = [f"q{i}" for i in range(1, 7)]
+        has_element = r.interface == "kuka_rsi" and r.kuka_rsi.command_element is not None
+        self.reset = RecoveryReset(clears=0 if has_element else int(Fault.PLC_HEARTBEAT))
+        self._kept_faults_said = False
 
     # -- life cycle -------------------------------------------------------------------------------
     async def start(self) -> None:
         r = self.settings.robot
-        warning = r.exposure_warning()
-        if warning:
+        for warning in self.settings.warnings():
             log.warning(warning)
         loop = asyncio.get_running_loop()
         try:
@@ -124,40 +144,70 @@ class RobotRoad:
                             peer, self.settings.robot.peer)
             self._drop("peer")
             return None
+        now = self.clock()
+        heard, self._heard_t = self._heard_t, now
+        iface = self.iface
         try:
-            p = self.answerer.parse(data)
-            now = self.clock()
-            new = self._last_t is None or now - self._last_t > self.settings.silence_s
-            if not new and self._last_stamp is not None and p.stamp <= self._last_stamp:
-                raise PacketError("stamp", f"stamp {p.stamp} does not rise (last {self._last_stamp})")
+            p = iface.parse(data)
+            silent = self._last_t is None or now - self._last_t > self.settings.silence_s
+            last = self._last_stamp
+            restarted = not silent and last is not None and p.stamp <= last and iface.restarted(p.stamp, last)
+            new = silent or restarted
+            if not new and p.stamp == last:
+                raise PacketError("repeated", f"{iface.stamp_name} {p.stamp} repeated: the robot sent its last "
+                                  "packet again (it did not take the answer, or the network doubled it)")
+            if not new and p.stamp < last:
+                raise PacketError("stamp", f"{iface.stamp_name} {p.stamp} is below the last one taken ({last}): "
+                                  "a packet out of order")
             missed = 0 if new else self._missed(p)
-            q = self.answerer.programmed(p.joints_deg, new, missed)
+            held = ZERO6 if new else iface.history[-1 - min(missed, len(iface.history) - 1)][0]
+            q = iface.programmed(p, held, new)
             self._check_limits(q)
         except PacketError as e:
             self.errors.report(peer, e.reason, str(e))
             self._drop(e.reason)
             return None
         if new:                             # only a packet taken begins a session
-            self._new_session(now)
+            self._new_session(now, p.stamp, heard, restarted)
         elif missed:
-            self.answerer.missed(missed)
+            iface.missed(missed)
         self._note_counts(p)
         self._last_t, self._last_stamp = now, p.stamp
+        held = iface.held
         out = self.image.outputs()
-        self._write_inputs(p, q, now, out)
+        self._write_inputs(p, [a + b for a, b in zip(q, held)], now, out)
+        warning = iface.evidence(p)
+        if warning:
+            log.warning("robot road: %s", warning)
+            if self.metrics is not None:
+                self.metrics.count_robot_contradiction("joints_include_correction")
         ramp = min(1.0, (now - self._session_t) / self.settings.ramp_s) if self.settings.ramp_s > 0 else 1.0
         correction = [ramp * out[f"correction_q{i}"] for i in range(1, 7)]
+        reply = iface.answer(p, q, correction, out["sample_age_ms"])
         self.counts["answered"] += 1
-        return self.answerer.answer(p, q, correction, out.get("sample_age_ms", 0.0))
+        return reply
 
-    def _new_session(self, now: float) -> None:
+    def _new_session(self, now: float, stamp: int, heard: float | None, restarted: bool) -> None:
         self.counts["sessions"] += 1
-        if self.counts["sessions"] > 1:
-            log.warning("robot road: the robot speaks again after %.0f ms of silence: a new session, answered from "
-                        "zero correction", 1000.0 * (now - self._last_t))
+        if restarted:
+            self.counts["restarts"] += 1
+            log.warning("robot road: the robot's %s fell back from %d to %d: its program started the interface "
+                        "again; a new session, answered from zero correction", self.iface.stamp_name,
+                        self._last_stamp, stamp)
+        elif self.counts["sessions"] > 1:
+            quiet_ms = 1000.0 * (now - self._last_t)
+            if heard is not None and heard > self._last_t:
+                log.warning("robot road: the robot's packets were all dropped for %.0f ms (see the counts by "
+                            "reason): a new session, answered from zero correction", quiet_ms)
+            else:
+                log.warning("robot road: the robot speaks again after %.0f ms of silence: a new session, answered "
+                            "from zero correction", quiet_ms)
         self._session_t = now
         self._last_stamp = self._last_late = None
-        self.answerer.restart()
+        self._steps = []
+        self.iface.restart()
+        self.reset.recovered(now)
+        self._kept_faults_said = False
 
     def _check_limits(self, q: list[float]) -> None:
         for j, (v, (lo, hi)) in enumerate(zip(q, self.settings.limits_deg)):
@@ -174,11 +224,33 @@ class RobotRoad:
             if self._last_late is not None and p.late > self._last_late:
                 late = p.late - self._last_late
             self._last_late = p.late
-        step = self.answerer.stamp_step
-        if self._last_stamp is not None and p.stamp - self._last_stamp > step:
-            gaps = (p.stamp - self._last_stamp) // step - 1
+        if self._last_stamp is not None:
+            step = p.stamp - self._last_stamp
+            if len(self._steps) < CYCLE_CHECK_PACKETS:
+                self._steps.append(step)             # gaps counted once the robot's own step is known
+                if len(self._steps) == CYCLE_CHECK_PACKETS:
+                    self._cycle_check()
+                    gaps = sum(max(d // self._step - 1, 0) for d in self._steps)
+            elif step > self._step:
+                gaps = step // self._step - 1
         self._late("late_reported", "reported", late)
         self._late("stamp_gaps", "stamp_gap", gaps)
+
+    def _cycle_check(self) -> None:
+        """The session's first steps of the stamp, against the configured cycle: a robot whose stamps rise by a
+        whole multiple of it (a 12 ms IPO against cycle_ms 4) is named once, and its gaps counted on its own
+        step."""
+        seen = int(np.median(self._steps))
+        self.cycle_seen = seen
+        want = self.iface.stamp_step
+        if seen != want and seen > 0 and seen % want == 0:
+            self._step = seen
+            r = self.settings.robot
+            unit = "ms" if self.iface.stamp_name == "IPOC" else "packets"
+            log.warning("robot road: the robot's %s rises by %d %s per packet, the %s cycle_ms (%d) says %d: its "
+                        "cycle looks like %d ms; set robot.%s.cycle_ms to match the robot (its gaps are counted on "
+                        "the robot's own step meanwhile)", self.iface.stamp_name, seen, unit, r.interface,
+                        r.cycle_ms, want, seen * r.cycle_ms // want, r.interface)
 
     def _late(self, key: str, kind: str, n: int) -> None:
         if n > 0:
@@ -191,13 +263,21 @@ class RobotRoad:
         s = self.settings
         if s.owns_commands:
             self.heartbeat = (self.heartbeat + 1) & 0xFFFF
-            command = p.command if p.command is not None else (_ENABLE if s.enable_on_start else 0)
-            held = now - self._session_t < RESET_HOLD_S
-            if held and (now == self._session_t or int(out.get("fault_word", 0)) != 0):
-                command |= _RESET
+            fault_word = int(out["fault_word"])
+            if p.command is not None:
+                command = p.command                # the robot's own: its enable, tare and reset
+            else:
+                command = _ENABLE if s.enable_on_start else 0
+                if self.reset.bit(now, fault_word):
+                    command |= int(Command.RESET)
+                elif fault_word and now - self._session_t <= self.reset.hold_s and not self._kept_faults_said:
+                    self._kept_faults_said = True
+                    log.warning("robot road: the robot is back, but fault_word 0x%04X holds faults beyond its "
+                                "silence; they stay latched (the correction off) until the robot's own reset bit "
+                                "(robot.kuka_rsi.command_element, bit 2) or a restart", fault_word)
             values["command_word"] = command & 0xFFFF
             values["plc_heartbeat"] = p.heartbeat if p.heartbeat is not None else self.heartbeat
-        if p.payload is not None and "payload_index" in self._in:
+        if p.payload is not None and "payload_index" in self.image.in_codec.index:
             values["payload_index"] = p.payload
         self.image.write_values(values)
 
@@ -224,7 +304,9 @@ class RobotRoad:
         n = min(self._n_latency, LATENCY_RING)
         lat = self.latency_us[:n]
         pct = (lambda q: round(float(np.percentile(lat, q)), 1)) if n else (lambda q: None)
+        seen = None if self.cycle_seen is None else self.cycle_seen * self.settings.robot.cycle_ms / self.iface.stamp_step
         return {"interface": self.settings.robot.interface, **self.counts, "dropped": dict(self.counts["dropped"]),
+                "cycle_seen_ms": seen, **self.iface.check_stats(),
                 "latency_us": {"p50": pct(50), "p99": pct(99), "max": round(float(lat.max()), 1) if n else None,
                                "n": n}}
 
@@ -242,7 +324,7 @@ class _Datagrams(asyncio.DatagramProtocol):
         try:
             reply = self.road.received(data, addr)
         except Exception as e:  # noqa: BLE001 - one bad packet must not end the road; counted as dropped
-            log.error("robot road: a packet from %s failed: %r", addr[0], e)
+            self.road.errors.report(str(addr[0]), "failed", f"a packet could not be answered: {e!r}")
             self.road._drop("failed")
             return
         if reply is not None:

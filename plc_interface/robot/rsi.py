@@ -61,15 +61,9 @@ def parse(data: bytes, s: KukaRsiSettings) -> RobotPacket:
         stamp = -1
     if stamp < 0:
         raise PacketError("ipoc", "no <IPOC> with a whole number >= 0")
-    axes = root.find(s.joints)
-    if axes is None:
-        raise PacketError("joints", f"no <{s.joints}> element (robot.kuka_rsi.joints)")
-    try:
-        q = tuple(float(axes.get(a, "nan")) for a in AXES)
-    except ValueError:
-        raise PacketError("joints", f"<{s.joints}> has a value that is not a number") from None
-    if not all(math.isfinite(v) for v in q):
-        raise PacketError("joints", f"<{s.joints}> A1..A6 = {q}: not six finite numbers")
+    q = _axes(root, s.joints, required=True)
+    other = _axes(root, "AIPos" if s.joints == "ASPos" else "ASPos", required=False)
+    setpoint, actual = (q, other) if s.joints == "ASPos" else (other, q)
     delay = root.find("Delay")
     try:
         late = int(delay.get("D")) if delay is not None else None
@@ -78,7 +72,27 @@ def parse(data: bytes, s: KukaRsiSettings) -> RobotPacket:
     extra = {k: None if n is None else _int(root, n, f"(robot.kuka_rsi.{k}_element) is not a whole number")
              for k, n in (("command", s.command_element), ("heartbeat", s.heartbeat_element),
                           ("payload", s.payload_element))}
-    return RobotPacket(stamp, q, late, **extra)
+    return RobotPacket(stamp, q, late, **extra, setpoint_deg=setpoint, actual_deg=actual)
+
+
+def _axes(root, tag: str, required: bool) -> tuple[float, ...] | None:
+    """A1..A6 of ``<tag>`` (deg); None for an absent optional element or one that is not six finite numbers."""
+    axes = root.find(tag)
+    if axes is None:
+        if required:
+            raise PacketError("joints", f"no <{tag}> element (robot.kuka_rsi.joints)")
+        return None
+    try:
+        q = tuple(float(axes.get(a, "nan")) for a in AXES)
+    except ValueError:
+        if not required:
+            return None
+        raise PacketError("joints", f"<{tag}> has a value that is not a number") from None
+    if not all(math.isfinite(v) for v in q):
+        if not required:
+            return None
+        raise PacketError("joints", f"<{tag}> A1..A6 = {q}: not six finite numbers")
+    return q
 
 
 def answer(sen_type: str, ipoc: int, values, cartesian: bool) -> bytes:

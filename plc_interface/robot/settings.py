@@ -16,13 +16,15 @@ from __future__ import annotations
 import ipaddress
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from stiffness.files.yaml_schema import Strict
 
 from ..settings import PORT_MAX, PORT_MIN, is_loopback, peer_address
 
-INTERFACES = ("none", "kuka_rsi", "abb_egm")
+INTERFACES = ("none", "kuka_rsi", "abb_egm")      # each but none has its sub-section and its module of the same name
+NAMES = {"kuka_rsi": "KUKA RSI", "abb_egm": "ABB EGM"}
+PATH_SAMPLE_MS = 24        # EGM path corrections are read at multiples of this (ABB's EGM manual)
 _XML_NAME = r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$"
 
 
@@ -37,9 +39,12 @@ class KukaRsiSettings(Strict):
     cartesian : false: ``AK A1..A6``, the joint correction in degrees; true: ``RKorr X Y Z A B C``, the TCP
         motion the joint correction makes, in the base frame (mm, deg)
     cycle_ms : the robot's RSI cycle, 4 (KR C4 and later) or 12
-    joints : the element whose A1..A6 are the axes' setpoints the cycle uses (``ASPos``; ``AIPos``: actual)
-    joints_include_correction : the robot's setpoints already hold the correction this service sent, which is
-        taken off again so the cycle sees the programmed joints
+    joints : the element whose A1..A6 are the joints the road reads (``ASPos``: the setpoints; ``AIPos``: the
+        measured axes)
+    joints_include_correction : whether those joints already hold the correction the robot applies. None (the
+        default) takes what a real KR C4 does: ``ASPos`` does not hold it (a public recording of RSI 3 under
+        correction shows ``ASPos`` standing still while ``AIPos`` moves by the correction, docs/robot.md),
+        ``AIPos`` does. The road checks it against the packets (`plc_interface.robot.kuka_rsi`)
     command_element, heartbeat_element, payload_element : names of optional elements the robot's program
         sends with the command word, a heartbeat and the payload index (None: not sent)
     """
@@ -49,10 +54,23 @@ class KukaRsiSettings(Strict):
     cartesian: bool = False
     cycle_ms: Literal[4, 12] = 4
     joints: Literal["ASPos", "AIPos"] = "ASPos"
-    joints_include_correction: bool = True
+    joints_include_correction: bool | None = None
     command_element: str | None = Field(None, pattern=_XML_NAME)
     heartbeat_element: str | None = Field(None, pattern=_XML_NAME)
     payload_element: str | None = Field(None, pattern=_XML_NAME)
+
+    @property
+    def includes_correction(self) -> bool:
+        """Whether the joints the road reads hold the correction the robot applies (the setting, else the KR C4's
+        behaviour: ``AIPos`` holds it, ``ASPos`` does not)."""
+        return self.joints == "AIPos" if self.joints_include_correction is None else self.joints_include_correction
+
+    @property
+    def cartesian_answer(self) -> bool:
+        return self.cartesian
+
+    def served(self) -> str:
+        return f"{self.cycle_ms} ms, {'RKorr' if self.cartesian else 'AK'} {self.correction}"
 
 
 class AbbEgmSettings(Strict):
@@ -60,14 +78,34 @@ class AbbEgmSettings(Strict):
 
     Attributes
     ----------
-    mode : ``joint``: position guidance; the answer's planned joints are the robot's planned joints plus the
-        correction (EGMActJoint, EGMRunJoint). ``path``: a path correction (EGMActMove, EGMMoveL/EGMMoveC with
-        path correction): the TCP motion the joint correction makes, in the path frame, with its age
-    cycle_ms : the robot's EGM cycle (its UDP unit's sample rate), 4 by default
+    mode : ``path`` (the default, the shipped robot side): a path correction (EGMActMove, EGMMoveL/EGMMoveC with
+        path correction): the TCP motion the joint correction makes, in the path frame, with its age.
+        ``joint``: position guidance (EGMActJoint, EGMRunJoint), which runs no RAPID path: the answer is the pose
+        the robot reported when the session began plus the correction, for a pose held under load
+    cycle_ms : the robot's EGM cycle (the \\SampleRate of EGMActMove or EGMActJoint): in path mode a multiple of
+        24 ms (ABB's manual: path corrections are read at multiples of about 24 ms; the shipped 48), in joint
+        mode a multiple of 4 ms (4 by default)
     """
 
-    mode: Literal["joint", "path"] = "joint"
-    cycle_ms: int = Field(4, ge=4, le=100)
+    mode: Literal["joint", "path"] = "path"
+    cycle_ms: int | None = Field(None, ge=4, le=480)
+
+    @model_validator(mode="after")
+    def _sample_rate(self):
+        step = PATH_SAMPLE_MS if self.mode == "path" else 4
+        if self.cycle_ms is None:
+            self.cycle_ms = 2 * PATH_SAMPLE_MS if self.mode == "path" else 4
+        elif self.cycle_ms % step:
+            raise ValueError(f"cycle_ms = {self.cycle_ms} must be a multiple of {step} ms in {self.mode} mode "
+                             "(EGMAct" + ("Move" if self.mode == "path" else "Joint") + "'s \\SampleRate)")
+        return self
+
+    @property
+    def cartesian_answer(self) -> bool:
+        return self.mode == "path"
+
+    def served(self) -> str:
+        return f"{self.cycle_ms} ms, {self.mode} mode"
 
 
 class RobotSettings(Strict):
@@ -79,6 +117,15 @@ class RobotSettings(Strict):
     kuka_rsi: KukaRsiSettings = Field(default_factory=KukaRsiSettings)
     abb_egm: AbbEgmSettings = Field(default_factory=AbbEgmSettings)
 
+    def defaults_warning(self) -> str | None:
+        """The warning for an interface named without its own sub-section (it runs on that section's defaults,
+        which are the shipped robot side's), or None."""
+        if not self.enabled or self.interface in self.model_fields_set:
+            return None
+        return (f"robot.interface is {self.interface} but the config has no robot.{self.interface} section: its "
+                f"defaults are used ({self.section.served()}); they match the shipped robot side in robot/, so a "
+                f"robot set up otherwise needs robot.{self.interface} (docs/config.md)")
+
     @field_validator("peer")
     @classmethod
     def _address(cls, v: str | None) -> str | None:
@@ -89,14 +136,19 @@ class RobotSettings(Strict):
         return self.interface != "none"
 
     @property
+    def section(self) -> KukaRsiSettings | AbbEgmSettings:
+        """The sub-section of the interface in use (``robot.kuka_rsi``, ``robot.abb_egm``)."""
+        return getattr(self, self.interface)
+
+    @property
     def cycle_ms(self) -> int:
         """The robot's cycle (ms) of the interface in use."""
-        return self.kuka_rsi.cycle_ms if self.interface == "kuka_rsi" else self.abb_egm.cycle_ms
+        return self.section.cycle_ms
 
     @property
     def cartesian(self) -> bool:
         """Whether the answer carries the TCP's motion (RKorr, EGM path correction) rather than joints."""
-        return (self.kuka_rsi.cartesian if self.interface == "kuka_rsi" else self.abb_egm.mode == "path")
+        return self.section.cartesian_answer
 
     def takes(self, peer_ip: str) -> bool:
         """Whether a packet from ``peer_ip`` is the robot's (``peer``)."""
@@ -104,13 +156,9 @@ class RobotSettings(Strict):
 
     def served(self) -> str:
         """The start-up line's words: ``KUKA RSI on 127.0.0.1:49152 (4 ms, AK absolute)``."""
-        if self.interface == "kuka_rsi":
-            k = self.kuka_rsi
-            what = f"{'RKorr' if k.cartesian else 'AK'} {k.correction}"
-            return f"KUKA RSI on {self.host}:{self.port} ({k.cycle_ms} ms, {what})"
-        if self.interface == "abb_egm":
-            return f"ABB EGM on {self.host}:{self.port} ({self.abb_egm.cycle_ms} ms, {self.abb_egm.mode} mode)"
-        return "none"
+        if not self.enabled:
+            return "none"
+        return f"{NAMES[self.interface]} on {self.host}:{self.port} ({self.section.served()})"
 
     def exposure_warning(self) -> str | None:
         """The warning for a road that listens beyond this machine and takes any sender, or None."""

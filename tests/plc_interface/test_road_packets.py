@@ -11,14 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.testing import CONFIG
-from hil.virtual_robot import RobotController
-from plc_interface.contract import Command, to_plc
+from hil.virtual_robot import controller_for
+from plc_interface.contract import Command, Fault, to_plc
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 from plc_interface.robot import egm, rsi
-from plc_interface.robot.answers import Answerer, TcpJacobian
+from plc_interface.robot.interface import ZERO6, interface_for
 from plc_interface.robot.road import RoadSettings, RobotRoad
 from plc_interface.robot.settings import RobotSettings
+from plc_interface.robot.tcp import TcpJacobian
 from stiffness.kinematics.robot import load_robot
 
 ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
@@ -68,7 +69,8 @@ def test_a_packet_from_another_address_changes_nothing(image):
 @pytest.mark.parametrize("data, reason", [
     (rsi.robot_packet(1004, [math.nan, *Q[1:]], Q), "joints"),
     (rsi.robot_packet(1004, [0.0, -60.0, 90.0, 0.0, 60.0, 1e6], Q), "joints"),        # beyond A6's limits
-    (rsi.robot_packet(1000, Q, Q), "stamp"),                                           # IPOC not rising
+    (rsi.robot_packet(1000, Q, Q), "repeated"),                                        # the same IPOC again
+    (rsi.robot_packet(996, Q, Q), "stamp"),                                            # a packet out of order
     (b"<Rob TYPE='KUKA'><IPOC>1004</IPOC>", "malformed"),
     (b'<!DOCTYPE r [<!ENTITY a "aaaa">]><Rob>&a;</Rob>', "malformed"),
 ])
@@ -96,10 +98,11 @@ def test_commands_and_heartbeat_without_a_plc_and_a_new_session_after_silence(im
         clock.t += 0.075
         got = rsi.read_answer(road.received(rsi.robot_packet(ipoc, [q + 0.5 for q in Q], Q), ROBOT_AT))
     assert got[2] == (0.5,) * 6
-    road.received(rsi.robot_packet(1016, [q + 0.5 for q in Q], Q), ROBOT_AT)
-    assert q_of(image) == pytest.approx(Q, abs=1e-5)              # its setpoints less the correction it holds
+    road.received(rsi.robot_packet(1016, Q, [q + 0.5 for q in Q]), ROBOT_AT)
+    # the commanded joints, as a PLC reports them: the programmed (ASPos) plus the correction the robot holds
+    assert q_of(image) == pytest.approx([q + 0.5 for q in Q], abs=1e-5)
     clock.t += 0.15                                                 # silent beyond faults.plc_heartbeat_timeout_ms
-    publish(image, [0.5] * 6, fault_word=1 << 5)
+    publish(image, [0.5] * 6, fault_word=int(Fault.PLC_HEARTBEAT))
     again = rsi.read_answer(road.received(rsi.robot_packet(1500, Q, Q), ROBOT_AT))
     assert again[2] == (0.0,) * 6 and road.counts["sessions"] == 2
     assert image.inputs().command_word & Command.RESET              # the latched fault is reset by the return
@@ -108,9 +111,35 @@ def test_commands_and_heartbeat_without_a_plc_and_a_new_session_after_silence(im
     assert image.inputs().command_word & Command.RESET              # held while a fault remains
 
 
+def test_the_robots_return_resets_only_the_fault_its_silence_latched(image, caplog):
+    """Without a PLC nobody acknowledges a fault: the robot's return clears its own silence's fault, and any other
+    latched fault stays, with one warning that says how to reset it."""
+    clock = Clock()
+    road = road_on(image, clock)
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT | Fault.SENSOR_SATURATED))
+    road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT)
+    clock.t += 0.004
+    road.received(rsi.robot_packet(1004, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE)
+    assert sum("faults beyond its silence" in r.message for r in caplog.records) == 1
+
+
+def test_the_robots_own_command_word_is_obeyed_whatever_enable_on_start_says(image):
+    """With a command element the robot's enable bit alone switches the correction (its 0 is a 0), and the road
+    says once at start that plc.enable_on_start is ignored."""
+    road = road_on(image, kuka_rsi={"command_element": "StiffCmd"})
+    assert road.settings.enable_on_start
+    assert any("plc.enable_on_start: true is ignored" in w and "<StiffCmd>" in w for w in road.settings.warnings())
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT))
+    road.received(rsi.robot_packet(1000, Q, Q, extra={"StiffCmd": 0}), ROBOT_AT)
+    assert image.inputs().command_word == 0            # no enable, and no reset the robot did not ask for
+    road.received(rsi.robot_packet(1004, Q, Q, extra={"StiffCmd": 5}), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE | Command.RESET)
+
+
 def test_the_robots_own_command_heartbeat_and_payload_elements(image):
     road = road_on(image, kuka_rsi={"command_element": "Cmd", "heartbeat_element": "Hb", "payload_element": "Pay"})
-    road.received(rsi.robot_packet(1000, Q, Q, extra={"Cmd": 0, "Hb": 17, "Pay": 2}), ROBOT_AT)
+    road.received(rsi.robot_packet(1000, Q, Q, extra={"Cmd": 4, "Hb": 17, "Pay": 2}), ROBOT_AT)
     i = image.inputs()
     assert (i.command_word, i.plc_heartbeat, i.payload_index) == (int(Command.RESET), 17, 2)
 
@@ -139,24 +168,29 @@ joints = st.lists(st.floats(-20.0, 20.0), min_size=6, max_size=6).map(lambda d: 
 @settings(max_examples=25, deadline=None)
 @given(steps=st.lists(st.tuples(joints, corrections), min_size=1, max_size=4))
 def test_the_robot_holds_the_correction_the_road_answers(section, steps):
-    """Answer after answer, what the controller applies is the joint correction behind the answer: exactly for
+    """Answer after answer, what the controller holds is the joint correction behind the answer: exactly for
     the joint answers, as the same TCP motion for RKorr, and across the path for an EGM path correction."""
     settings_ = RobotSettings.model_validate(section)
-    road, robot = Answerer(settings_, str(ROBOT.source)), RobotController(settings_, ROBOT)
+    iface, robot = interface_for(settings_, str(ROBOT.source)), controller_for(settings_, ROBOT)
     jac = TcpJacobian(ROBOT)
+    joint_mode = settings_.interface == "abb_egm" and settings_.abb_egm.mode == "joint"
     for k, (q, dq) in enumerate(steps):
-        p = road.parse(robot.packet(0.004 * k, q))
-        q_prog = road.programmed(p.joints_deg)
-        assert q_prog == pytest.approx(q, abs=2e-6)
-        assert robot.take(road.answer(p, q_prog, dq, 0.0), q)
+        t = 0.004 * k
+        p = iface.parse(robot.packet(t, q))
+        q_prog = iface.programmed(p, iface.held, k == 0)
+        # joint mode holds the session's first pose, whatever the robot's planned joints say afterwards
+        assert q_prog == pytest.approx(steps[0][0] if joint_mode else q, abs=2e-6)
+        assert robot.take(iface.answer(p, q_prog, dq, 0.0), t, q_prog)
+        held = robot.holds(t, q_prog)
+        assert iface.held == pytest.approx(dq, abs=1e-12)
         if settings_.interface == "kuka_rsi" and not settings_.kuka_rsi.cartesian:
-            assert robot.applied == pytest.approx(dq, abs=3e-6)           # AK has six decimals
-        elif settings_.interface == "abb_egm" and settings_.abb_egm.mode == "joint":
-            assert robot.applied == pytest.approx(dq, abs=1e-9)
+            assert held == pytest.approx(dq, abs=3e-6)             # AK has six decimals
+        elif joint_mode:
+            assert held == pytest.approx(dq, abs=1e-9)
         elif settings_.interface == "kuka_rsi":
-            assert jac.motion(q, robot.applied) == pytest.approx(jac.motion(q, dq), abs=2e-5)
+            assert jac.motion(q, held) == pytest.approx(jac.motion(q, dq), abs=2e-5)
         else:
-            along = egm.to_path(robot.frame, jac.motion(q, robot.applied)[:3])
+            along = egm.to_path(robot.frame, jac.motion(q, held)[:3])
             wanted = egm.to_path(robot.frame, jac.motion(q, dq)[:3])
             assert along[1:] == pytest.approx(wanted[1:], abs=1e-7) and abs(along[0]) <= 1e-7
 
@@ -171,30 +205,36 @@ def test_a_refused_packet_after_a_silence_begins_no_session(image):
     publish(image, [0.5] * 6)
     assert rsi.read_answer(road.received(rsi.robot_packet(1504, Q, Q), ROBOT_AT))[2] == (0.0,) * 6
     assert road.counts["sessions"] == 2 and q_of(image) == pytest.approx(Q, abs=1e-5)
+    assert ZERO6 == road.iface.history[0][0]
 
 
 @pytest.mark.parametrize("correction", ["absolute", "relative"])
 @settings(max_examples=30, deadline=None)
 @given(steps=st.lists(st.tuples(joints, corrections, st.booleans()), min_size=2, max_size=8))
 def test_answers_the_robot_missed_are_taken_off_as_its_delay_says(correction, steps):
-    """A robot that did not take an answer (late) reports it in ``Delay``; the road then takes off the setpoints
-    what the robot holds, not what it was sent, and a relative answer makes up the increment it missed."""
-    section = RobotSettings.model_validate({"interface": "kuka_rsi", "kuka_rsi": {"correction": correction}})
-    road, robot = Answerer(section), RobotController(section, ROBOT)
-    last_late = 0
-    for k, (q, dq, taken) in enumerate(steps):
-        p = road.parse(robot.packet(0.004 * k, q))
-        missed = p.late - last_late
-        last_late = p.late
-        if missed:
-            road.missed(missed)
-        q_prog = road.programmed(p.joints_deg)
-        assert q_prog == pytest.approx(q, abs=2e-6)
-        answer = road.answer(p, q_prog, dq, 0.0)
-        if taken:
-            assert robot.take(answer, q) and robot.applied == pytest.approx(dq, abs=3e-6)
-        else:
-            robot.late += 1                                  # as the controller counts an answer not in time
+    """A robot that did not take an answer (late) reports it in ``Delay``; the road then knows it holds what it
+    held before (the commanded joints it writes), and a relative answer makes up the increment it missed."""
+    section = RobotSettings.model_validate({"interface": "kuka_rsi", "kuka_rsi": {"correction": correction,
+                                                                                 "joints": "AIPos"}})
+    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    clock = Clock()
+    road = RobotRoad(im, RoadSettings(section, silence_s=10.0, ramp_s=0.0), clock=clock)
+    robot = controller_for(section, ROBOT)
+    try:
+        for k, (q, dq, taken) in enumerate(steps):
+            t = 0.004 * k
+            clock.t += 0.004
+            robot.actual = None                                # AIPos as commanded, no servo lag
+            publish(im, dq)
+            answer = road.received(robot.packet(t, q), ROBOT_AT)
+            # the commanded joints: programmed plus what the robot holds (AIPos holds it)
+            assert q_of(im) == pytest.approx(np.add(q, robot.holds(t, q)), abs=1e-4)
+            if taken:
+                assert robot.take(answer, t, q) and robot.holds(t, q) == pytest.approx(dq, abs=3e-6)
+            else:
+                robot.late += 1                                # as the controller counts an answer not in time
+    finally:
+        im.close()
 
 
 def test_a_robot_port_in_use_is_refused_naming_the_key_and_the_udp_listing(image):

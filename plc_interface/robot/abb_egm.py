@@ -1,0 +1,75 @@
+"""ABB EGM's meaning to the road: the seqno, what ``planned`` is, and the joint or path-correction answer.
+
+Source: ABB's Application manual Externally Guided Motion (RobotWare 7, 3HAC073318-001). Two of its facts decide
+the answers:
+
+* ``planned`` in ``EgmRobot`` is the robot's *reference position*, the target it is moving to, not a programmed
+  path; and in position guidance (``EGMRunJoint``) the robot follows no RAPID path at all. So a joint answer of
+  "``planned`` + δq" is added again every cycle by a robot that does what the manual says: the target runs
+  away. Joint mode therefore answers the pose the robot reported when the session began (its ``planned``
+  joints in the session's first packet) plus δq: the pose it holds, whatever the controller fills ``planned``
+  with afterwards. It is for a pose held under load (drilling, a plunge, a press fit), not a cut.
+* A programmed path is corrected by path correction (``EGMActMove``, ``EGMMoveL``/``EGMMoveC``), read by the
+  controller at multiples of about 24 ms. The answer is J(q) δq, the TCP's motion, in ABB's path frame
+  (`egm.path_frame`), with the age of the force sample it comes from (at least 1 ms: the manual's age counts
+  whole milliseconds since the measurement, and a public sender never sends less than 1). Its value is absolute
+  (the offset from the programmed path), so it cannot add up either way ``planned`` is filled.
+
+* **Stamp**: the header's seqno, rising by one per packet; a new ``EGMRunJoint`` or ``EGMActMove`` starts it
+  again, which begins a new session at once.
+* **Joints**: joint mode, the session's first planned joints; path mode, the planned joints (the robot's
+  position on its programmed path).
+"""
+
+from __future__ import annotations
+
+from . import egm
+from .interface import RobotInterface
+from .packets import PacketError, RobotPacket
+
+MIN_AGE_MS = 1
+
+
+class AbbEgm(RobotInterface):
+    """ABB EGM over UDP (module docstring)."""
+
+    stamp_name = "seqno"
+
+    def __init__(self, settings, robot_file=None):
+        self.mode = settings.abb_egm.mode
+        self.seqno = 0                  # the sensor's own rising count
+        self.hold_pose: list[float] | None = None       # joint mode: the pose of the session's first packet
+        super().__init__(settings, robot_file)
+
+    def restart(self) -> None:
+        """A new session (after `programmed` read its first packet, which sets the pose joint mode holds)."""
+        super().restart()
+        self.last_pose = self.last_x = None                 # path mode: the last planned pose and path frame's x
+
+    def restarted(self, stamp: int, last: int) -> bool:
+        # a new EGM instruction counts from the start again (however short the last one was)
+        return super().restarted(stamp, last) or stamp <= 1 < last
+
+    def parse(self, data: bytes) -> RobotPacket:
+        p = egm.parse(data)
+        if self.mode == "path" and p.pose is None:
+            raise PacketError("pose", "no planned.cartesian pose (pos and orient): a path correction is given in "
+                                      "the path frame, which the planned poses define")
+        return p
+
+    def programmed(self, p: RobotPacket, held, new_session: bool) -> list[float]:
+        if self.mode == "path":
+            return list(p.joints_deg)
+        if new_session or self.hold_pose is None:          # the pose the robot reported as the session began
+            self.hold_pose = list(p.joints_deg)
+        return list(self.hold_pose)
+
+    def answer(self, p: RobotPacket, q: list[float], correction: list[float], age_ms: float) -> bytes:
+        self.seqno += 1
+        self.hold(correction, correction)
+        if self.mode == "joint":
+            return egm.joint_answer(self.seqno, [a + b for a, b in zip(q, correction)], p.tm_ms)
+        d = self.jacobian.motion(q, correction)[:3]
+        frame = egm.path_frame(self.last_pose or p.pose, p.pose, self.last_x)
+        self.last_pose, self.last_x = p.pose, frame[0]
+        return egm.path_answer(self.seqno, egm.to_path(frame, d), max(round(age_ms), MIN_AGE_MS), p.tm_ms)
