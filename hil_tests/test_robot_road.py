@@ -16,12 +16,12 @@ import pytest
 from hil.robot_drive import Drive, drive
 from hil.run import ServiceProcess
 from hil.testing import CONFIG, free_port, write_config
-from service.config import load_config
 from hil.virtual_robot import VirtualRobot, controller_for
 from plc_interface.endpoints import read_probe
 from plc_interface.robot import rsi
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.robot.tcp import TcpJacobian
+from service.config import load_config
 from stiffness.kinematics.robot import load_robot
 
 ROBOT = load_robot(Path(__file__).resolve().parent.parent / "config" / "robots" / "kr125.yaml")

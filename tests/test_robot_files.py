@@ -291,6 +291,6 @@ def test_the_robot_port_is_exposed_and_documented_where_the_others_are(interface
     expose = next(line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("EXPOSE"))
     assert f"{port}/udp" in expose.split()
     deploy = (ROOT / "docs" / "deploy.md").read_text()
-    assert re.search(rf"^\| [^|]*\b{port}/udp\b", deploy, re.M) and f"-p {port}:{port}/udp" in deploy
+    assert re.search(rf"^\| [^|]*\b{port}/udp\b", deploy, re.MULTILINE) and f"-p {port}:{port}/udp" in deploy
     if interface == "kuka_rsi":
         assert f"containerPort: {port}, protocol: UDP" in deploy
