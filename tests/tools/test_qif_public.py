@@ -120,3 +120,60 @@ def test_the_other_features_agree_with_what_the_cmm_reported():
     line = by_name["DATUMC"]
     d = np.diff(line.points_mm, axis=0)[0]
     assert np.allclose(d / np.linalg.norm(d), _vec(reported[line.id], "q:Normal"), atol=1e-6)
+
+
+def _mutants():
+    """The point cloud with one element of its results removed, emptied or given a bad text, or an attribute of
+    one dropped: what a CMM's export or a hand edit may break."""
+    from hypothesis import strategies as st
+
+    root = ET.parse(POINTS).getroot()
+    n = sum(1 for _ in root.find("q:Results", NS).iter())
+    return st.tuples(st.integers(0, n - 1), st.sampled_from(["remove", "empty", "x", "1 2", "-1", "drop attrs"]))
+
+
+@pytest.fixture(scope="module")
+def tree():
+    ET.register_namespace("", NS["q"])
+    return ET.parse(POINTS)
+
+
+def test_a_broken_point_cloud_never_gives_a_traceback(tree, tmp_path_factory):
+    """Whatever one element of the results becomes, the file reads (with features left out, named) or is
+    refused in one line naming the file: never another exception."""
+    import copy
+
+    from hypothesis import HealthCheck, given, settings
+
+    from stiffness.data.qif_part import feature_rows, pick, surface_points
+
+    folder = tmp_path_factory.mktemp("mutants")
+
+    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(_mutants())
+    def check(mutation):
+        k, how = mutation
+        doc = copy.deepcopy(tree)
+        results = doc.getroot().find("q:Results", NS)
+        el = list(results.iter())[k]
+        parent = next((p for p in results.iter() if el in list(p)), None)
+        if how == "remove" and parent is not None:
+            parent.remove(el)
+        elif how == "drop attrs":
+            el.attrib.clear()
+        else:
+            el.text = "" if how == "empty" else how
+        path = folder / "mutant.qif"
+        doc.write(path, xml_declaration=True, encoding="utf-8")
+        try:
+            qif = read_qif(path)
+            feature_rows(qif)
+            for f in qif.features + qif.left_out:          # what read_qif_part does with each, but one parse
+                try:
+                    surface_points(pick(qif, f.id), str(path))
+                except DataError as e:
+                    assert str(path) in str(e) and "\n" not in str(e)
+        except DataError as e:
+            assert str(path) in str(e) and "\n" not in str(e)
+
+    check()
