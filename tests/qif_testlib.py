@@ -38,13 +38,44 @@ def _sub(parent, tag, text=None, **attrs):
     return el
 
 
+OTHER_FORMS = ("unresolved", "no points", "point/xyz", "binary", "compensations", "coordinate system")
+
+
+def _other(features, fs, pss, k: int, name: str, form: str, points) -> None:
+    """Another measured feature ``name`` (a circle) whose point set is in ``form`` (OTHER_FORMS): its item in
+    ``features``, its measurement in ``fs`` (MeasuredFeatures), its set in ``pss`` (MeasuredPointSets)."""
+    iid, fid, sid = 50 + k, 60 + k, 70 + k
+    item = _sub(features.find(f"{{{NS}}}FeatureItems"), "CircleFeatureItem", id=iid)
+    _sub(item, "FeatureName", name)
+    _sub(item, "FeatureNominalId", 2)
+    fm = _sub(fs, "CircleFeatureMeasurement", id=fid)
+    _sub(fm, "FeatureItemId", iid)
+    _sub(_sub(fm, "PointList"), "WholePointSetId", 99 if form == "unresolved" else sid)
+    ps = _sub(pss, "MeasuredPointSet", id=sid)
+    if form == "point/xyz":                       # Point/XYZ directly under the set, no Points
+        for p in np.asarray(points, dtype=float):
+            _sub(_sub(ps, "Point"), "XYZ", " ".join(f"{v:.10g}" for v in p))
+    elif form == "binary":
+        _sub(ps, "BinaryPoints", "AAAA")
+    elif form in ("compensations", "coordinate system"):
+        _sub(ps, "Points", " ".join(f"{v:.10g}" for v in np.asarray(points, dtype=float).ravel()))
+    if form == "coordinate system":
+        ps.insert(0, ET.Element(f"{{{NS}}}CoordinateSystemId"))
+        ps[0].text = "3"
+    if form == "compensations":
+        _sub(ps, "Compensations", " ".join(["true"] * len(points)))
+    else:
+        _sub(ps, "Compensated", "true")
+
+
 def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensated=True, probe_radius=None,
               diameter=None, internal=True, version="3.0.0", results=1, point_set_ref="20", point_range=None,
-              binary=False, flat=False, count=None) -> Path:
+              binary=False, flat=False, count=None, others=()) -> Path:
     """Write ``points`` (N, 3, in ``unit``) as the measured feature ``name`` of ``results`` MeasurementResults.
     ``flat``: as the QIF 3.0 schema has a measured point set, its ``Points`` one list of x y z triples (of
     ``count`` points, default N) and ``Compensated`` and ``ProbeRadius`` on the set, not on the feature;
-    ``internal`` None writes InternalExternal NOT_APPLICABLE."""
+    ``internal`` None writes InternalExternal NOT_APPLICABLE. ``others``: (name, form) of more circles in the
+    first MeasurementResults, each with the same points in one of OTHER_FORMS."""
     ET.register_namespace("", NS)
     root = ET.Element(f"{{{NS}}}QIFDocument", {"versionQIF": version, "idMax": "99"})
     lin = _sub(_sub(_sub(root, "FileUnits"), "PrimaryUnits"), "LinearUnit")
@@ -57,10 +88,11 @@ def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensate
     item = _sub(_sub(features, "FeatureItems", n=1), f"{kind}FeatureItem", id=3)
     _sub(item, "FeatureName", name)
     _sub(item, "FeatureNominalId", 2)
-    rs = _sub(_sub(root, "MeasurementsResults", n=1), "MeasurementResultsSet", n=results)
+    rs = _sub(_sub(root, "Results"), "MeasurementResultsSet", n=results)
     for r in range(results):
         mr = _sub(rs, "MeasurementResults", id=10 + 20 * r)
-        fm = _sub(_sub(mr, "MeasuredFeatures", n=1), f"{kind}FeatureMeasurement", id=11 + 20 * r)
+        fs = _sub(mr, "MeasuredFeatures", n=1)
+        fm = _sub(fs, f"{kind}FeatureMeasurement", id=11 + 20 * r)
         _sub(fm, "FeatureItemId", 3)
         if diameter is not None:
             _sub(fm, "Diameter", f"{diameter:.9g}")
@@ -73,7 +105,10 @@ def write_qif(path, points, *, name="HOLE", kind="Circle", unit="mm", compensate
             else:
                 _sub(pl, "RangePointSetId", point_set_ref, range=f"{point_range[0]} {point_range[1]}")
         where = fm
-        ps = _sub(_sub(mr, "MeasuredPointSets", n=1), "MeasuredPointSet", id=20 + 20 * r)
+        pss = _sub(mr, "MeasuredPointSets", n=1)
+        ps = _sub(pss, "MeasuredPointSet", id=20 + 20 * r)
+        for k, (other, form) in enumerate(others if r == 0 else ()):
+            _other(features, fs, pss, k, other, form, points)
         if flat:
             ps.set("count", str(len(points) if count is None else count))
             _sub(ps, "Points", " ".join(f"{v:.10g}" for v in np.asarray(points, dtype=float).ravel()))

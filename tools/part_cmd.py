@@ -85,16 +85,22 @@ def _check_options(args) -> None:
     part_qif.check_options(args, [args.part] + [x[1] for x in getattr(args, "more", [])])
 
 
-def _parts(args, model) -> list:
+def _parts(args, model) -> tuple[list, list[dict]]:
+    """Each part read against its trace, and the features of its QIF file left out (their points cannot be
+    read): named in the part's notes (the text) and returned for the JSON's ``left_out_features``."""
     from stiffness.data.trace_file import read_trace
     from stiffness.part.rows import read_against
 
     pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
-    out = []
+    out, features_left_out = [], []
     for k, (trace, part) in enumerate(pairs):
-        out.append(read_against(part_qif.read_any(part, args), read_trace(trace), model.robot, f"part {k + 1}",
-                                best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz))
-    return out
+        measurement, left_out = part_qif.read_any(part, args)
+        rows = read_against(measurement, read_trace(trace), model.robot, f"part {k + 1}",
+                            best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz)
+        rows.notes += [x.text(part) for x in left_out]
+        features_left_out += [x.to_dict(part) for x in left_out]
+        out.append(rows)
+    return out, features_left_out
 
 
 def _prior(args, model, say):
@@ -123,7 +129,8 @@ def run_compare(args) -> int:
 
     _check_options(args)
     model = StiffnessModel.from_yaml(args.model)
-    comp = compare_part(model, _parts(args, model)[0])
+    parts, features_left_out = _parts(args, model)
+    comp = compare_part(model, parts[0])
     if args.report:
         from stiffness.part.report import compare_report
 
@@ -131,26 +138,27 @@ def run_compare(args) -> int:
         path = write_output(Path(args.report) / "index.html", lambda p: rep.write(p.parent))
         print(f"report: {path}", file=sys.stderr)
     if args.json:
-        print_json(comp.summary())
+        print_json({**comp.summary(), "left_out_features": features_left_out})
         return 0
     print("\n".join(comp.lines()))
     return 0
 
 
 def _setup(args, command: str):
-    """Progress, the prior, the model to start from and the parts, for learn and diagnose."""
+    """Progress, the prior, the model to start from, the parts and the QIF features left out, for learn and
+    diagnose."""
     from stiffness.model.stiffness_model import StiffnessModel
 
     _check_options(args)
     progress = Progress(command)
     prior, start = _prior(args, StiffnessModel.from_yaml(args.model), progress)
-    return progress, prior, start, _parts(args, start)
+    return progress, prior, start, *_parts(args, start)
 
 
 def run_learn(args) -> int:
     from stiffness.part.learn import learn
 
-    progress, prior, start, parts = _setup(args, "part learn")
+    progress, prior, start, parts, features_left_out = _setup(args, "part learn")
     result = learn(start, parts, prior, args.best_fit, progress)
     progress.done()
     written = not result.problems or args.force      # a learning that fails its checks only when asked
@@ -162,7 +170,7 @@ def run_learn(args) -> int:
                     "rms_before_mm": result.before_mm, "rms_after_mm": result.after_mm,       # over the points kept
                     "rms_before_with_left_out_mm": result.before_all_mm,           # the fit's gross errors too
                     "rms_after_with_left_out_mm": result.after_all_mm,
-                    "left_out": [x.to_dict() for x in result.left_out],
+                    "left_out": [x.to_dict() for x in result.left_out], "left_out_features": features_left_out,
                     "trace_gaps": [g.to_dict() for p in parts for g in p.gaps],
                     "parameters": result.n_params,
                     "determined": [{"weights": c.weights, "information_ratio": c.ratio, "moved_prior_sigma": c.moved_sigma}
@@ -205,7 +213,7 @@ def run_diagnose(args) -> int:
     from stiffness.part.diagnose import diagnose_parts
     from stiffness.part.left_out import GROSS, fit_account, left_out_lines
 
-    progress, prior, start, parts = _setup(args, "part diagnose")
+    progress, prior, start, parts, features_left_out = _setup(args, "part diagnose")
     pd = diagnose_parts(start, parts, prior, progress)
     progress.done()
     d = pd.diagnosis
@@ -225,6 +233,7 @@ def run_diagnose(args) -> int:
         out["where"] = pd.where
         out["marks_deg"] = pd.marks_deg or []
         out.update(rms_kept_mm=rms_kept, rms_with_left_out_mm=rms_all, left_out=[x.to_dict() for x in left_out],
+                   left_out_features=features_left_out,
                    trace_gaps=[g.to_dict() for p in pd.parts for g in p.gaps], notes=[n for p in pd.parts for n in p.notes])
         print_json(out)
         return 0

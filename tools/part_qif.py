@@ -42,37 +42,39 @@ def check_options(args, parts: list[str]) -> None:
         check_number("--part-frame", v, "mm and deg")
 
 
-def read_any(path: str, args):
-    """The part file as a `PartMeasurement`: QIF by its name (.qif, any case), the part CSV otherwise."""
+def read_any(path: str, args) -> tuple:
+    """The part file as a `PartMeasurement` (QIF by its name, .qif in any case; the part CSV otherwise), and the
+    features of a QIF file left out because their points cannot be read (`QifLeftOut`; none for a CSV)."""
     from stiffness.data.part_points import read_part
 
     if not is_qif(path):
-        return read_part(path)
+        return read_part(path), []
     from stiffness.data.qif_part import read_qif_part
     from stiffness.kinematics.robot import PoseConfig
 
     frame = None
     if args.part_frame is not None:
         frame = PoseConfig(xyz_mm=args.part_frame[:3], rpy_deg=args.part_frame[3:]).matrix()
-    part, note = read_qif_part(path, args.tool_radius_mm, frame, args.feature, args.results)
+    part, note, left_out = read_qif_part(path, args.tool_radius_mm, frame, args.feature, args.results)
     print(f"note: {path}: {note}", file=sys.stderr)
-    return part
+    return part, left_out
 
 
 def register_features(ps) -> None:
     f = ps.add_parser("features", help="list the measured features of a QIF results file")
     f.add_argument("file", help="a QIF 3 results file (.qif)")
     f.add_argument("--results", type=int, metavar="N", help="which MeasurementResults (from 1)")
-    f.add_argument("--json", action="store_true", help='print {"features": [...]} as JSON')
+    f.add_argument("--json", action="store_true", help='print {"features": [...], "left_out": [...]} as JSON')
     f.set_defaults(func=run_features)
 
 
 def run_features(args) -> int:
     from stiffness.data.qif_part import feature_rows, read_qif
 
-    rows = feature_rows(read_qif(args.file, args.results))
+    qif = read_qif(args.file, args.results)
+    rows = feature_rows(qif)
     if args.json:
-        print_json({"features": rows})
+        print_json({"features": rows, "left_out": [x.to_dict() for x in qif.left_out]})
         return 0
 
     def mm(v):
@@ -83,4 +85,6 @@ def run_features(args) -> int:
     for r in rows:
         print(f"{r['name']:16s} {r['id']:>6s} {r['type']:10s} {r['points']:6d} {r['compensated']!s:>11s} "
               f"{r['units']:6s} {mm(r.get('diameter_mm')):>12s} {mm(r.get('reported_diameter_mm')):>12s}")
+    for x in qif.left_out:
+        print(x.text(args.file))
     return 0

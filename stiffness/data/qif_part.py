@@ -4,6 +4,10 @@ QIF results hold every measured feature of one or more parts: its points (a meas
 a whole or as a range), whether they are compensated for the probe's radius, and the file's units. What QIF
 does not carry, the cutter's radius and the part frame, comes from the caller (`read_qif_part`).
 
+A feature whose points cannot be read (`stiffness.data.qif_points`: a reference that does not resolve, a set
+without points, a form not read) is left out, named with the reason (`QifLeftOut`); the file's other
+features still read. What concerns the whole file (not XML, not QIF 3 results, an unknown unit) is refused.
+
 The XML is parsed by defusedxml with DTDs forbidden: a document type declaration, an entity (a "billion
 laughs" bomb) or an external reference is refused before anything is expanded.
 """
@@ -12,23 +16,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import DataError
+from .qif_points import NS, Unreadable, feature_points, number, of_sets, point_sets
+from .qif_points import local as _local
+from .qif_points import q as _q
+from .qif_points import text as _text
 
-NS = "http://qifstandards.org/xsd/qif3"
 UNITS_MM = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "inch": 25.4, "in": 25.4, "m": 1000.0,
             "meter": 1000.0, "metre": 1000.0}
 CIRCULAR = ("Circle", "Cylinder")
-
-
-def _q(tag: str) -> str:
-    return f"{{{NS}}}{tag}"
-
-
-def _local(tag: str) -> str:
-    return tag.rsplit("}", 1)[-1]
+RESULTS_PATH = "Results/MeasurementResultsSet/MeasurementResults"     # QIFResults.xsd: QIFDocument/Results
 
 
 @dataclass
@@ -46,12 +47,34 @@ class QifFeature:
     internal: bool | None               # a hole (True), a boss (False), not said (None)
 
 
+@dataclass(frozen=True)
+class QifLeftOut:
+    """A measured feature whose points cannot be read: its name, id and type, and why (naming the element as
+    the file has it)."""
+
+    name: str
+    id: str
+    type: str
+    reason: str
+
+    def describe(self) -> str:
+        return f"feature {self.name} (id {self.id}, {self.type}) left out: {self.reason}"
+
+    def text(self, source: str) -> str:
+        return f"{source}: {self.describe()}"
+
+    def to_dict(self, source: str | None = None) -> dict:
+        out = {"name": self.name, "id": self.id, "type": self.type, "reason": self.reason}
+        return out if source is None else {"part": source, **out}
+
+
 @dataclass
 class QifResults:
     path: Path
     unit: str
     results: int                        # which MeasurementResults (from 1)
-    features: list[QifFeature] = field(default_factory=list)
+    features: list[QifFeature] = field(default_factory=list)       # every measured feature whose points read
+    left_out: list[QifLeftOut] = field(default_factory=list)       # every one whose points do not, and why
 
 
 def _parse(path: Path):
@@ -91,101 +114,6 @@ def _check_root(path: Path, root) -> None:
         raise DataError(f"{path}: QIFDocument versionQIF {version!r}: only QIF 3.x results are read")
 
 
-def _text(el, tag: str) -> str | None:
-    x = el.find(f".//{_q(tag)}")
-    return x.text.strip() if x is not None and x.text else None
-
-
-def _number(path: Path, where: str, text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise DataError(f"{path}: {where}: {text!r} is not a number") from None
-    if not np.isfinite(v):
-        raise DataError(f"{path}: {where}: {text!r} is not finite")
-    return v
-
-
-@dataclass
-class _PointSet:
-    """A MeasuredPointSet: its points in file units (None: binary, not read) and what it says of them."""
-
-    points: list | None
-    compensated: str | None
-    probe_radius: str | None
-
-
-def _xyz_triples(path: Path, sid: str, el) -> list[tuple[float, float, float]]:
-    """The set's points: QIF 3's ``Points`` list of x y z triples, or Point/XYZ elements."""
-    if el is not None and el.find(_q("Point")) is None:
-        vals = (el.text or "").split()
-        if len(vals) % 3:
-            raise DataError(f"{path}: MeasuredPointSet {sid}: Points holds {len(vals)} numbers, not x y z triples")
-        nums = [_number(path, f"MeasuredPointSet {sid} point {k // 3 + 1}", v) for k, v in enumerate(vals)]
-        return [tuple(nums[k:k + 3]) for k in range(0, len(nums), 3)]
-    pts = []
-    for k, xyz in enumerate((el if el is not None else []).iter(_q("XYZ"))):
-        vals = (xyz.text or "").split()
-        if len(vals) != 3:
-            raise DataError(f"{path}: MeasuredPointSet {sid} point {k + 1}: XYZ {xyz.text!r} is not 'x y z'")
-        pts.append(tuple(_number(path, f"MeasuredPointSet {sid} point {k + 1}", v) for v in vals))
-    return pts
-
-
-def _point_sets(path: Path, root) -> dict[str, _PointSet]:
-    sets = {}
-    for ps in root.iter(_q("MeasuredPointSet")):
-        sid = ps.get("id", "")
-        binary = any(ps.find(f".//{_q(t)}") is not None for t in ("CombinedPointsBinary", "PointsBinary",
-                                                                   "BinaryPoints"))
-        pts = None if binary else _xyz_triples(path, sid, ps.find(_q("Points")))   # binary: refused when used
-        count = ps.get("count")
-        if pts is not None and count is not None and count.strip() != str(len(pts)):
-            raise DataError(f"{path}: MeasuredPointSet {sid}: count {count!r} but {len(pts)} points")
-        sets[sid] = _PointSet(pts, _text(ps, "Compensated"), _text(ps, "ProbeRadius"))
-    return sets
-
-
-def _feature_points(path: Path, fm, fid: str, sets) -> tuple[list, list[str], list[_PointSet]]:
-    pts, labels, used = [], [], []
-    refs = [(r, None) for r in fm.iter(_q("WholePointSetId"))] + \
-           [(r, r.get("range", "")) for r in fm.iter(_q("RangePointSetId"))] + \
-           [(r, f"{r.get('index', '')} {r.get('index', '')}") for r in fm.iter(_q("SinglePointSetId"))]
-    for ref, rng in refs:
-        sid = (ref.text or "").strip()
-        if sid not in sets:
-            raise DataError(f"{path}: feature {fid}: point set id {sid!r} does not resolve to a MeasuredPointSet")
-        points = sets[sid].points
-        if points is None:
-            raise DataError(f"{path}: MeasuredPointSet {sid}: binary points (CombinedPointsBinary, BinaryPoints) "
-                            "are not read; export the points as text (Points)")
-        lo, hi = 1, len(points)
-        if rng is not None:
-            try:
-                lo, hi = (int(v) for v in rng.split())
-            except ValueError:
-                raise DataError(f"{path}: feature {fid}: RangePointSetId range {rng!r} is not 'start end'") from None
-            if not 1 <= lo <= hi <= len(points):
-                raise DataError(f"{path}: feature {fid}: RangePointSetId range {rng!r} is outside point set {sid}'s "
-                                f"{len(points)} points (from 1)")
-        pts += points[lo - 1: hi]
-        labels += [f"{sid}:{k}" for k in range(lo, hi + 1)]
-        used.append(sets[sid])
-    return pts, labels, used
-
-
-def _of_sets(path: Path, fid: str, tag: str, own: str | None, of_sets: list[str | None]) -> str | None:
-    """The feature's own ``tag`` (Compensated, ProbeRadius), else what its point sets say (QIF 3 puts it
-    there), which must agree."""
-    if own is not None:
-        return own
-    said = set(of_sets) - {None}
-    if len(said) > 1:
-        raise DataError(f"{path}: feature {fid}: its point sets differ in {tag} ({', '.join(sorted(said))}); "
-                        "export them as one set")
-    return said.pop() if said else None
-
-
 def _names(root) -> tuple[dict[str, str], dict[str, bool]]:
     """FeatureItem id -> FeatureName, and -> internal (through its nominal and definition, where given)."""
     by_id = {el.get("id"): el for el in root.iter() if el.get("id") is not None}
@@ -206,42 +134,46 @@ def _bool(text: str | None, default: bool) -> bool:
     return default if text is None else text.lower() in ("true", "1")
 
 
+def _feature(fm, kind: str, fid: str, name: str, sets, scale: float, internal: bool | None) -> QifFeature:
+    """One feature measurement with its points; Unreadable when they cannot be read."""
+    pts, labels, used = feature_points(fm, sets)
+    radius = of_sets("ProbeRadius", _text(fm, "ProbeRadius"), [s.probe_radius for s in used])
+    compensated = of_sets("Compensated", _text(fm, "Compensated"), [s.compensated for s in used])
+    diameter = _text(fm, "Diameter")
+    return QifFeature(name, fid, kind, np.array(pts, dtype=float).reshape(-1, 3) * scale, labels,
+                      _bool(compensated, True), number("ProbeRadius", radius) * scale if radius else 0.0,
+                      number("Diameter", diameter) * scale if diameter else None, internal)
+
+
 def read_qif(path: str | Path, results: int | None = None) -> QifResults:
-    """Every measured feature with points of one MeasurementResults (``results``, from 1; needed when the file
-    holds several). DataError names the file and the element of every problem."""
+    """Every measured feature of one MeasurementResults (``results``, from 1; needed when the file holds several),
+    and those left out because their points cannot be read. DataError names the file and the element of every
+    problem of the file as a whole."""
     path = Path(path)
     root = _parse(path)
     _check_root(path, root)
     unit, scale = _unit(path, root)
-    all_results = list(root.iter(_q("MeasurementResults")))
+    all_results = root.findall("/".join(_q(t) for t in RESULTS_PATH.split("/")))
     if not all_results:
-        raise DataError(f"{path}: no MeasurementsResults/MeasurementResultsSet/MeasurementResults: not a QIF "
-                        "results file")
+        raise DataError(f"{path}: no {RESULTS_PATH}: not a QIF results file")
     if results is None and len(all_results) > 1:
         listing = ", ".join(f"{k + 1} (id {r.get('id')})" for k, r in enumerate(all_results))
         raise DataError(f"{path}: {len(all_results)} MeasurementResults: pick one with --results N: {listing}")
     k = results or 1
     if not 1 <= k <= len(all_results):
         raise DataError(f"{path}: --results {k}: the file holds {len(all_results)} MeasurementResults")
-    chosen = all_results[k - 1]
-    sets = _point_sets(path, root)
+    sets = point_sets(root)
     names, internal = _names(root)
     out = QifResults(path, unit, k)
-    measured = chosen.find(_q("MeasuredFeatures"))
+    measured = all_results[k - 1].find(_q("MeasuredFeatures"))
     for fm in (measured if measured is not None else []):
         kind = _local(fm.tag).removesuffix("FeatureMeasurement")
         fid = fm.get("id", "")
         item = _text(fm, "FeatureItemId") or ""
-        pts, labels, used = _feature_points(path, fm, fid, sets)
-        radius = _of_sets(path, fid, "ProbeRadius", _text(fm, "ProbeRadius"), [s.probe_radius for s in used])
-        diameter = _text(fm, "Diameter")
-        out.features.append(QifFeature(
-            names.get(item, fid), fid, kind, np.array(pts, dtype=float).reshape(-1, 3) * scale, labels,
-            _bool(_of_sets(path, fid, "Compensated", _text(fm, "Compensated"), [s.compensated for s in used]),
-                  True),
-            _number(path, f"feature {fid} ProbeRadius", radius) * scale if radius else 0.0,
-            _number(path, f"feature {fid} Diameter", diameter) * scale if diameter else None,
-            internal.get(item)))
+        try:
+            out.features.append(_feature(fm, kind, fid, names.get(item, fid), sets, scale, internal.get(item)))
+        except Unreadable as e:
+            out.left_out.append(QifLeftOut(names.get(item, fid), fid, kind, str(e)))
     return out
 
 
@@ -289,18 +221,26 @@ def surface_points(feature: QifFeature, source: str = "") -> tuple[np.ndarray, s
 
 
 def pick(qif: QifResults, name: str | None) -> QifFeature:
-    """The feature named ``name`` (FeatureName or id), or the only one with points."""
+    """The feature named ``name`` (FeatureName or id), or the only one with points. A feature left out is
+    refused with its reason when named, and named when nothing else has points."""
     with_points = [f for f in qif.features if len(f.points_mm)]
-    listing = ", ".join(f"{f.name} (id {f.id}, {len(f.points_mm)} points)" for f in qif.features) or "none"
+    listing = ", ".join([f"{f.name} (id {f.id}, {len(f.points_mm)} points)" for f in qif.features]
+                        + [f"{x.name} (id {x.id}, left out)" for x in qif.left_out]) or "none"
     if name is None:
         if len(with_points) == 1:
             return with_points[0]
         if not with_points:
-            raise DataError(f"{qif.path}: no measured points (PointList) in any measured feature: {listing}")
+            why = "".join(f"; {x.describe()}" for x in qif.left_out)
+            that_reads = " that reads" if qif.left_out else ""
+            raise DataError(f"{qif.path}: no measured points (PointList) in any measured feature{that_reads}: "
+                            f"{listing}{why}")
         raise DataError(f"{qif.path}: {len(with_points)} measured features with points: pick one with --feature "
                         f"NAME: {listing}")
     hits = [f for f in qif.features if name in (f.name, f.id)]
     if not hits:
+        left = [x for x in qif.left_out if name in (x.name, x.id)]
+        if left:
+            raise DataError(f"{qif.path}: --feature {name}: {left[0].describe()}")
         raise DataError(f"{qif.path}: --feature {name}: no measured feature of that name or id; the file has: "
                         f"{listing}")
     if not len(hits[0].points_mm):
@@ -308,9 +248,19 @@ def pick(qif: QifResults, name: str | None) -> QifFeature:
     return hits[0]
 
 
+class QifPart(NamedTuple):
+    """A QIF feature read as a part: the points, a line on the probe compensation, and the file's features left
+    out (their points cannot be read)."""
+
+    part: object                        # stiffness.data.part_points.PartMeasurement
+    note: str
+    left_out: list[QifLeftOut]
+
+
 def read_qif_part(path: str | Path, tool_radius_mm: float, frame: np.ndarray | None, feature: str | None = None,
-                  results: int | None = None):
-    """A QIF feature's surface points as a `PartMeasurement`, and a note on the probe compensation."""
+                  results: int | None = None) -> QifPart:
+    """A QIF feature's surface points as a `PartMeasurement`, a note on the probe compensation, and the features
+    left out."""
     from .part_points import PartMeasurement
 
     qif = read_qif(path, results)
@@ -320,7 +270,7 @@ def read_qif_part(path: str | Path, tool_radius_mm: float, frame: np.ndarray | N
     pts, note = surface_points(f, str(qif.path))
     part = PartMeasurement(str(qif.path), pts, f.labels, np.arange(1, len(pts) + 1), tool_radius_mm, frame,
                            f"QIF feature {f.name}")
-    return part, note
+    return QifPart(part, note, list(qif.left_out))
 
 
 def feature_rows(qif: QifResults) -> list[dict]:

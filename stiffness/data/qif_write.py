@@ -3,7 +3,9 @@ over, in the form `stiffness.data.qif_part` reads back (docs/part_format.md, "QI
 
 The document holds what the QIF 3.0 schema asks of a results file, and no more:
 
-- ``QPId`` (a fresh UUID) and ``FileUnits`` (linear unit mm);
+- ``QPId``, derived from the rest of the document (a name-based UUID, RFC 4122 version 5, of its bytes), so
+  the same cut gives the same file, byte for byte, and another cut another id; and ``FileUnits`` (linear
+  unit mm);
 - the feature's ``CircleFeatureDefinition`` (INTERNAL for a hole, EXTERNAL for a boss, the nominal diameter),
   ``CircleFeatureNominal`` (nominal centre and normal) and ``CircleFeatureItem`` (its ``FeatureName``);
 - one ``MeasurementResults`` whose ``CircleFeatureMeasurement`` references its ``MeasuredPointSet`` as a
@@ -25,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from .qif_part import NS, fit_circle
+
+QPID_NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, NS)     # the QPIds this writer derives, under the QIF namespace
 
 
 @dataclass
@@ -78,7 +82,6 @@ def write_qif_circle(path: str | Path, points_mm: np.ndarray, nominal: NominalCi
         normal = -normal                                    # the fitted plane's normal, on the nominal's side
     ET.register_namespace("", NS)
     root = ET.Element(f"{{{NS}}}QIFDocument", {"versionQIF": "3.0.0", "idMax": "6"})
-    _sub(root, "QPId", str(uuid.uuid4()))
     lin = _sub(_sub(_sub(root, "FileUnits"), "PrimaryUnits"), "LinearUnit")
     _sub(lin, "SIUnitName", "meter")
     _sub(lin, "UnitName", "mm")
@@ -95,6 +98,9 @@ def write_qif_circle(path: str | Path, points_mm: np.ndarray, nominal: NominalCi
     _sub(ps, "Points", "\n" + "\n".join(_xyz(p) for p in pts) + "\n")
     _sub(ps, "Compensated", "true")
     _sub(_sub(results, "InspectionStatus"), "InspectionStatusEnum", "NOT_CALCULATED")
+    qpid = ET.Element(f"{{{NS}}}QPId")
+    qpid.text = str(uuid.uuid5(QPID_NAMESPACE, ET.tostring(root, encoding="unicode")))
+    root.insert(0, qpid)                                    # the schema's first child of QIFDocument
     ET.indent(root)
     ET.ElementTree(root).write(path, xml_declaration=True, encoding="utf-8")
     return path

@@ -61,8 +61,8 @@ def test_inches_give_the_same_geometry_in_mm(tmp_path, capsys):
     (f,) = _features(capsys, inch)
     assert f["units"] == "inch" and abs(f["diameter_mm"] - HOLE_D) < 0.005
     assert abs(f["reported_diameter_mm"] - HOLE_D) < 1e-6
-    a, note = read_qif_part(mm, 4.0, None)
-    b, _ = read_qif_part(inch, 4.0, None)
+    a, note, _ = read_qif_part(mm, 4.0, None)
+    b = read_qif_part(inch, 4.0, None).part
     assert np.allclose(a.points_mm, b.points_mm, atol=1e-6)
     assert "outward" in note and np.allclose(np.linalg.norm(a.points_mm - pts, axis=1), PROBE_R)
 
@@ -71,7 +71,7 @@ def test_a_range_or_a_single_point_of_a_point_set_reads_those_points(tmp_path):
     from stiffness.data.qif_part import read_qif, read_qif_part
 
     pts = _ring(HOLE_D / 2)
-    part, _ = read_qif_part(write_qif(tmp_path / "r.qif", pts, point_range=(3, 10)), 4.0, None)
+    part = read_qif_part(write_qif(tmp_path / "r.qif", pts, point_range=(3, 10)), 4.0, None).part
     assert np.allclose(part.points_mm, pts[2:10])
     one = read_qif(write_qif(tmp_path / "s.qif", pts, point_range=(5, 5))).features[0]
     assert np.allclose(one.points_mm, pts[4:5]) and one.labels == ["20:5"]
@@ -84,7 +84,7 @@ def test_results_and_feature_pick_by_number_and_id(tmp_path, capsys):
     path = write_qif(tmp_path / "two.qif", pts, results=2)
     second = read_qif(path, 2)
     assert second.results == 2 and [f.id for f in second.features] == ["31"]
-    part, _ = read_qif_part(path, 4.0, None, "31", 2)
+    part = read_qif_part(path, 4.0, None, "31", 2).part
     assert np.allclose(part.points_mm, pts) and part.title == "QIF feature HOLE"
     assert main(["part", "features", str(path), "--results", "3"]) == 2
     assert "--results 3: the file holds 2 MeasurementResults" in capsys.readouterr().err
@@ -155,12 +155,13 @@ def _bad(tmp_path, case) -> tuple:
         write_qif(p, ring, results=2)
         return p, [], "pick one with --results N: 1 (id 10), 2 (id 30)"
     expect = {"not xml": "not well-formed XML", "not qif": "not QIF: the root element is 'Part'",
-              "version": "versionQIF '2.0.0'", "no points": "no measured points", "unresolved": "'77' does not resolve",
+              "version": "versionQIF '2.0.0'", "no points": "no measured points", "unresolved": "WholePointSetId '77' does not resolve",
               "unit": "UnitName 'furlong'", "binary": "CombinedPointsBinary", "bomb": "refused: the XML declares",
               "external": "refused: the XML declares"}[case]
     return p, [], expect
 
 
+LEFT_OUT = ("unresolved", "binary")      # of one feature, not of the file: `part features` names it, left out
 CASES = ["not xml", "not qif", "version", "no points", "unresolved", "unit", "binary", "bomb", "external",
          "unknown feature", "several results"]
 
@@ -176,10 +177,15 @@ def test_bad_qif_is_refused_in_one_line(tmp_path, capsys, case):
         read_qif_part(path, 4.0, None, extra[1] if extra else None)
     assert time.monotonic() - t0 < 1.0
     assert str(path) in str(e.value) and expect in str(e.value) and "\n" not in str(e.value), str(e.value)
-    if case not in ("no points", "unknown feature"):       # `part features` lists a feature without points
-        assert main(["part", "features", str(path)]) == 2
-        out, err = capsys.readouterr()
-        assert not out and len(err.strip().splitlines()) == 1 and expect in err, err
+    if case in ("no points", "unknown feature"):           # `part features` lists a feature without points
+        return
+    code = main(["part", "features", str(path)])
+    out, err = capsys.readouterr()
+    if case in LEFT_OUT:                                   # the file reads; the feature is named, left out
+        assert code == 0 and not err and f"{path}: feature HOLE (id 11, Circle) left out: " in out, out
+        assert expect in out.splitlines()[-1]
+    else:
+        assert code == 2 and not out and len(err.strip().splitlines()) == 1 and expect in err, err
 
 
 def test_qif_options_without_a_qif_part_are_refused(tmp_path, capsys):

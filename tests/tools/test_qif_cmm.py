@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import uuid
 
 import numpy as np
 import pytest
@@ -80,9 +81,19 @@ def test_what_the_writer_writes_the_reader_reads_back(tmp_path):
     assert (f.name, f.type, f.compensated, f.internal, qif.unit) == ("CONTOUR", "Circle", True, True, "mm")
     assert np.array_equal(f.points_mm, np.round(pts, 4))              # 4 decimals, as the part CSV writes
     assert f.reported_diameter_mm == pytest.approx(78.0, abs=2e-4)     # the circle fitted to the points
-    part, note = read_qif_part(tmp_path / "part.QIF", 4.0, None)
+    part, note, _ = read_qif_part(tmp_path / "part.QIF", 4.0, None)
     assert np.array_equal(part.points_mm, f.points_mm) and "points as measured" in note
     assert read_qif(_written(tmp_path / "boss.qif", internal=False)).features[0].internal is False
+
+
+def test_the_same_points_give_the_same_bytes_and_others_another_qpid(tmp_path):
+    """The writer derives the document's QPId from its content (a version 5 UUID), as the PLC library's
+    generator gives the same bytes for the same input: a random one made every cut's file differ."""
+    first, again = (_written(tmp_path / f"{k}.qif").read_bytes() for k in ("a", "b"))
+    assert first == again
+    other = _written(tmp_path / "c.qif", radius=39.001).read_bytes()
+    qpid, other_qpid = (uuid.UUID(re.search(rb"<QPId>([^<]+)</QPId>", b).group(1).decode()) for b in (first, other))
+    assert qpid.version == 5 and other_qpid != qpid
 
 
 def test_probe_centres_in_the_standards_point_set_give_the_reported_diameter(tmp_path, capsys):
@@ -135,7 +146,7 @@ def test_hil_circle_writes_qif_that_validates_and_learns_as_the_csv_of_the_same_
     options = re.search(r"part\.QIF \(QIF 3; `stiffcomp part` reads it with (.*)\)", out).group(1).split()
     assert not list(schema.iter_errors(tmp_path / "part.QIF"))
     csv = read_part(tmp_path / "part.csv")
-    qif, _ = read_qif_part(tmp_path / "part.QIF", csv.tool_radius_mm, csv.frame)
+    qif = read_qif_part(tmp_path / "part.QIF", csv.tool_radius_mm, csv.frame).part
     assert len(csv) > 300 and np.array_equal(qif.points_mm, csv.points_mm)
     assert main(["part", "features", str(tmp_path / "part.QIF"), "--json"]) == 0
     assert f'"points": {len(csv)}' in capsys.readouterr().out
