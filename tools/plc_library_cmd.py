@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from plc_interface.plc_library import FORMATS, Endpoint, generate
+from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
 from service.config import DEFAULT_CONFIG, read_sections
 
 from .common import check_output_folder, write_output
@@ -27,7 +27,12 @@ def run(args) -> int:
     cfg = read_sections(args.config, "plc", "ads")
     host, key = (args.modbus_host, "--modbus-host") if args.modbus_host else (cfg.plc.host, f"{args.config}: plc.host")
     endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, host, cfg.plc.port, cfg.plc.device_id, key)
-    files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    try:
+        files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    except EndpointError as e:
+        if args.modbus_host:
+            raise
+        raise EndpointError(f"{e}: give the address the PLC reaches the service at with --modbus-host ADDRESS") from e
     for rel, data in files.items():
         write_output(out / rel, lambda p, data=data: p.write_bytes(data))
     print(f"plc-library: {len(files)} files in {out}")

@@ -255,3 +255,53 @@ def test_a_map_with_a_gap_between_the_plcs_registers_is_refused(tmp_path, capsys
     (tmp_path / "service.yaml").write_text("plc: {register_map: gap.yaml}\n")
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "payload_index", "gap")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_plcopen_configuration_has_a_resource_whose_task_runs_main():
+    root = ElementTree.parse(COMMITTED / "plcopen" / "StiffComp.xml").getroot()
+    config = _first(root, ".//p:configuration")
+    task = _first(config, "p:resource/p:task")
+    assert (task.get("interval"), task.get("priority")) == ("T#1MS", "20")
+    assert _first(task, "p:pouInstance").get("typeName") == "MAIN"
+    assert {g.get("name") for g in config.findall("p:globalVars", {"p": NS})} == {CONTRACT, "GVL_StiffCompSettings"}
+
+
+def test_bit_words_and_their_bits_are_word():
+    """IEC's AND and OR take bit strings: the bits, the words the blocks decode and the command they build."""
+    code = summary(COMMITTED / "twincat")
+    gvl = code.globals[CONTRACT].declarations
+    assert {str(d.type) for n, d in gvl.items() if str(n).startswith(("CMD_", "STATUS_", "FAULT_"))} == {"WORD"}
+    for block in ("FB_StiffComp", "FB_StiffCompModbus"):
+        decl = code.function_blocks[block].declarations
+        assert {n: str(decl[n].type) for n in ("nStatusWord", "nFaultWord", "nCommand")} == dict.fromkeys(
+            ("nStatusWord", "nFaultWord", "nCommand"), "WORD")
+
+
+@pytest.mark.parametrize(("host", "words"), [
+    ("0.0.0.0", ("plc.host", "'0.0.0.0'", "bind address", "--modbus-host")),
+    ("stiffcomp.cell.example", ("plc.host", "host name", "IPv4", "--modbus-host")),
+    ("a-very-long-host-name-for-the-service.example", ("host name", "STRING(15)")),
+    ("::", ("IPv6",)),
+])
+def test_a_host_the_plc_cannot_dial_is_refused_and_nothing_written(tmp_path, capsys, host, words):
+    (tmp_path / "service.yaml").write_text(f"plc: {{host: '{host}'}}\n")
+    refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), str(tmp_path / "service.yaml"), *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_plcs_target_is_taken_from_modbus_host_where_plc_host_binds_all(tmp_path, capsys):
+    (tmp_path / "service.yaml").write_text("plc: {host: 0.0.0.0}\n")
+    assert generate(tmp_path / "out", tmp_path / "service.yaml", "--modbus-host", "192.168.10.20") == 0
+    code = summary(tmp_path / "out" / "twincat", "*.TcGVL")
+    assert str(code.globals["GVL_StiffCompSettings"].declarations["sModbusHost"].value) == "'192.168.10.20'"
+    capsys.readouterr()
+    refused(capsys, generate(tmp_path / "again", tmp_path / "service.yaml", "--modbus-host", "0.0.0.0"),
+            "--modbus-host", "bind address")
+
+
+def test_a_scaled_count_or_bit_word_is_refused(tmp_path, capsys):
+    data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
+    data["to_plc"]["registers"][0]["scale"] = 10                 # the heartbeat
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(data))
+    (tmp_path / "service.yaml").write_text("plc: {register_map: m.yaml}\n")
+    refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "heartbeat", "scale = 10", "scale 1")
