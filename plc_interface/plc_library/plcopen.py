@@ -3,9 +3,10 @@
 Types go to ``types/dataTypes``, the blocks and MAIN to ``types/pous`` (interfaces as variable lists,
 bodies as structured text), the global lists to ``instances/configurations`` as a configuration's
 ``globalVars``; the configuration's resource holds the task that runs MAIN (a ``pouInstance``), as an
-IEC 61131-3 configuration declares its resources and tasks (PLCopen TC6 v2.01, ``instances``). A struct that must be packed carries ``pack_mode`` as CODESYS writes an attribute (in
-``addData``), since the schema has no place for pragmas. The file carries no time of its own: ``creationDateTime`` is fixed, so the same contract
-and map give the same bytes.
+IEC 61131-3 configuration declares its resources and tasks (PLCopen TC6 v2.01, ``instances``). A struct
+that must be packed carries ``pack_mode`` as CODESYS writes an attribute (in ``addData``), since the
+schema has no place for pragmas. The file carries no time of its own: ``creationDateTime`` is fixed, so
+the same contract and map give the same bytes.
 """
 
 from __future__ import annotations

@@ -26,8 +26,6 @@ A construct outside the subset is an error naming the POU and line, never a sile
 
 from __future__ import annotations
 
-import functools
-import hashlib
 import math
 import re
 import struct
@@ -36,8 +34,8 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from blark import transform as tf
-from blark.parse import parse
 from blark.summary import CodeSummary
+from plc_source import parse_file
 
 INTS = {"SINT": (8, True), "INT": (16, True), "DINT": (32, True), "LINT": (64, True),
         "USINT": (8, False), "UINT": (16, False), "UDINT": (32, False), "ULINT": (64, False)}
@@ -873,17 +871,9 @@ class _Translator:
         return code, t
 
 
-@functools.cache
-def _parsed(path: str, digest: str) -> tuple:
-    results = list(parse(path))
-    for r in results:
-        if r.exception is not None:
-            raise StError(f"{path}: blark: {r.exception}")
-    return tuple(results)
-
-
 def load(paths, runtime: Runtime) -> Machine:
-    """A machine running the TwinCAT sources ``paths`` (each parsed once per content, for the session)."""
-    results = [r for p in sorted(paths) for r in _parsed(str(p), hashlib.sha256(Path(p).read_bytes()).hexdigest())]
+    """A machine running the TwinCAT sources ``paths`` (each parsed once per content, for the session:
+    `plc_source.parse_file`)."""
+    results = [r for p in sorted(paths) for r in parse_file(p)]
     packed = {Path(p).stem for p in paths if "{attribute 'pack_mode' := '1'}" in Path(p).read_text()}
     return Machine(CodeSummary.from_parse_results(results), packed, runtime)
