@@ -47,7 +47,7 @@ from .statements import Assign, Call, Case, Pin, render
 
 JOINTS = range(1, 7)
 COMMAND_BIT = Derived("FB_StiffCompCommandBit")
-TASK = Task("PlcTask", 1.0, 20, "MAIN")     # TwinCAT's default PlcTask: priority 20; 1 ms as the paper's cell
+TASK = Task("PlcTask", 1.0, 20, "MAIN")     # priority 20 as TwinCAT's PlcTask; 1 ms, the paper's cycle
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ def _inside(bound: int) -> float:
     return float(x if abs(float(x)) <= abs(bound) else np.nextafter(x, np.float32(0)))
 
 
-def _real_bounds(code: str) -> tuple[float, float]:
+def real_bounds(code: str) -> tuple[float, float]:
     """The widest REAL range inside the integer type's range: a REAL outside it would overflow REAL_TO_*."""
     lo, hi = INT_RANGE[code]
     return _inside(lo), _inside(hi)
@@ -149,7 +149,7 @@ def encode(r: Register, value: str) -> str:
     service decodes it (raw = value * scale, docs/register_map.md)."""
     if not physical(r) or r.type == "float32":
         return value
-    lo, hi = _real_bounds(TYPES[r.type][0])
+    lo, hi = real_bounds(TYPES[r.type][0])
     scaled = value if r.scale == 1.0 else f"{value} * {real_literal(r.scale)}"
     return f"REAL_TO_{iec_type(r).name}(LIMIT({real_literal(lo)}, {scaled}, {real_literal(hi)}))"
 

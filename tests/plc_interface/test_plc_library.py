@@ -12,14 +12,18 @@ import re
 from pathlib import Path
 from xml.etree import ElementTree
 
+import numpy as np
 import pytest
 import xmlschema
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from plc_source import constant, constants, enum_values, packed, struct_fields, summary
 
 from plc_interface.ads.symbols import IEC_TYPES, symbols_from_map
 from plc_interface.contract import Command, Fault, Status, TaskState
-from plc_interface.register_map import RegisterMap
+from plc_interface.plc_library.blocks import real_bounds, real_literal
+from plc_interface.register_map import INT_RANGE, RegisterMap
 from tools.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -305,3 +309,22 @@ def test_a_scaled_count_or_bit_word_is_refused(tmp_path, capsys):
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(data))
     (tmp_path / "service.yaml").write_text("plc: {register_map: m.yaml}\n")
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "heartbeat", "scale = 10", "scale 1")
+
+
+@given(st.floats(1e-9, 1e9))
+@settings(max_examples=50)
+def test_a_scale_is_written_as_an_iec_real_literal(x):
+    text = real_literal(x)
+    assert re.fullmatch(r"\d+\.\d+(E-?\d+)?", text), text
+    assert float(text) == x
+
+
+@pytest.mark.parametrize("code", sorted(INT_RANGE))
+def test_the_limits_before_a_real_to_int_conversion_lie_inside_the_type(code):
+    """REAL_TO_DINT of a REAL outside DINT overflows: the limits are the widest REALs inside the range."""
+    lo, hi = real_bounds(code)
+    lowest, highest = INT_RANGE[code]
+    assert float(np.float32(lo)) == lo and float(np.float32(hi)) == hi
+    assert lowest <= lo < hi <= highest
+    assert float(np.nextafter(np.float32(hi), np.float32(np.inf))) > highest
+    assert float(np.nextafter(np.float32(lo), np.float32(-np.inf))) < lowest
