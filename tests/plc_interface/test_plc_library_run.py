@@ -120,10 +120,11 @@ def libraries(tmp_path_factory) -> dict[str, tuple[RegisterMap, list[Path]]]:
 class Cell:
     """One block on one service, stepped a millisecond at a time: the service's cycle, then the PLC's."""
 
-    def __init__(self, libraries, which: str, block: str, durations, task: str | None = None):
+    def __init__(self, libraries, which: str, block: str, durations, task: str | None = None,
+                 service_map: RegisterMap | None = None):
         rmap, files = libraries[which]
         self.rmap = rmap
-        self.service = Service(rmap)
+        self.service = Service(service_map or rmap)
         self.runtime = Runtime(Network(self.service, durations))
         self.machine = load(files, self.runtime)
         self.program = self.machine.instance(task or block)
@@ -329,3 +330,15 @@ def test_main_steps_by_its_tasks_cycle_time(libraries, cells, cycle_ms):
     steps = [b - a for a, b in itertools.pairwise(applied)]
     assert max(steps) == pytest.approx(2.0 * cycle_ms / 1000, rel=1e-5)     # fMaxRateDegPerS := 2.0
     assert applied[-1] <= CORRECTION[5]
+
+
+def test_writes_the_service_refuses_are_errors_and_hold_the_bit(libraries, cells):
+    """A library made for another map (the scaled one writes plan_time_s, where the shipped map has no
+    register): each write is refused (ILLEGAL_ADDRESS, TF6250's nErrId 16#8002), bError says so, and a tare
+    stays asked for rather than counted as sent."""
+    cell = Cell(libraries, "scaled", "FB_StiffCompModbus", fixed(5), service_map=libraries["shipped"][0])
+    cells.append(cell)
+    cell.run(300, lambda now: setattr(cell.fb, "bTare", 100 <= now < 110))
+    assert cell.fb.bError and cell.fb.nErrorId == 0x8002
+    assert cell.service.edges[Command.TARE] == 0 and cell.fb.fbTare.bBusy
+    assert cell.service.image.refused_writes > 40
