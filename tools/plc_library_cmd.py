@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from plc_interface.plc_library import FORMATS, Endpoint, generate
+from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
 from service.config import DEFAULT_CONFIG, read_sections
 
 from .common import check_output_folder, write_output
@@ -16,14 +16,23 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="folder to write twincat/ and plcopen/ into")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config naming the register map")
     p.add_argument("--format", choices=list(CHOICES), default="both", help="what to write (default both)")
+    p.add_argument("--modbus-host", metavar="ADDRESS",
+                   help="the service's IPv4 address as the PLC dials it (default plc.host, which is refused where it "
+                        "is a bind address such as 0.0.0.0 or a host name)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     out = check_output_folder("-o", args.output)
     cfg = read_sections(args.config, "plc", "ads")
-    endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, cfg.plc.host, cfg.plc.port, cfg.plc.device_id)
-    files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    host, key = (args.modbus_host, "--modbus-host") if args.modbus_host else (cfg.plc.host, f"{args.config}: plc.host")
+    endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, host, cfg.plc.port, cfg.plc.device_id, key)
+    try:
+        files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    except EndpointError as e:
+        if args.modbus_host:
+            raise
+        raise EndpointError(f"{e}: give the address the PLC reaches the service at with --modbus-host ADDRESS") from e
     for rel, data in files.items():
         write_output(out / rel, lambda p, data=data: p.write_bytes(data))
     print(f"plc-library: {len(files)} files in {out}")
