@@ -70,7 +70,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
                dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
-               repeat: int = 1) -> CircleResult:
+               repeat: int = 1, robot_section: dict | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -80,7 +80,9 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     third pass with the dynamic compensation (`hil.dynamics`): the modes identified from a tap test the
     stub answers, the delay measured on the static one (or ``dynamic.delay_ms``); the summary's figures are then the dynamic pass's, with the
     static pass's as ``*_static`` twins. ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through
-    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`). ``repeat``:
+    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`), set up as
+    ``robot_section`` says (default: the shipped config/robot_<interface>.yaml's; EGM in path mode at 48 ms, its
+    joint mode refused: position guidance runs no RAPID path, ABB's EGM manual). ``repeat``:
     each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
     the first cut of each is the one every other figure, the trace and the part come from.
     """
@@ -91,6 +93,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         raise HilError("faults are injected in real time only: run without --lockstep")
     if lockstep and robot_interface is not None:
         raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+    robot_section = check_robot_section(robot_interface, robot_section)
     found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
     passes: dict[str, PassResult] = {}
@@ -103,7 +106,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
             if lockstep:
                 return run_lockstep(scenario, truth, model_path, name != "uncompensated", folder, overrides, traced)
             return run_pass(scenario, truth, model_path, name != "uncompensated", folder,
-                            faults if name == "compensated" else None, overrides, traced, robot_interface)
+                            faults if name == "compensated" else None, overrides, traced, robot_interface,
+                            robot_section)
         for name in names:
             last = name == names[-1]
             if name == "dynamic":
@@ -167,6 +171,30 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     return summary
 
 
+def check_robot_section(interface: str | None, section: dict | None) -> dict | None:
+    """The robot road's sub-section for a cut: ``section``, or the shipped robot config's; HilError for one the
+    circle cannot be cut with (EGM's joint mode, position guidance, follows no RAPID path: it holds a pose)."""
+    if interface is None:
+        return None
+    from pydantic import ValidationError
+
+    from plc_interface.robot.settings import RobotSettings
+    from stiffness.files.yaml_schema import format_validation_error
+
+    from .run import shipped_robot_section
+
+    section = dict(section if section is not None else shipped_robot_section(interface))
+    try:
+        s = RobotSettings.model_validate({"interface": interface, interface: section})
+    except ValidationError as e:
+        raise HilError(format_validation_error("the robot road's section", e, prefix="robot")) from e
+    if interface == "abb_egm" and s.abb_egm.mode == "joint":
+        raise HilError("robot.abb_egm.mode joint is position guidance, which runs no RAPID path (ABB's EGM manual): "
+                       "it holds a pose, it cannot cut the circle; cut in path mode (the shipped config) or through "
+                       "kuka_rsi")
+    return section
+
+
 def robot_road(log: dict) -> dict:
     """The robot road's figures of a pass, from its virtual robot's log: the interface's answers that came late
     (or not at all) and the 99th percentile of the answers' round trip at the robot, in ms (None with a PLC)."""
@@ -189,12 +217,21 @@ class Cut:
 
 
 def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, trace: Path | None = None,
-        cmm: Path | None = None, lockstep: bool = True) -> Cut:
+        cmm: Path | None = None, lockstep: bool = True, robot_interface: str | None = None,
+        robot_section: dict | None = None) -> Cut:
     """Cut the circle once with compensation (the learning loop: cut, measure, learn, cut again); writes
-    the service's ``trace`` and the virtual CMM's ``cmm`` when given."""
+    the service's ``trace`` and the virtual CMM's ``cmm`` when given. ``robot_interface``: through the robot
+    road (in real time), as `run_circle` says."""
     truth = StiffnessModel.from_yaml(truth_path)
-    run = run_lockstep if lockstep else run_pass
-    result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
+    if robot_interface is not None:
+        if lockstep:
+            raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+        result = run_pass(scenario, truth, Path(model_path), True, Path(workdir), trace=trace,
+                          robot_interface=robot_interface,
+                          robot_section=check_robot_section(robot_interface, robot_section))
+    else:
+        run = run_lockstep if lockstep else run_pass
+        result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
     world, ev = evaluate_pass(scenario, truth, result)
     part = measure(scenario, world, ev)
     if cmm is not None:

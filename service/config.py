@@ -90,6 +90,14 @@ class ServiceConfig(Strict):
         correction off (docs/robot.md)."""
         return self.plc.enable_on_start and not (self.robot.enabled and self.plc.role == "none")
 
+    @property
+    def commander(self) -> str:
+        """Who writes the command word and the heartbeat, as messages name it: the PLC, or (``plc.role: none`` with
+        a robot interface) the robot, whose packets are the heartbeat."""
+        if self.robot.enabled and self.plc.role == "none":
+            return f"the robot ({self.robot.served().split(' on ')[0]} packets)"
+        return "the PLC"
+
     def register_map(self) -> RegisterMap:
         """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
         naming this config file, the key and its value, then what is wrong in the map."""

@@ -9,15 +9,18 @@ The robot is the clock. `RobotRoad.received` runs for every datagram, in the I/O
 3. a stamp that fell back far (the robot's program started the interface again), or the first packet after a
    silence of ``faults.plc_heartbeat_timeout_ms``, begins a new session: the robot holds no correction, and the
    answers ramp in from zero over ``limits.fault_ramp_s``;
-4. the commanded joints, programmed plus the correction the robot holds, go into the image's ``q1..q6``, as a
-   PLC reports its joints: the cycle computes at them and the trace records them. With ``plc.role: none`` the
+4. the commanded joints, programmed plus the correction the robot holds once it takes this packet's answer, go
+   into the image's ``q1..q6``, as a PLC reports its joints: the cycle computes at them and the trace records
+   them. With ``plc.role: none`` the
    road also writes the command word (the robot's own element; without one, enable as ``plc.enable_on_start``
    says) and steps ``plc_heartbeat``;
 5. the answer is the newest correction the cycle published, never waiting for the cycle.
 
-After a silence, a robot without a command element cannot acknowledge anything: the road raises the reset bit
-for it only while the latched fault is its own silence's (``plc_heartbeat``); any other latched fault stays, is
-logged, and waits for the robot's own reset bit or a restart.
+A robot without a command element cannot acknowledge anything. At its first contact since the service started the
+road raises the reset bit for it, as a PLC starting up does (what latched before anyone was there, e.g. a sensor
+that came up late, is cleared if its cause is gone); after a later silence or restart only while the latched
+fault is its own silence's (``plc_heartbeat``): any other stays, is logged, and waits for the robot's own reset
+bit or a restart of the service.
 """
 
 from __future__ import annotations
@@ -103,7 +106,11 @@ class RobotRoad:
         self._slow_ns = r.cycle_ms * 1_000_000
         self._q_names = [f"q{i}" for i in range(1, 7)]
         has_element = r.interface == "kuka_rsi" and r.kuka_rsi.command_element is not None
-        self.reset = RecoveryReset(clears=0 if has_element else int(Fault.PLC_HEARTBEAT))
+        # the robot's first contact since the start resets what was latched before anyone was there (a sensor
+        # that came up late), as a PLC's start-up does; a later session only the fault of the robot's silence
+        self._first_reset = RecoveryReset(clears=0 if has_element else 0xFFFF)
+        self._later_reset = RecoveryReset(clears=0 if has_element else int(Fault.PLC_HEARTBEAT))
+        self.reset = self._first_reset
         self._kept_faults_said = False
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -173,17 +180,17 @@ class RobotRoad:
             iface.missed(missed)
         self._note_counts(p)
         self._last_t, self._last_stamp = now, p.stamp
-        held = iface.held
-        out = self.image.outputs()
-        self._write_inputs(p, [a + b for a, b in zip(q, held)], now, out)
         warning = iface.evidence(p)
         if warning:
             log.warning("robot road: %s", warning)
             if self.metrics is not None:
                 self.metrics.count_robot_contradiction("joints_include_correction")
+        out = self.image.outputs()
         ramp = min(1.0, (now - self._session_t) / self.settings.ramp_s) if self.settings.ramp_s > 0 else 1.0
         correction = [ramp * out[f"correction_q{i}"] for i in range(1, 7)]
         reply = iface.answer(p, q, correction, out["sample_age_ms"])
+        # the commanded joints from this packet on: programmed plus the correction the robot takes with this answer
+        self._write_inputs(p, [a + b for a, b in zip(q, iface.held)], now, out)
         self.counts["answered"] += 1
         return reply
 
@@ -206,6 +213,7 @@ class RobotRoad:
         self._last_stamp = self._last_late = None
         self._steps = []
         self.iface.restart()
+        self.reset = self._first_reset if self.counts["sessions"] == 1 else self._later_reset
         self.reset.recovered(now)
         self._kept_faults_said = False
 
@@ -240,10 +248,12 @@ class RobotRoad:
         """The session's first steps of the stamp, against the configured cycle: a robot whose stamps rise by a
         whole multiple of it (a 12 ms IPO against cycle_ms 4) is named once, and its gaps counted on its own
         step."""
-        seen = int(np.median(self._steps))
+        # a robot on the configured cycle sends some packets one step apart however loaded the link; one on a
+        # longer cycle never does
+        seen = min(self._steps)
         self.cycle_seen = seen
         want = self.iface.stamp_step
-        if seen != want and seen > 0 and seen % want == 0:
+        if seen > want and seen % want == 0:
             self._step = seen
             r = self.settings.robot
             unit = "ms" if self.iface.stamp_name == "IPOC" else "packets"

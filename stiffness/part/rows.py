@@ -130,7 +130,7 @@ class PartRows:
         keep = (rows[np.r_[True, np.diff(np.floor(tr.time_s[rows] / history_step_s)) > 0]]
                 if history_step_s is not None else rows[:0])
         t = np.concatenate([self.t, tr.time_s[keep]])
-        q = np.concatenate([self.q_deg, tr.q_deg[keep]])
+        q = np.concatenate([self.q_deg, tr.commanded_q_deg[keep]])
         wb = np.concatenate([self.wrench_base, self.smooth_wrench[keep]])
         n = len(self.t)
         defl = np.full((len(t), 6), np.nan)
@@ -163,7 +163,8 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     run = trace.column("task_state") == TASK_RUN
     if not run.any():
         raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
-    F = robot.frames(np.radians(trace.q_deg))
+    q_cmd = trace.commanded_q_deg
+    F = robot.frames(np.radians(q_cmd))
     c_all, a_all = F[:, 7, :3, 3], F[:, 7, :3, 2]
     moving = _moving(trace.time_s, c_all) & run
     if moving.sum() < 3:
@@ -276,7 +277,7 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
     d = (p - c) @ (np.eye(3) - np.outer(a, a))
     dist = np.linalg.norm(d, axis=1)
     n = d / dist[:, None]
-    q = at(trace.q_deg)
+    q = at(trace.commanded_q_deg)
     c_nom = robot.frames(np.radians(q - at(trace.correction_deg)))[:, 7, :3, 3]
     shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
     e = (dist - r) * 1000.0

@@ -112,14 +112,23 @@ def test_commands_and_heartbeat_without_a_plc_and_a_new_session_after_silence(im
 
 
 def test_the_robots_return_resets_only_the_fault_its_silence_latched(image, caplog):
-    """Without a PLC nobody acknowledges a fault: the robot's return clears its own silence's fault, and any other
-    latched fault stays, with one warning that says how to reset it."""
+    """Without a PLC nobody acknowledges a fault: the robot's first contact resets what latched before it (as a
+    PLC's start-up does); its return after a silence clears only its own silence's fault, and any other latched
+    fault stays, with one warning that says how to reset it."""
     clock = Clock()
     road = road_on(image, clock)
-    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT | Fault.SENSOR_SATURATED))
+    publish(image, [0.0] * 6, fault_word=int(Fault.SENSOR_TIMEOUT))       # the sensor came up late
     road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE | Command.RESET)
+    clock.t += 0.5                                                          # silent, then back
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT))
+    road.received(rsi.robot_packet(1500, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE | Command.RESET)
+    clock.t += 0.5
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT | Fault.SENSOR_SATURATED))
+    road.received(rsi.robot_packet(2000, Q, Q), ROBOT_AT)
     clock.t += 0.004
-    road.received(rsi.robot_packet(1004, Q, Q), ROBOT_AT)
+    road.received(rsi.robot_packet(2004, Q, Q), ROBOT_AT)
     assert image.inputs().command_word == int(Command.ENABLE)
     assert sum("faults beyond its silence" in r.message for r in caplog.records) == 1
 
@@ -226,9 +235,12 @@ def test_answers_the_robot_missed_are_taken_off_as_its_delay_says(correction, st
             clock.t += 0.004
             robot.actual = None                                # AIPos as commanded, no servo lag
             publish(im, dq)
+            held = robot.holds(t, q)
             answer = road.received(robot.packet(t, q), ROBOT_AT)
-            # the commanded joints: programmed plus what the robot holds (AIPos holds it)
-            assert q_of(im) == pytest.approx(np.add(q, robot.holds(t, q)), abs=1e-4)
+            # the road took off AIPos what the robot holds (AIPos holds it): the programmed joints, to which the
+            # commanded ones add the correction the robot takes with this answer
+            assert road.iface.history[-2][0] == pytest.approx(held, abs=3e-6)
+            assert q_of(im) == pytest.approx(np.add(q, np.float32(dq)), abs=1e-4)
             if taken:
                 assert robot.take(answer, t, q) and robot.holds(t, q) == pytest.approx(dq, abs=3e-6)
             else:
