@@ -221,3 +221,49 @@ def test_a_failing_answer_is_counted_once_not_logged_per_packet(image, caplog):
         proto.datagram_received(rsi.robot_packet(1000 + 4 * k, Q, Q), ROBOT_AT)
     assert road.counts["dropped"] == {"failed": 50} and road.counts["answered"] == 0
     assert sum("failed" in r.message for r in caplog.records) <= 2
+
+
+def test_an_egm_path_correction_is_never_younger_than_one_ms(image):
+    """ABB's age counts whole milliseconds since the measurement; a public sender never sends less than 1."""
+    clock = Clock()
+    road = road_on(image, clock, {"interface": "abb_egm", "abb_egm": {"mode": "path"}})
+    robot = controller_for(RobotSettings.model_validate({"interface": "abb_egm", "abb_egm": {"mode": "path"}}), ROBOT)
+    image.publish(to_plc(sample_age_ms=0.0, correction_q1=0.01))
+    _, kind, _, age, _ = egm.read_answer(road.received(robot.packet(0.0, Q), ROBOT_AT))
+    assert kind == "path" and age == 1
+
+
+@pytest.mark.parametrize("section", [{"interface": "kuka_rsi"}, {"interface": "abb_egm", "abb_egm": {"mode": "path"}}],
+                         ids=["rsi", "egm_path"])
+def test_the_virtual_robot_takes_an_answer_extra_delay_later(section):
+    """`hil circle --extra-delay-ms` on the robot road: the robot holds an answer only that much after it came."""
+    s = RobotSettings.model_validate(section)
+    iface = controller_for(s, ROBOT, delay_s=0.012)
+    from plc_interface.robot.interface import interface_for
+
+    road = interface_for(s, str(ROBOT.source))
+    p = road.parse(iface.packet(0.0, Q))
+    assert iface.take(road.answer(p, list(Q), [0.02] * 6, 5.0), 0.0, Q)
+    assert np.abs(iface.holds(0.008, Q)).max() == 0.0
+    assert np.abs(iface.holds(0.012, Q)).max() > 0.001
+
+
+def test_without_a_plc_the_heartbeat_fault_and_its_reset_name_the_robot(caplog):
+    from service.faults import FaultMonitor
+    from service.supervision import Supervisor
+
+    faults = FaultMonitor("the robot (KUKA RSI packets)")
+    sup = Supervisor(faults, np.array(LIMITS), 0.1, 10)
+    sup.update(0.0, 1, 1, list(Q), False, [])
+    sup.update(0.5, 1, 1, list(Q), False, [])
+    assert "plc_heartbeat of the robot (KUKA RSI packets) unchanged" in faults.last_message["plc_heartbeat"]
+    sup.update(0.6, 1 | 4, 2, list(Q), False, [])
+    assert any("faults reset by the robot (KUKA RSI packets)" in r.message for r in caplog.records)
+
+
+def test_the_config_names_who_commands():
+    from service.config import load_config
+
+    assert load_config(CONFIG / "robot_kuka_rsi.yaml").commander == "the robot (KUKA RSI packets)"
+    assert load_config(CONFIG / "default.yaml").commander == "the PLC"
+    assert not load_config(CONFIG / "robot_kuka_rsi.yaml").cycle_enables_on_start
