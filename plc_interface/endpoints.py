@@ -99,7 +99,11 @@ def endpoints_from(data: dict, path: Path, sections: Collection[str] = ()) -> En
 
     unknown = [k for k in data if sections and k not in sections]
     if unknown:
-        raise ConfigError(f"{path}: {unknown[0]} is not a known key")
+        from stiffness.files.kinds import looks_like
+
+        like = looks_like(data, sections)
+        raise ConfigError(f"{path}: {unknown[0]} is not a known key" + (
+            f" of a service config: this file looks like {like} (docs/config.md)" if like else ""))
     schemas = {"monitoring": MonitoringSettings, "plc": PlcSettings, "ads": AdsSettings}
     return Endpoints(path, **{name: validate(schema, data[name], str(path), name) if name in data else schema()
                               for name, schema in schemas.items()})
