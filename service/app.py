@@ -138,8 +138,7 @@ class Service:
             log.warning("the cycle runs on the Python path: %s", e)
             return
         self._packers, self._steady = self.values.compiled(self, self._to_plc)
-        self.compile_s = time.perf_counter() - t0
-        log.info("compiled signal path ready in %.2f s", self.compile_s)
+        self.compile_s = time.perf_counter() - t0       # `start` says it, once the I/O process serves
 
     def _task_tuple(self, state: int) -> list[float]:
         """The task's counters of the cycle now, in `TaskValues`' order, also into the values' task part
@@ -263,6 +262,8 @@ class Service:
                 self.stop()             # frees the image and the source (the I/O process cleaned up itself)
                 raise
         self.wait_compiled()
+        if self.compile_s is not None:  # said only now: a start that failed before this line says nothing ready
+            log.info("compiled signal path ready in %.2f s", self.compile_s)
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
                                lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
@@ -301,7 +302,10 @@ class Service:
             self._steady.call = None
         self.image.close()
         self.source.close()
-        log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
+        if task is None:        # a start that failed (or a --check) ran nothing: no line that reads like a stop
+            log.info("the service did not start: the cycle never ran (status: stopped)")
+        else:
+            log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
 
     def _start_io(self, settings: IoSettings):
         """A running I/O process serving ``settings`` on this image (it cleans up after itself on error)."""
