@@ -155,6 +155,9 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
         iso = circle_figures(world.path, [evals[name], *(again or {}).get(name, [])], len(world.path.phi) - 1)
         summary["path_accuracy_mm" + suffix] = round(iso.accuracy, 4)
         summary["path_repeatability_mm" + suffix] = None if iso.repeatability is None else round(iso.repeatability, 4)
+        summary["path_accuracy_at_deg" + suffix] = round(iso.worst_accuracy_at, 2)
+        summary["path_repeatability_at_deg" + suffix] = (None if iso.worst_repeatability_at is None else
+                                                         round(iso.worst_repeatability_at, 2))
     summary["repeats"] = 1 + len((again or {}).get(last, []))
     delay = end_to_end_delay(world, passes["compensated"].log) if "compensated" in passes else None
     summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
