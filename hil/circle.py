@@ -14,6 +14,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
+from .delay_band import delay_band_ms, delay_verdict
 from .dynamics import (
     DynamicOptions,
     identify_from_pass,
@@ -119,7 +120,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
-    summary = summarise(world, passes, evals, parts, lockstep, again)
+    band = delay_band_ms(scenario, service_overrides, robot_interface)
+    summary = summarise(world, passes, evals, parts, lockstep, again, band)
     summary["robot_interface"] = robot_interface or "none"
     if found is not None:
         summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
@@ -134,10 +136,11 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
 
 
 def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
-              again: dict | None = None) -> dict:
+              again: dict | None = None, band: tuple[float, float] | None = None) -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
     uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
-    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures."""
+    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures. ``band``: the
+    end-to-end delay the loop can show (`hil.delay_band`); a delay outside it makes the timing untrustworthy."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -167,6 +170,11 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
                          {"exceeded_share": 0.0, "trustworthy": True,
                           "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
+    if band is not None:
+        summary["delay_band_ms"] = [round(band[0], 2), round(band[1], 2)]
+        off = delay_verdict(summary["delay_ms"], band)
+        if off is not None:
+            summary["timing"] = {**summary["timing"], "trustworthy": False, "verdict": off}
     return summary
 
 
