@@ -61,7 +61,7 @@ from ..data.trace_file import Gap, Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
 from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
-from .suspects import causes, explain
+from .suspects import causes, explain, frame_fit
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
@@ -190,7 +190,8 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     blind.sort(key=lambda b: b.row)
     def why_far(near: np.ndarray, some: bool = False) -> str:
         """Why the points lie off the path: all of them (the refusal), or ``some`` (the causes alone)."""
-        fit = None if best_fit or part.frame is None else (lambda: _fit_evidence(part, c_all[idx], a, r, c2))
+        fit = None if best_fit or part.frame is None else (
+            lambda: frame_fit(part, _best_fit(part, c_all[idx], a, r), np.vstack([e1, e2]), c2, r))
         span = 1000.0 * (float(np.max(np.ptp(c2, axis=0))) + 2 * r)
         return (causes if some else partial(explain, trace_source=trace.source))(
             part, near_m=near, path_span_mm=span, fit=fit, near_mm=near_mm)
@@ -355,19 +356,6 @@ def _check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace: Trace) 
                 raise DataError(f"{part.source}: the measured contour is {ratio:.1f} x smaller than the path the "
                                 f"trace {trace.source} cut: the points look like they are in {unit}, not millimetres "
                                 f"(docs/part_format.md); multiply them by {factor:g}")
-
-
-def _fit_evidence(part: PartMeasurement, c: np.ndarray, a: np.ndarray, r: float, c2: np.ndarray
-                  ) -> tuple[float, float, float]:
-    """How far a best fit (`_best_fit`, from the part's own frame) moves the part frame (mm) and turns it (deg),
-    and the points' median distance from the contour after it (mm): the evidence for a frame that is off."""
-    T = _best_fit(part, c, a, r)
-    e1, e2 = plane_basis(a)
-    p = part.in_base(T)
-    near, _ = cKDTree(c2).query(np.column_stack([p @ e1, p @ e2]))
-    turn = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3].T @ part.frame[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
-    return (1000.0 * float(np.linalg.norm(T[:3, 3] - part.frame[:3, 3])), float(turn),
-            1000.0 * float(np.median(np.abs(near - r))))
 
 
 def _best_fit(part: PartMeasurement, c: np.ndarray, a: np.ndarray, r: float, iterations: int = 30) -> np.ndarray:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..data.part_points import PartMeasurement
 
@@ -92,6 +93,18 @@ def causes(part: PartMeasurement, near_m: np.ndarray, path_span_mm: float,
         found.append("the tool radius: unlikely alone, a wrong radius puts every point the same distance off, and "
                      f"these lie {lo:.2f} to {hi:.2f} mm from the path")
     return "Likely causes, likeliest first: " + "; ".join(f"({k}) {c}" for k, c in enumerate(found, 1))
+
+
+def frame_fit(part: PartMeasurement, T: np.ndarray, plane: np.ndarray, c2: np.ndarray, r: float
+              ) -> tuple[float, float, float]:
+    """The evidence for a part_frame that is off: how far the best fit ``T`` (base <- part, m) moves the part's own
+    frame (mm) and turns it (deg), and the points' median distance from the contour after it (mm). ``plane``
+    (2, 3): the cut's plane axes; ``c2``: the tool centre's path in them (m); ``r``: the tool radius (m)."""
+    p2 = part.in_base(T) @ plane.T
+    near, _ = cKDTree(c2).query(p2)
+    turn = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3].T @ part.frame[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
+    return (1000.0 * float(np.linalg.norm(T[:3, 3] - part.frame[:3, 3])), float(turn),
+            1000.0 * float(np.median(np.abs(near - r))))
 
 
 def _radius_words(r: float, d: np.ndarray, near_mm: float) -> str:
