@@ -43,13 +43,22 @@ exit 0
 
 DPKG_QUERY = r"""#!/bin/sh
 echo "dpkg-query $*" >> "$STAND/calls"
-if [ -e "$STAND/pip" ] && [ "$(cat "$STAND/pip")" = debian ]; then printf 'install ok installed'; exit 0; fi
-echo "dpkg-query: no packages found matching python3-pip" >&2; exit 1
+for last; do :; done
+if [ -e "$STAND/$last" ]; then printf 'install ok installed'; exit 0; fi
+echo "dpkg-query: no packages found matching $last" >&2; exit 1
 """
 
+# purge -s prints what a purge would remove ("Purg NAME [version]"), the packages named and, where the base
+# needs setuptools ($STAND/needs), the package that depends on it; a real purge removes the packages named
 APT_GET = r"""#!/bin/sh
 echo "apt-get $*" >> "$STAND/calls"
-case " $* " in *" purge "*python3-pip*) rm -f "$STAND/pip" ;; esac
+if [ "$1 $2" = "purge -s" ]; then
+    shift 2
+    for p; do echo "Purg $p [1.0]"; done
+    [ -e "$STAND/needs" ] && echo "Purg python3-foo [2.0]"
+    exit 0
+fi
+for p; do case "$p" in python3-*) rm -f "$STAND/$p"; [ "$p" = python3-pip ] && rm -f "$STAND/pip" ;; esac; done
 exit 0
 """
 
@@ -63,13 +72,18 @@ def base(tmp_path):
     for name, text in (("python3", PYTHON), ("dpkg-query", DPKG_QUERY), ("apt-get", APT_GET)):
         (bin_ / name).write_text(text)
         (bin_ / name).chmod(0o755)
-    for name in ("sh", "grep", "cat", "rm"):            # the only real commands on PATH: none of this host's own
+    for name in ("sh", "grep", "sed", "cat", "rm"):            # the only real commands on PATH: none of this host's own
         (tools / name).symlink_to(shutil.which(name))
 
-    def run(kind: str | None, dpkg: bool = True) -> tuple[subprocess.CompletedProcess, list[str]]:
+    def run(kind: str | None, dpkg: bool = True, needs: bool = False) -> tuple[subprocess.CompletedProcess, list[str]]:
         (tmp_path / "calls").write_text("")
         if kind is not None:
             (tmp_path / "pip").write_text(kind)
+        if kind == "debian":                    # the Debian packages the base has: pip and what it pulls in
+            for name in ("python3-pip", "python3-setuptools", "python3-wheel"):
+                (tmp_path / name).write_text("")
+        if needs:
+            (tmp_path / "needs").write_text("")
         if not dpkg:
             (bin_ / "dpkg-query").unlink()
         env = {"PATH": f"{bin_}:{tools}", "STAND": str(tmp_path)}
@@ -81,11 +95,22 @@ def base(tmp_path):
 
 
 def test_debians_python3_pip_is_purged_with_apt_get(base, tmp_path):
+    """With what it pulled in (setuptools, wheel: the image test wants neither in the base's Python)."""
     p, calls = base("debian")
     assert p.returncode == 0, p.stderr
     assert not (tmp_path / "pip").exists()                              # the image has no pip
-    assert "apt-get purge -y -q python3-pip" in calls and "apt-get autoremove --purge -y -q" in calls
-    assert not any("pip uninstall" in c for c in calls)                 # which pip would have refused
+    assert "apt-get purge -y -q python3-pip python3-setuptools python3-wheel" in calls
+    assert not any(c.startswith("python3 -m pip uninstall") for c in calls)     # which pip would have refused
+    assert not any((tmp_path / n).exists() for n in ("python3-pip", "python3-setuptools", "python3-wheel"))
+
+
+def test_setuptools_that_the_base_needs_stays(base, tmp_path):
+    """A purge that would remove another of the base's packages removes python3-pip alone, and says so."""
+    p, calls = base("debian", needs=True)
+    assert p.returncode == 0, p.stderr
+    assert "apt-get purge -y -q python3-pip" in calls and not (tmp_path / "pip").exists()
+    assert "keeping python3-setuptools and python3-wheel: the base needs them (python3-foo)" in p.stdout
+    assert (tmp_path / "python3-setuptools").exists()
 
 
 def test_the_slim_images_pip_uninstalls_itself(base, tmp_path):
