@@ -63,8 +63,11 @@ def code_key() -> str:
 def recall(config: str | Path) -> tuple[str, int] | None:
     """(monitoring.host, monitoring.port) of ``config`` as a validation found them, when neither the file nor
     the schemas' code changed since; None otherwise (validate)."""
+    path = memo_path(config)
     try:
-        memo = json.loads(memo_path(config).read_text())
+        if any(p.stat().st_uid != os.getuid() for p in (path.parent, path)):
+            return None             # a folder or memo another user made (/tmp is shared): not trusted
+        memo = json.loads(path.read_text())
         if memo.get("version") != VERSION or memo.get("sha256") != digest(config) or memo.get("code") != code_key():
             return None
         host, port = memo["monitoring"]["host"], memo["monitoring"]["port"]

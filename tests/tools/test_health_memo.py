@@ -70,6 +70,10 @@ def test_other_schema_code_or_a_damaged_memo_is_not_trusted(tmp_path, monkeypatc
     assert health_memo.recall(cfg) is None
     health_memo.remember(cfg, "the sha of other bytes", "127.0.0.1", 9999)     # changed while it was validated
     assert health_memo.recall(cfg) is None
+    health_memo.remember(cfg, health_memo.digest(cfg), "127.0.0.1", 9999)
+    me = health_memo.os.getuid()
+    monkeypatch.setattr(health_memo.os, "getuid", lambda: me + 1)                # as another user sees it
+    assert health_memo.recall(cfg) is None
 
 
 def test_a_run_folder_that_cannot_be_written_costs_only_speed(tmp_path, monkeypatch, capsys):
