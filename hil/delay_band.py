@@ -64,3 +64,14 @@ def delay_verdict(delay_ms: float | None, band: tuple[float, float]) -> str | No
     return (f"the end-to-end delay {delay_ms:.2f} ms is {side} ({band[0]:.1f} to {band[1]:.1f} ms, "
             "hil/delay_band.py): this run's timing or its log was off, so its figures do not show the service; "
             "run it again")
+
+
+def timing_with_delays(timing: dict, delays_ms: list[float | None], band: tuple[float, float]) -> dict:
+    """A run's ``timing`` verdict (`hil.circle.timing_verdict`), made untrustworthy by the first of its cuts'
+    delays (ms: the first cut's, then each repeat's) outside ``band``, naming that cut when there are several."""
+    for k, d in enumerate(delays_ms, 1):
+        off = delay_verdict(d, band)
+        if off is not None:
+            which = f"cut {k} of {len(delays_ms)}: " if len(delays_ms) > 1 else ""
+            return {**timing, "trustworthy": False, "verdict": which + off}
+    return timing

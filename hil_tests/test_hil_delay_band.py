@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from hil_lib import ROOT, scenario
 
-from hil.delay_band import delay_band_ms, delay_verdict
+from hil.delay_band import delay_band_ms, delay_verdict, timing_with_delays
 from hil.virtual_plc import PlcLogic, VirtualPlc
 from plc_interface.register_map import RegisterMap
 
@@ -73,3 +73,14 @@ def test_the_band_follows_the_loop_it_is_given():
     assert delay_band_ms(sc) == pytest.approx((base[0] + 8.0, base[1] + 8.0))
     slower = delay_band_ms(scenario(), {"filter": {"cutoff_hz": 50.0}})
     assert slower[0] > base[0] + 2.0                            # 2nd-order Butterworth: ~4.5 ms at 50 Hz, 2.25 at 100
+
+
+def test_a_repeat_whose_delay_is_off_makes_the_run_untrustworthy_and_is_named():
+    """`--repeat 3` through RSI once gave 3.95 ms: the repeats are checked, not the first cut alone."""
+    band = delay_band_ms(scenario())
+    calm = {"exceeded_share": 0.0, "trustworthy": True, "verdict": "the 1 ms cycle kept its deadlines"}
+    assert timing_with_delays(calm, [8.0, 7.9, None], band) == calm
+    t = timing_with_delays(calm, [8.0, 7.9, 3.95], band)
+    assert t["trustworthy"] is False and t["verdict"].startswith("cut 3 of 3: the end-to-end delay 3.95 ms")
+    assert t["exceeded_share"] == 0.0 and calm["trustworthy"] is True                 # the input left alone
+    assert timing_with_delays(calm, [4.0], band)["verdict"].startswith("the end-to-end delay 4.00 ms")

@@ -109,7 +109,8 @@ def test_in_lock_step_the_repeats_are_one_path(lockstep_twice):
     res = lockstep_twice
     s = res.summary
     assert s["repeats"] == 2
-    low, high = s["delay_band_ms"]                     # issue 45, item 5: the loop's delay in its band
+    low, high = s["delay_band_ms"]                     # issue 45, item 5: the loop's delay in its band, each cut's
+    assert len(s["delay_ms_repeats"]) == 1 and s["delay_ms_repeats"][0] == pytest.approx(s["delay_ms"], abs=0.01)
     assert low <= s["delay_ms"] <= high and s["timing"]["trustworthy"], s
     phi = np.linspace(0.0, 2 * np.pi, len(res.world.path.phi) - 1, endpoint=False)
     for name, suffix in (("compensated", ""), ("uncompensated", "_uncompensated")):
