@@ -14,6 +14,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
+from .delay_band import delay_band_ms, timing_with_delays
 from .dynamics import (
     DynamicOptions,
     identify_from_pass,
@@ -98,6 +99,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
     passes: dict[str, PassResult] = {}
     again: dict[str, list[dict]] = {}                  # the evaluations of each pass's further repeats
+    delays: list[float | None] = []                    # the end-to-end delay (s) of the compensated pass's repeats
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
         overrides = dict(service_overrides or {})
@@ -116,14 +118,20 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                 overrides = deep_update(copy.deepcopy(overrides), service_dynamics(
                     found, delay_ms, dynamic, scenario, world, base / "dynamic"))
             passes[name] = cut_once(name, base / name, trace if last else None)
-            again[name] = [evaluate_pass(scenario, truth, cut_once(name, base / f"{name}_{k}", None))[1]
-                           for k in range(2, repeat + 1)]
+            again[name] = []
+            for k in range(2, repeat + 1):
+                result = cut_once(name, base / f"{name}_{k}", None)
+                world_k, ev = evaluate_pass(scenario, truth, result)
+                again[name].append(ev)
+                if name == "compensated":          # each repeat's timing is checked, not the first cut's alone
+                    delays.append(end_to_end_delay(world_k, result.log))
     evals, parts = {}, {}
     world = None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
-    summary = summarise(world, passes, evals, parts, lockstep, again)
+    band = delay_band_ms(scenario, service_overrides, robot_interface)
+    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays)
     summary["robot_interface"] = robot_interface or "none"
     if found is not None:
         summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
@@ -138,10 +146,13 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
 
 
 def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
-              again: dict | None = None) -> dict:
+              again: dict | None = None, band: tuple[float, float] | None = None,
+              repeat_delays: list[float | None] | None = None) -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
     uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
-    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures."""
+    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures. ``band``: the
+    end-to-end delay the loop can show (`hil.delay_band`); a delay outside it, the first cut's or a repeat's
+    (``repeat_delays``, s, the compensated pass's further cuts), makes the timing untrustworthy."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -159,6 +170,9 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
         iso = circle_figures(world.path, [evals[name], *(again or {}).get(name, [])], len(world.path.phi) - 1)
         summary["path_accuracy_mm" + suffix] = round(iso.accuracy, 4)
         summary["path_repeatability_mm" + suffix] = None if iso.repeatability is None else round(iso.repeatability, 4)
+        summary["path_accuracy_at_deg" + suffix] = round(iso.worst_accuracy_at, 2)
+        summary["path_repeatability_at_deg" + suffix] = (None if iso.worst_repeatability_at is None else
+                                                         round(iso.worst_repeatability_at, 2))
     summary["repeats"] = 1 + len((again or {}).get(last, []))
     delay = end_to_end_delay(world, passes["compensated"].log) if "compensated" in passes else None
     summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
@@ -168,6 +182,11 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
                          {"exceeded_share": 0.0, "trustworthy": True,
                           "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
+    summary["delay_ms_repeats"] = [None if d is None else round(1000.0 * d, 2) for d in repeat_delays or []]
+    if band is not None:
+        summary["delay_band_ms"] = [round(band[0], 2), round(band[1], 2)]
+        summary["timing"] = timing_with_delays(summary["timing"], [summary["delay_ms"], *summary["delay_ms_repeats"]],
+                                               band)
     return summary
 
 

@@ -37,6 +37,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .multicast import MulticastError, check_multicast
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario
 from .sensor import sensor_main
@@ -153,6 +154,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     folder.mkdir(parents=True, exist_ok=True)
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
     can_port, modbus_port = free_udp_port(), free_port()
+    multicast_or_fail(group, can_port)      # before any process starts: one line with what to run
     if robot_interface is not None:
         section = robot_section if robot_section is not None else shipped_robot_section(robot_interface)
         road = {"plc": {"role": "none", "enable_on_start": compensate},      # uncompensated: never enabled
@@ -239,6 +241,14 @@ def probe_unmapped(port: int, rmap: RegisterMap) -> list[str]:
                 found += [f"{b.table} {start + k:#06x} = {v:#06x}" for k, v in enumerate(r.registers)
                           if v and (b.table, start + k) not in mapped]
     return found
+
+
+def multicast_or_fail(group: str, port: int) -> None:
+    """HilError in one line (what to run) where this host cannot carry udp_multicast (`hil.multicast`)."""
+    try:
+        check_multicast(group, port)
+    except MulticastError as e:
+        raise HilError(str(e)) from None
 
 
 def _end(p) -> None:

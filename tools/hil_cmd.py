@@ -148,7 +148,12 @@ def _iso_line(s: dict, compensated: bool) -> str:
     def both(key: str) -> str:
         if s[key] is None:
             return "-"
-        return f"{s[key + '_uncompensated']:.3f} / {s[key]:.3f} mm" if compensated else f"{s[key]:.3f} mm"
+        where = key.replace("_mm", "_at_deg")
+
+        def one(suffix: str) -> str:
+            return f"{s[key + suffix]:.3f} mm at {s[where + suffix]:.1f} deg"
+
+        return f"{one('_uncompensated')} / {one('')}" if compensated else one("")
 
     return (f"ISO 9283 over {s['repeats']} cut(s) of each pass{', without / with compensation' if compensated else ''}"
             f": path accuracy AT_p {both('path_accuracy_mm')}, path repeatability RT_p {both('path_repeatability_mm')}")

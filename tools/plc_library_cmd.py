@@ -1,10 +1,15 @@
 """`stiffcomp plc-library -o DIR`: write the PLC's side of the contract as TwinCAT 3 sources and PLCopen XML
-(docs/plc.md), from the contract and the register map the config names."""
+(docs/plc.md), from the contract and the register map the config names.
+
+The config is read as `stiffcomp run --check` reads it (`service.config.load_config`: every section with the
+service's schema, the checks across sections, the files it names), so a misspelt section (``plcc:``) or the
+register map passed as the config exits 2 naming the file and the key, instead of writing the default layout
+the PLC would then use against the wrong registers."""
 
 from __future__ import annotations
 
 from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
-from service.config import DEFAULT_CONFIG, read_sections
+from service.config import DEFAULT_CONFIG, load_config
 
 from .common import check_output_folder, write_output
 
@@ -23,8 +28,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    cfg = load_config(args.config)
     out = check_output_folder("-o", args.output)
-    cfg = read_sections(args.config, "plc", "ads")
     host, key = (args.modbus_host, "--modbus-host") if args.modbus_host else (cfg.plc.host, f"{args.config}: plc.host")
     endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, host, cfg.plc.port, cfg.plc.device_id, key)
     try:

@@ -20,6 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from plc_source import constant, constants, enum_values, packed, struct_fields, summary
 
+from hil.testing import write_config
 from plc_interface.ads.symbols import IEC_TYPES, symbols_from_map
 from plc_interface.contract import Command, Fault, Status, TaskState
 from plc_interface.plc_library.blocks import real_bounds, real_literal
@@ -52,8 +53,8 @@ def moved_map_config(tmp_path: Path) -> tuple[Path, RegisterMap]:
     regs.append({"name": "dq_q1", "address": 0x8050})
     data["to_plc"]["registers"] = regs
     (tmp_path / "moved.yaml").write_text(yaml.safe_dump(data))
-    cfg = tmp_path / "service.yaml"
-    cfg.write_text("plc: {register_map: moved.yaml, port: 1502}\nads: {net_id: 10.1.2.3.1.1}\n")
+    cfg = write_config(tmp_path, {"plc": {"register_map": "moved.yaml", "port": 1502},
+                                  "ads": {"net_id": "10.1.2.3.1.1"}})       # a whole config: plc-library reads it as run
     return cfg, RegisterMap.from_yaml(tmp_path / "moved.yaml")
 
 
@@ -256,7 +257,7 @@ def test_a_map_with_a_gap_between_the_plcs_registers_is_refused(tmp_path, capsys
     data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
     data["from_plc"]["registers"][-1]["address"] += 1           # payload_index one word further
     (tmp_path / "gap.yaml").write_text(yaml.safe_dump(data))
-    (tmp_path / "service.yaml").write_text("plc: {register_map: gap.yaml}\n")
+    write_config(tmp_path, {"plc": {"register_map": "gap.yaml"}})
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "payload_index", "gap")
     assert not (tmp_path / "out").exists()
 
