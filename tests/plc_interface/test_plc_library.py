@@ -289,13 +289,13 @@ def test_bit_words_and_their_bits_are_word():
     ("::", ("IPv6",)),
 ])
 def test_a_host_the_plc_cannot_dial_is_refused_and_nothing_written(tmp_path, capsys, host, words):
-    (tmp_path / "service.yaml").write_text(f"plc: {{host: '{host}'}}\n")
+    write_config(tmp_path, {"plc": {"host": host}})          # a whole config: plc-library reads it as run does
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), str(tmp_path / "service.yaml"), *words)
     assert not (tmp_path / "out").exists()
 
 
 def test_the_plcs_target_is_taken_from_modbus_host_where_plc_host_binds_all(tmp_path, capsys):
-    (tmp_path / "service.yaml").write_text("plc: {host: 0.0.0.0}\n")
+    write_config(tmp_path, {"plc": {"host": "0.0.0.0"}})
     assert generate(tmp_path / "out", tmp_path / "service.yaml", "--modbus-host", "192.168.10.20") == 0
     code = summary(tmp_path / "out" / "twincat", "*.TcGVL")
     assert str(code.globals["GVL_StiffCompSettings"].declarations["sModbusHost"].value) == "'192.168.10.20'"
@@ -308,7 +308,7 @@ def test_a_scaled_count_or_bit_word_is_refused(tmp_path, capsys):
     data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
     data["to_plc"]["registers"][0]["scale"] = 10                 # the heartbeat
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(data))
-    (tmp_path / "service.yaml").write_text("plc: {register_map: m.yaml}\n")
+    write_config(tmp_path, {"plc": {"register_map": "m.yaml"}})
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "heartbeat", "scale = 10", "scale 1")
 
 
