@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from road_lib import ROBOT, ROBOT_AT, Clock, Q, new_image, publish
 
 from hil.testing import CONFIG
 from hil.virtual_robot import controller_for
-from plc_interface.contract import Command, Fault, to_plc
+from plc_interface.contract import Command, Fault
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 from plc_interface.robot import egm, rsi
@@ -20,24 +21,11 @@ from plc_interface.robot.interface import ZERO6, interface_for
 from plc_interface.robot.road import RoadSettings, RobotRoad
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.robot.tcp import TcpJacobian
-from stiffness.kinematics.robot import load_robot
-
-ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
-Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]
-ROBOT_AT = ("127.0.0.1", 40000)
-
-
-class Clock:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
 
 
 @pytest.fixture
 def image():
-    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    im = new_image()
     yield im
     im.close()
 
@@ -48,9 +36,6 @@ def road_on(image, clock=None, **robot) -> RobotRoad:
     return RobotRoad(image, RoadSettings(section, enable_on_start=True, silence_s=0.1, ramp_s=0.2, limits_deg=limits,
                                          robot_file=str(ROBOT.source)), clock=clock or Clock())
 
-
-def publish(image, correction, fault_word: int = 0) -> None:
-    image.publish(to_plc(fault_word=fault_word, **{f"correction_q{i + 1}": v for i, v in enumerate(correction)}))
 
 
 def q_of(image) -> list[float]:

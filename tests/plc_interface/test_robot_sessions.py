@@ -11,36 +11,23 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from road_lib import LIMITS, ROBOT, ROBOT_AT, Clock, Q, new_image, publish
 
 from hil.testing import CONFIG
 from hil.virtual_robot import controller_for
 from plc_interface.contract import to_plc
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
 from plc_interface.robot import egm, rsi
 from plc_interface.robot.kuka_rsi import CHECK_PACKETS
 from plc_interface.robot.road import RoadSettings, RobotRoad
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.robot.tcp import motion_of_rkorr, rkorr
-from stiffness.kinematics.robot import load_robot
 
-ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
-Q = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
-ROBOT_AT = ("127.0.0.1", 40000)
-LIMITS = [(float(lo), float(hi)) for lo, hi in ROBOT.limits_deg]
-
-
-class Clock:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
+Q = np.array(Q)
 
 
 @pytest.fixture
 def image():
-    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    im = new_image()
     yield im
     im.close()
 
@@ -49,10 +36,6 @@ def road_on(image, clock, section: dict, ramp_s: float = 0.0) -> RobotRoad:
     s = RobotSettings.model_validate(section)
     return RobotRoad(image, RoadSettings(s, enable_on_start=True, silence_s=0.2, ramp_s=ramp_s, limits_deg=LIMITS,
                                          robot_file=str(ROBOT.source)), clock=clock)
-
-
-def publish(image, correction) -> None:
-    image.publish(to_plc(**{f"correction_q{i + 1}": float(v) for i, v in enumerate(correction)}))
 
 
 def hold(image, seconds: float, old_answer: bool = False) -> np.ndarray:
