@@ -174,7 +174,7 @@ class RobotRoad:
                 raise PacketError("stamp", f"{iface.stamp_name} {p.stamp} is below the last one taken ({last}): "
                                   "a packet out of order")
             missed = 0 if new else self._missed(p)
-            held = ZERO6 if new else iface.history[-1 - min(missed, len(iface.history) - 1)][0]
+            held = ZERO6 if new else iface.held_before(missed)
             q = iface.programmed(p, held, new)
             self._check_limits(q)
         except PacketError as e:
@@ -187,11 +187,12 @@ class RobotRoad:
             iface.missed(missed)
         self._note_counts(p)
         self._last_t, self.session.stamp = now, p.stamp
-        warning = iface.evidence(p)
-        if warning:
+        contradicted = iface.evidence(p)
+        if contradicted:
+            key, warning = contradicted
             log.warning("robot road: %s", warning)
             if self.metrics is not None:
-                self.metrics.count_robot_contradiction("joints_include_correction")
+                self.metrics.count_robot_contradiction(key)
         out = self.image.outputs()
         ramp = min(1.0, (now - self.session.began) / self.settings.ramp_s) if self.settings.ramp_s > 0 else 1.0
         correction = [ramp * out[f"correction_q{i}"] for i in range(1, 7)]
