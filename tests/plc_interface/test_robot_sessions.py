@@ -142,6 +142,7 @@ def test_kuka_joints_are_checked_against_the_packets(image, caplog, holds):
             q_ref = Q + 2.0 * np.sin(0.5 * t)                   # a moving robot: the servo lags
             publish(image, 0.04 * np.sin(np.array([3.0, 2.0, 4.0, 5.0, 3.5, 2.5]) * t))
             robot.take(road.received(robot.packet(t, q_ref), ROBOT_AT), t, q_ref)
+            road.after_answer()                                 # as the I/O loop does once the answer is sent
             robot.commanded(t, q_ref)
         check = road.stats()["joints_check"]
         assert check["windows"] >= n // CHECK_PACKETS - 1 and abs(check["slope"] - (0.0 if holds else 1.0)) < 0.2
