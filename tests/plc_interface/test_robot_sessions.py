@@ -251,3 +251,19 @@ def test_the_config_names_who_commands():
     assert load_config(CONFIG / "robot_kuka_rsi.yaml").commander == "the robot (KUKA RSI packets)"
     assert load_config(CONFIG / "default.yaml").commander == "the PLC"
     assert not load_config(CONFIG / "robot_kuka_rsi.yaml").cycle_enables_on_start
+
+
+def test_every_interface_has_its_module_on_both_sides():
+    """A robot interface is a sub-section, a road module and a virtual controller, found by one name."""
+    from hil.virtual_robot import CONTROLLERS
+    from plc_interface.robot import settings as robot_settings
+    from plc_interface.robot.interface import INTERFACES, RobotInterface, interface_for
+
+    named = set(robot_settings.INTERFACES) - {"none"}
+    assert named == set(INTERFACES) == set(CONTROLLERS) == set(robot_settings.NAMES)
+    for name in named:
+        assert name in robot_settings.RobotSettings.model_fields
+        section = {"interface": name, name: {"mode": "joint"}} if name == "abb_egm" else {"interface": name}
+        s = RobotSettings.model_validate(section)
+        assert isinstance(interface_for(s), RobotInterface)
+        assert controller_for(s, ROBOT).period > 0
