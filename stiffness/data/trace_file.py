@@ -184,6 +184,7 @@ class Gap:
 
 
 REPORT_GAP = 2.5     # reports farther apart than this many typical spacings: the robot stood still between them
+REPORT_MIN_S = 0.006  # reports closer than this (a PLC's 4 ms, RSI's) are read as they are: their corners are < 1 um
 
 
 def between_reports(t: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -193,17 +194,22 @@ def between_reports(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     A row holds the joints last reported: a PLC every few cycles, a robot through the robot road every packet
     (ABB's EGM path corrections every 48 ms: 2.4 mm of a 50 mm/s feed). The robot moved between two reports,
     so a trace read as it is holds a staircase whose steps cut the corners of a contour (a path of 2.4 mm chords
-    on a 31 mm radius lies up to 0.02 mm inside it). Where the rows that bring new joints are at most 3 in 4 of the
-    rows, the joints between two reports no farther apart than `REPORT_GAP` typical spacings are the cubic spline
-    through the reports (scipy's CubicSpline: 1e-4 deg off a 20 deg, 0.5 Hz motion reported every 54 rows, where
-    PCHIP is 0.06 deg off); a longer pause is a robot that stood still, and is kept."""
+    on a 31 mm radius lies up to 0.02 mm inside it; reports every 4 ms, a PLC's or RSI's, cut 0.2 mm chords whose
+    corners lie 0.2 um inside, and their rows are read as they are, `REPORT_MIN_S`). Where the reports are further
+    apart and the rows that bring new joints are at most 3 in 4 of the rows, the joints between two reports no
+    farther apart than `REPORT_GAP` typical spacings are the cubic spline through the reports (scipy's
+    CubicSpline: 1e-4 deg off a 20 deg, 0.5 Hz motion reported every 54 rows, where PCHIP is 0.06 deg off); a
+    longer pause is a robot that stood still, and is kept."""
     changed = np.flatnonzero(np.r_[True, np.any(np.diff(q, axis=0) != 0.0, axis=1)])
     if len(changed) < 4 or len(changed) > 0.75 * len(q):
         return q
     from scipy.interpolate import CubicSpline
 
     spacing = np.diff(t[changed])
-    breaks = np.flatnonzero(spacing > REPORT_GAP * np.median(spacing))
+    typical = float(np.median(spacing))
+    if typical < REPORT_MIN_S:
+        return q
+    breaks = np.flatnonzero(spacing > REPORT_GAP * typical)
     out = q.copy()
     for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(changed) - 1]):
         if b - a >= 1:
