@@ -23,6 +23,7 @@ from .dynamics import (
 )
 from .iso9283 import circle_figures
 from .lockstep import run_lockstep
+from .probe import ProbeResult, probe
 from .report import end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
 from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
@@ -70,7 +71,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
                dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
-               repeat: int = 1) -> CircleResult:
+               repeat: int = 1, probe_log: Path | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -82,7 +83,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     static pass's as ``*_static`` twins. ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through
     the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`). ``repeat``:
     each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
-    the first cut of each is the one every other figure, the trace and the part come from.
+    the first cut of each is the one every other figure, the trace and the part come from. ``probe_log``: after
+    the last pass the robot probes the part it cut (`hil.probe`) and the log is written there.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
@@ -128,6 +130,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                                "explained_static": round(found.explained_static, 5)}
     if cmm is not None:
         parts[names[-1]].write(cmm)
+    if probe_log is not None:
+        probe(scenario, world, truth.robot, evals[names[-1]]).write(probe_log)
     if report is not None:
         write_report(Path(report), world, evals, passes, summary)
     return CircleResult(summary, passes, evals, world, parts)
@@ -180,18 +184,21 @@ def robot_road(log: dict) -> dict:
 
 @dataclass
 class Cut:
-    """One compensated cut: its path error (mm), the part the virtual CMM measured, the pass itself."""
+    """One compensated cut: its path error (mm), the part the virtual CMM measured, the pass itself, and the
+    robot's own probe of the part when asked for."""
 
     mean_error_mm: float
     max_error_mm: float
     part: CmmResult
     result: PassResult
+    probed: ProbeResult | None = None
 
 
 def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, trace: Path | None = None,
-        cmm: Path | None = None, lockstep: bool = True) -> Cut:
+        cmm: Path | None = None, lockstep: bool = True, probe_log: Path | None = None) -> Cut:
     """Cut the circle once with compensation (the learning loop: cut, measure, learn, cut again); writes
-    the service's ``trace`` and the virtual CMM's ``cmm`` when given."""
+    the service's ``trace``, the virtual CMM's ``cmm`` and the robot's own ``probe_log`` (`hil.probe`) when
+    given."""
     truth = StiffnessModel.from_yaml(truth_path)
     run = run_lockstep if lockstep else run_pass
     result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
@@ -199,8 +206,11 @@ def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, t
     part = measure(scenario, world, ev)
     if cmm is not None:
         part.write(cmm)
+    probed = probe(scenario, world, truth.robot, ev) if probe_log is not None else None
+    if probed is not None:
+        probed.write(probe_log)
     mean, worst = errors(ev)
-    return Cut(mean, worst, part, result)
+    return Cut(mean, worst, part, result, probed)
 
 
 def write_report(folder: Path, world: World, evals: dict, passes: dict, summary: dict) -> None:
