@@ -72,7 +72,7 @@ class CmmConfig(Strict):
 class ProbeConfig(Strict):
     """The virtual probe: the robot touches the contour it machined (`hil.probe`, `stiffcomp hil circle --probe`)."""
 
-    touches: int = Field(72, ge=3, le=10_000)
+    touches: int = Field(120, ge=3, le=10_000)          # 84 or more: `part diagnose` of a 36-parameter model
     stylus_radius_mm: float = Field(1.5, gt=0.0, le=50.0)
     speed_mm_s: float = Field(5.0, gt=0.0, le=500.0)            # the probing speed along the normal
     latency_ms: float = Field(1.0, ge=0.0, le=100.0)             # from the trigger to the latch, stated in the log

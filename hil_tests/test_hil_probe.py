@@ -17,10 +17,13 @@ from hil_lib import ROOT
 
 from hil.circle import cut
 from hil.scenario import load_scenario
+from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
 
 BUILT = ROOT / "examples" / "truth_geometric_errors.yaml"
 START = ROOT / "examples" / "too_stiff_reference.yaml"
+EXACT_SPRINGS = ROOT / "examples" / "truth_reference.yaml"     # the truth's springs on the datasheet's kinematics:
+                                                               # the exact model (none knows the geometric errors)
 
 
 @pytest.fixture(scope="module")
@@ -38,12 +41,12 @@ def _learn(w, capsys, part, name, *extra) -> tuple[int, dict]:
 
 def test_the_robots_own_probe_teaches_the_model_to_cut_within_1_2_x_the_exact_model(first, capsys):
     w, cut1 = first
-    assert len(cut1.probed.q_deg) == 72
+    assert len(cut1.probed.q_deg) == 120
     code, probe = _learn(w, capsys, "probe1.csv", "from_probe.yaml")
     assert code == 0 and probe["problems"] == [], probe["problems"]
     assert probe["rms_after_mm"] < 0.2 * probe["rms_before_mm"]
     learned = cut(load_scenario(), BUILT, w / "from_probe.yaml", w / "cut2_probe")
-    exact = cut(load_scenario(), BUILT, BUILT, w / "cut2_exact")
+    exact = cut(load_scenario(), BUILT, EXACT_SPRINGS, w / "cut2_exact")
     assert learned.mean_error_mm <= 1.2 * exact.mean_error_mm, (learned.mean_error_mm, exact.mean_error_mm)
     assert cut1.mean_error_mm > 10 * exact.mean_error_mm            # the start was far off
 
@@ -53,8 +56,32 @@ def test_the_cmms_points_with_the_true_frame_carry_the_geometric_error_and_are_r
     code = main(["part", "learn", str(START), str(w / "cut1.csv"), str(w / "part1.csv"), "-o",
                  str(w / "from_cmm.yaml")])
     out, err = capsys.readouterr()
-    assert code == 2 and not (w / "from_cmm.yaml").exists()
+    assert code == 2 and not (w / "from_cmm.yaml").exists() and "from_cmm.yaml: not written" in err
     # the shift the check names is the robot's geometric error at the circle (FK as built - FK of the datasheet)
     assert "one shift of its points in the robot's base explains" in out and "(-0.38, +1.24, +0.00) mm" in out, out
     code, best_fit = _learn(w, capsys, "part1.csv", "from_cmm_best_fit.yaml", "--best-fit")
     assert code == 0 and best_fit["problems"] == []
+
+
+@pytest.mark.parametrize("hidden", [True, False], ids=["hysteresis-j1", "control"])
+def test_diagnose_from_the_probe_names_a_hidden_hysteresis_and_the_control_nothing(tmp_path, capsys, hidden):
+    """Item 5: a robot with geometric errors and, hidden, a hysteresis at joint 1 (0.012 deg), cut with the exact
+    springs on the datasheet's kinematics; `part diagnose` from its own probe names the hysteresis at joint 1, and
+    nothing from the same robot without it (its geometric errors are not taken for an effect)."""
+    truth = StiffnessModel.from_yaml(BUILT)
+    if hidden:
+        d = truth.to_dict()
+        d["effects"].append({"effect": "hysteresis", "joint": 1, "offset_deg": 0.012})
+        truth = StiffnessModel.from_dict(d, "built + hysteresis@joint1", robot=truth.robot)
+    truth.to_yaml(tmp_path / "truth.yaml")
+    cut(load_scenario(), tmp_path / "truth.yaml", EXACT_SPRINGS, tmp_path / "cut", tmp_path / "t.csv",
+        probe_log=tmp_path / "probe.csv")
+    assert main(["part", "diagnose", str(EXACT_SPRINGS), str(tmp_path / "t.csv"), str(tmp_path / "probe.csv"),
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    named = [c for c in out["candidates"] if c["significant"]]
+    if hidden:
+        assert out["verdict"] == "missing_effect", out["message"]
+        assert (named[0]["effect"], named[0]["joint"]) == ("hysteresis", 1), out["message"]
+    else:
+        assert out["verdict"] == "no_missing_effect" and not named, out["message"]
