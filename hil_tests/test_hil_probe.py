@@ -4,18 +4,23 @@ that probe cuts the next part within 1.2 x the exact model's mean path error, th
 points of the same cut, side by side: with the part's true frame they carry the robot's geometric error (1.3 mm)
 and `part learn` refuses them, naming the shift; placed by --best-fit they teach as well.
 
-In lock step (`hil.lockstep`): the figures do not depend on how busy the host is.
+In lock step (`hil.lockstep`): the figures do not depend on how busy the host is; and once through the robot road
+(KUKA RSI, real time).
 `benchmarks/bench_probe_part.py` measures the same with and without geometric errors and by number of touches.
 """
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 from hil_lib import ROOT
 
 from hil.circle import cut
+from hil.probe import probe
+from hil.report import errors, evaluate_pass
+from hil.run import run_pass
 from hil.scenario import load_scenario
 from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
@@ -85,3 +90,27 @@ def test_diagnose_from_the_probe_names_a_hidden_hysteresis_and_the_control_nothi
         assert (named[0]["effect"], named[0]["joint"]) == ("hysteresis", 1), out["message"]
     else:
         assert out["verdict"] == "no_missing_effect" and not named, out["message"]
+
+
+def _rsi_cut(model, folder, trace=None, probe_log=None) -> float:
+    """One compensated cut through the robot road (a virtual KUKA RSI robot, real time) by the robot with geometric
+    errors; its mean path error (mm), and its probe of the part when asked."""
+    sc, truth = load_scenario(), StiffnessModel.from_yaml(BUILT)
+    result = run_pass(sc, truth, Path(model), True, folder, trace=trace, robot_interface="kuka_rsi")
+    world, ev = evaluate_pass(sc, truth, result)
+    if probe_log is not None:
+        probe(sc, world, truth.robot, ev).write(probe_log)
+    return errors(ev)[0]
+
+
+@pytest.mark.realtime
+def test_through_rsi_the_robots_own_probe_teaches_the_model_within_1_2_x(tmp_path, capsys):
+    """The same through the robot road: the first cut, its trace and the robot's probe through RSI, the next cut
+    through RSI with the model learned from that probe, against the exact model's cut through RSI."""
+    first = _rsi_cut(START, tmp_path / "cut1", tmp_path / "cut1.csv", tmp_path / "probe1.csv")
+    assert main(["part", "learn", str(START), str(tmp_path / "cut1.csv"), str(tmp_path / "probe1.csv"), "-o",
+                 str(tmp_path / "from_probe.yaml")]) == 0
+    capsys.readouterr()
+    learned = _rsi_cut(tmp_path / "from_probe.yaml", tmp_path / "cut2")
+    exact = _rsi_cut(EXACT_SPRINGS, tmp_path / "exact")
+    assert learned <= 1.2 * exact and first > 10 * exact, (first, learned, exact)
