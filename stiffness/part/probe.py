@@ -28,7 +28,7 @@ from ..data.probe_log import ProbeLog
 from ..data.trace_file import Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, _moving, plane_basis, read_against
+from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, read_against
 
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
@@ -55,7 +55,7 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
         raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
     F = robot.frames(np.radians(trace.q_deg))
     c_all = F[:, 7, :3, 3]
-    moving = _moving(trace.time_s, c_all) & run
+    moving = at_feed(trace.time_s, c_all) & run
     if moving.sum() < 3:
         raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {probe.source}")
     a = np.median(F[moving, 7, :3, 2], axis=0)
