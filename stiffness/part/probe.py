@@ -16,7 +16,8 @@ touch that cannot be a touch of this contour is refused by line, nothing used:
   r_s (1 - cos theta) along n, and a probe that moved away from the wall or along it touched something else;
 * the trigger must lie where the tool passed: the point within ``near_mm`` of the tool radius off the path;
 * the stylus radius must fit: when most touches lie off the wall by one common distance beyond ``near_mm``,
-  the radius is named with the one that puts them on it, rather than every touch as far off.
+  the radius is named with the one that puts them on it, rather than every touch as far off; most touches off
+  by distances that differ: the log and the trace do not belong together.
 """
 
 from __future__ import annotations
@@ -80,6 +81,10 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
     rs = probe.stylus_radius_mm / 1000.0 - probe.overtravel_mm / 1000.0
     e_mm = (np.where(near_path, dist_p - r, side * dist - (r - rs))) * 1000.0
     _stylus_fits(probe, e_mm, near_mm)
+    if (np.abs(e_mm) > near_mm).mean() > 0.5:
+        raise DataError(f"{probe.source}: the trace {trace.source} never passes the probed contour: the touches lie "
+                        f"a median {np.median(np.abs(e_mm)):.1f} mm off the wall it cut (tolerance {near_mm:g} mm), "
+                        "and not by one common distance; they do not belong together")
     problems = Problems()
     angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
     for k in range(len(probe)):

@@ -130,6 +130,13 @@ def test_a_stylus_radius_that_does_not_fit_names_the_one_that_does(probed, tmp_p
     assert abs(fit - STYLUS_RADIUS_MM) < 1.0           # within the arm's deflection of the true radius
 
 
+def test_a_probe_of_another_contour_is_refused_as_not_belonging(probed, tmp_path):
+    def elsewhere(q, n):
+        q[:, 0] += 5.0                                 # every touch 5 deg on A1 away: the circle some 150 mm off
+    text = _refusal(probed, tmp_path, edit=elsewhere)
+    assert "never passes the probed contour" in text and "they do not belong together" in text
+
+
 def test_a_part_frame_in_the_log_is_refused_as_meaningless(probed, tmp_path):
     _, q, n, _ = probed
     path = _log(tmp_path, q, n)
