@@ -81,9 +81,11 @@ WORKDIR /opt/stiffcomp
 RUN if ! ldconfig -p | grep -q libgomp.so.1; then \
       apt-get update && apt-get install -y --no-install-recommends libgomp1 && rm -rf /var/lib/apt/lists/*; \
     fi
-# no pip in the shipped image: python:3.11-slim's own Python carries one (the Debian base of docs/deploy.md
-# has none); run before the venv arrives, so python3 is the base's
-RUN if python3 -m pip --version >/dev/null 2>&1; then python3 -m pip uninstall -y -q pip setuptools wheel; fi
+# no pip in the shipped image: python:3.11-slim's own Python carries one, a Debian or Ubuntu base may have
+# python3-pip (which pip refuses to uninstall: PEP 668), the Debian base of docs/deploy.md has none; each is
+# removed by the tool that installed it (deploy/remove_pip.sh). Run before the venv arrives, so python3 is the base's
+COPY deploy/remove_pip.sh /tmp/remove_pip.sh
+RUN sh /tmp/remove_pip.sh && rm /tmp/remove_pip.sh
 
 RUN useradd --system --no-create-home --home-dir /opt/stiffcomp --shell /usr/sbin/nologin stiffcomp
 COPY --from=build /opt/venv /opt/venv

@@ -14,6 +14,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
+from .delay_band import delay_band_ms, timing_with_delays
 from .dynamics import (
     DynamicOptions,
     identify_from_pass,
@@ -71,7 +72,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
                dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
-               repeat: int = 1, probe_log: Path | None = None) -> CircleResult:
+               repeat: int = 1, robot_section: dict | None = None, probe_log: Path | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -81,7 +82,9 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     third pass with the dynamic compensation (`hil.dynamics`): the modes identified from a tap test the
     stub answers, the delay measured on the static one (or ``dynamic.delay_ms``); the summary's figures are then the dynamic pass's, with the
     static pass's as ``*_static`` twins. ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through
-    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`). ``repeat``:
+    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`), set up as
+    ``robot_section`` says (default: the shipped config/robot_<interface>.yaml's; EGM in path mode at 48 ms, its
+    joint mode refused: position guidance runs no RAPID path, ABB's EGM manual). ``repeat``:
     each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
     the first cut of each is the one every other figure, the trace and the part come from. ``probe_log``: after
     the last pass the robot probes the part it cut (`hil.probe`) and the log is written there.
@@ -93,10 +96,12 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         raise HilError("faults are injected in real time only: run without --lockstep")
     if lockstep and robot_interface is not None:
         raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+    robot_section = check_robot_section(robot_interface, robot_section)
     found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
     passes: dict[str, PassResult] = {}
     again: dict[str, list[dict]] = {}                  # the evaluations of each pass's further repeats
+    delays: list[float | None] = []                    # the end-to-end delay (s) of the compensated pass's repeats
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
         overrides = dict(service_overrides or {})
@@ -105,7 +110,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
             if lockstep:
                 return run_lockstep(scenario, truth, model_path, name != "uncompensated", folder, overrides, traced)
             return run_pass(scenario, truth, model_path, name != "uncompensated", folder,
-                            faults if name == "compensated" else None, overrides, traced, robot_interface)
+                            faults if name == "compensated" else None, overrides, traced, robot_interface,
+                            robot_section)
         for name in names:
             last = name == names[-1]
             if name == "dynamic":
@@ -114,14 +120,20 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                 overrides = deep_update(copy.deepcopy(overrides), service_dynamics(
                     found, delay_ms, dynamic, scenario, world, base / "dynamic"))
             passes[name] = cut_once(name, base / name, trace if last else None)
-            again[name] = [evaluate_pass(scenario, truth, cut_once(name, base / f"{name}_{k}", None))[1]
-                           for k in range(2, repeat + 1)]
+            again[name] = []
+            for k in range(2, repeat + 1):
+                result = cut_once(name, base / f"{name}_{k}", None)
+                world_k, ev = evaluate_pass(scenario, truth, result)
+                again[name].append(ev)
+                if name == "compensated":          # each repeat's timing is checked, not the first cut's alone
+                    delays.append(end_to_end_delay(world_k, result.log))
     evals, parts = {}, {}
     world = None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
-    summary = summarise(world, passes, evals, parts, lockstep, again)
+    band = delay_band_ms(scenario, service_overrides, robot_interface)
+    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays)
     summary["robot_interface"] = robot_interface or "none"
     if found is not None:
         summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
@@ -138,10 +150,13 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
 
 
 def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
-              again: dict | None = None) -> dict:
+              again: dict | None = None, band: tuple[float, float] | None = None,
+              repeat_delays: list[float | None] | None = None) -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
     uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
-    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures."""
+    ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures. ``band``: the
+    end-to-end delay the loop can show (`hil.delay_band`); a delay outside it, the first cut's or a repeat's
+    (``repeat_delays``, s, the compensated pass's further cuts), makes the timing untrustworthy."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -159,6 +174,9 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
         iso = circle_figures(world.path, [evals[name], *(again or {}).get(name, [])], len(world.path.phi) - 1)
         summary["path_accuracy_mm" + suffix] = round(iso.accuracy, 4)
         summary["path_repeatability_mm" + suffix] = None if iso.repeatability is None else round(iso.repeatability, 4)
+        summary["path_accuracy_at_deg" + suffix] = round(iso.worst_accuracy_at, 2)
+        summary["path_repeatability_at_deg" + suffix] = (None if iso.worst_repeatability_at is None else
+                                                         round(iso.worst_repeatability_at, 2))
     summary["repeats"] = 1 + len((again or {}).get(last, []))
     delay = end_to_end_delay(world, passes["compensated"].log) if "compensated" in passes else None
     summary["delay_ms"] = None if delay is None else round(1000.0 * delay, 2)
@@ -168,7 +186,36 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     summary["timing"] = (timing_verdict(summary["cycles"], summary["exceed_count"]) if not lockstep else
                          {"exceeded_share": 0.0, "trustworthy": True,
                           "verdict": "in lock step (no real time): the figures show the service's arithmetic, not its timing"})
+    summary["delay_ms_repeats"] = [None if d is None else round(1000.0 * d, 2) for d in repeat_delays or []]
+    if band is not None:
+        summary["delay_band_ms"] = [round(band[0], 2), round(band[1], 2)]
+        summary["timing"] = timing_with_delays(summary["timing"], [summary["delay_ms"], *summary["delay_ms_repeats"]],
+                                               band)
     return summary
+
+
+def check_robot_section(interface: str | None, section: dict | None) -> dict | None:
+    """The robot road's sub-section for a cut: ``section``, or the shipped robot config's; HilError for one the
+    circle cannot be cut with (EGM's joint mode, position guidance, follows no RAPID path: it holds a pose)."""
+    if interface is None:
+        return None
+    from pydantic import ValidationError
+
+    from plc_interface.robot.settings import RobotSettings
+    from stiffness.files.yaml_schema import format_validation_error
+
+    from .run import shipped_robot_section
+
+    section = dict(section if section is not None else shipped_robot_section(interface))
+    try:
+        s = RobotSettings.model_validate({"interface": interface, interface: section})
+    except ValidationError as e:
+        raise HilError(format_validation_error("the robot road's section", e, prefix="robot")) from e
+    if interface == "abb_egm" and s.abb_egm.mode == "joint":
+        raise HilError("robot.abb_egm.mode joint is position guidance, which runs no RAPID path (ABB's EGM manual): "
+                       "it holds a pose, it cannot cut the circle; cut in path mode (the shipped config) or through "
+                       "kuka_rsi")
+    return section
 
 
 def robot_road(log: dict) -> dict:
@@ -195,13 +242,21 @@ class Cut:
 
 
 def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, trace: Path | None = None,
-        cmm: Path | None = None, lockstep: bool = True, probe_log: Path | None = None) -> Cut:
+        cmm: Path | None = None, lockstep: bool = True, robot_interface: str | None = None,
+        robot_section: dict | None = None, probe_log: Path | None = None) -> Cut:
     """Cut the circle once with compensation (the learning loop: cut, measure, learn, cut again); writes
     the service's ``trace``, the virtual CMM's ``cmm`` and the robot's own ``probe_log`` (`hil.probe`) when
-    given."""
+    given. ``robot_interface``: through the robot road (in real time), as `run_circle` says."""
     truth = StiffnessModel.from_yaml(truth_path)
-    run = run_lockstep if lockstep else run_pass
-    result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
+    if robot_interface is not None:
+        if lockstep:
+            raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+        result = run_pass(scenario, truth, Path(model_path), True, Path(workdir), trace=trace,
+                          robot_interface=robot_interface,
+                          robot_section=check_robot_section(robot_interface, robot_section))
+    else:
+        run = run_lockstep if lockstep else run_pass
+        result = run(scenario, truth, Path(model_path), True, Path(workdir), trace=trace)
     world, ev = evaluate_pass(scenario, truth, result)
     part = measure(scenario, world, ev)
     if cmm is not None:

@@ -28,27 +28,33 @@ import numpy as np
 
 @dataclass
 class PathFigures:
-    """AT_p and RT_p (the units of the points; RT_p None with one path) and where each is largest."""
+    """AT_p and RT_p (the units of the points; RT_p None with one path) and where each is largest, as the
+    label of that point (`path_figures`' ``at``: the circle's angle in degrees for `circle_figures`)."""
 
     accuracy: float
     repeatability: float | None
-    worst_accuracy_at: int
-    worst_repeatability_at: int | None
+    worst_accuracy_at: float
+    worst_repeatability_at: float | None
 
 
-def path_figures(commanded: np.ndarray, attained: np.ndarray) -> PathFigures:
-    """AT_p and RT_p of ``attained`` (n, m, 3): n paths, each at the m normal planes of ``commanded`` (m, 3)."""
+def path_figures(commanded: np.ndarray, attained: np.ndarray, at: np.ndarray | None = None) -> PathFigures:
+    """AT_p and RT_p of ``attained`` (n, m, 3): n paths, each at the m normal planes of ``commanded`` (m, 3).
+    ``at`` (m,): what a user reads each plane by (an angle, a distance along the path); the planes' index
+    where not given."""
     x = np.asarray(attained, dtype=float)
     c = np.asarray(commanded, dtype=float)
     if x.ndim != 3 or x.shape[1:] != c.shape or x.shape[0] < 1:
         raise ValueError(f"attained {x.shape} must be (n, m, 3) at the commanded points {c.shape}")
+    label = np.arange(len(c), dtype=float) if at is None else np.asarray(at, dtype=float)
+    if label.shape != (len(c),):
+        raise ValueError(f"at {label.shape} must label the {len(c)} commanded points")
     bary = x.mean(axis=0)
-    at = np.linalg.norm(bary - c, axis=1)
+    at_p = np.linalg.norm(bary - c, axis=1)
     if len(x) < 2:
-        return PathFigures(float(at.max()), None, int(at.argmax()), None)
+        return PathFigures(float(at_p.max()), None, float(label[at_p.argmax()]), None)
     spread = np.linalg.norm(x - bary, axis=2)                        # l_ij, (n, m)
     rt = spread.mean(axis=0) + 3.0 * spread.std(axis=0, ddof=1)
-    return PathFigures(float(at.max()), float(rt.max()), int(at.argmax()), int(rt.argmax()))
+    return PathFigures(float(at_p.max()), float(rt.max()), float(label[at_p.argmax()]), float(label[rt.argmax()]))
 
 
 def cut_by_angle(evaluation: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -83,8 +89,9 @@ def in_planes(path, evaluation: dict, phi: np.ndarray) -> np.ndarray:
 
 def circle_figures(path, evaluations: list[dict], points: int) -> PathFigures:
     """AT_p and RT_p (mm) of the repeats of one pass (their evaluations) about the commanded circle ``path``
-    (`hil.path.CirclePath`), at ``points`` angles equally spaced round it that every repeat reaches."""
+    (`hil.path.CirclePath`), at ``points`` angles equally spaced round it that every repeat reaches; where each
+    is largest as the angle about the circle's centre (deg, 0 to 360), not as the index among the angles kept."""
     phi = np.linspace(0.0, 2 * np.pi, points, endpoint=False)
     attained = np.array([in_planes(path, ev, phi) for ev in evaluations])
     every = ~np.isnan(attained).any(axis=(0, 2))
-    return path_figures(path.point(phi[every]) * 1000.0, attained[:, every] * 1000.0)
+    return path_figures(path.point(phi[every]) * 1000.0, attained[:, every] * 1000.0, np.degrees(phi[every]))

@@ -30,7 +30,7 @@ from service.config import load_config
 from stiffness.files.yaml_schema import deep_update
 
 from .plc_process import plc_main
-from .run import ServiceProcess, _end, _wait, free_udp_port, write_service_config
+from .run import ServiceProcess, _end, _wait, free_udp_port, multicast_or_fail, write_service_config
 from .scenario import Scenario
 from .sensor import serve_until
 
@@ -98,6 +98,7 @@ def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: floa
         folder = Path(tmp)
         group = f"239.74.{np.random.randint(1, 255)}.{np.random.randint(1, 255)}"
         can_port, port = free_udp_port(), free_port()
+        multicast_or_fail(group, can_port)
         over = TRANSPARENT if request_lead_us is None else deep_update(
             copy.deepcopy(TRANSPARENT), {"source": {"can": {"request_lead_us": request_lead_us}}})
         cfg_path = write_service_config(scenario, model_path, folder, group, can_port, port, over)

@@ -37,6 +37,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .multicast import MulticastError, check_multicast
 from .plc_process import plc_main
 from .scenario import ROOT, Scenario
 from .sensor import sensor_main
@@ -142,18 +143,23 @@ def _wait(event, proc, what: str, timeout: float = START_TIMEOUT_S) -> None:
 
 def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
              faults: Faults | None = None, service_overrides: dict | None = None,
-             trace: Path | None = None, robot_interface: str | None = None) -> PassResult:
+             trace: Path | None = None, robot_interface: str | None = None,
+             robot_section: dict | None = None) -> PassResult:
     """Run the closed loop once in real time; returns the PLC's log and the service's stats. ``trace``: the
     service records every cycle there (`stiffcomp run --trace`). ``robot_interface`` (``kuka_rsi``,
     ``abb_egm``): the robot road instead of the PLC: a virtual robot of that interface (`hil.robot_process`)
-    drives the cut, the service has no PLC (``plc.role: none``) and its log stands for the PLC's."""
+    drives the cut, the service has no PLC (``plc.role: none``) and its log stands for the PLC's; the
+    interface's sub-section is ``robot_section``, by default the shipped robot config's (`shipped_robot_section`)."""
     faults = faults or Faults()
     folder.mkdir(parents=True, exist_ok=True)
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
     can_port, modbus_port = free_udp_port(), free_port()
+    multicast_or_fail(group, can_port)      # before any process starts: one line with what to run
     if robot_interface is not None:
+        section = robot_section if robot_section is not None else shipped_robot_section(robot_interface)
         road = {"plc": {"role": "none", "enable_on_start": compensate},      # uncompensated: never enabled
-                "robot": {"interface": robot_interface, "port": free_udp_port()}}
+                "robot": {"interface": robot_interface, "port": free_udp_port(), "host": "127.0.0.1",
+                          "peer": "127.0.0.1", robot_interface: section}}
         service_overrides = deep_update(road, service_overrides or {})
     cfg_path = write_service_config(scenario, model_path, folder, group, can_port, modbus_port, service_overrides)
     cfg = load_config(cfg_path)
@@ -209,6 +215,14 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
                       {"unmapped_nonzero": unmapped})
 
 
+def shipped_robot_section(interface: str) -> dict:
+    """The ``robot.<interface>`` sub-section of the shipped config/robot_<interface>.yaml: the HIL's virtual robot
+    is set up as the shipped robot side is (EGM: path mode at 48 ms)."""
+    from stiffness.files.yaml_syntax import read_yaml
+
+    return dict(read_yaml(ROOT / "config" / f"robot_{interface}.yaml")["robot"][interface])
+
+
 def probe_unmapped(port: int, rmap: RegisterMap) -> list[str]:
     """Read both blocks whole from the running service; name every nonzero word that no register of
     the map covers (what a write outside the map, or a stray publish, would leave)."""
@@ -227,6 +241,14 @@ def probe_unmapped(port: int, rmap: RegisterMap) -> list[str]:
                 found += [f"{b.table} {start + k:#06x} = {v:#06x}" for k, v in enumerate(r.registers)
                           if v and (b.table, start + k) not in mapped]
     return found
+
+
+def multicast_or_fail(group: str, port: int) -> None:
+    """HilError in one line (what to run) where this host cannot carry udp_multicast (`hil.multicast`)."""
+    try:
+        check_multicast(group, port)
+    except MulticastError as e:
+        raise HilError(str(e)) from None
 
 
 def _end(p) -> None:

@@ -59,7 +59,8 @@ class AbbController(RobotController):
         self.target = Delayed(None, self.delay_s)          # joint mode: the sensor's last target
         self.offset = Delayed(np.zeros(3), self.delay_s)   # path mode: the correction laid over the path, base, mm
         self.actual: np.ndarray | None = None              # feedBack
-        self._pose_prev = self._pose = self._x_prev = None
+        self.frames = egm.PathFrames()                     # path mode: the path frame of each packet
+        self._frame = None
 
     def packet(self, t: float, q_ref) -> bytes:
         self.stamp += 1
@@ -72,8 +73,10 @@ class AbbController(RobotController):
             planned = np.asarray(q_ref, dtype=float)
         if self.actual is None:
             self.actual = planned.copy()
-        self._pose_prev, self._pose = self._pose, self.pose(planned)
-        return egm.robot_packet(self.stamp, self.tm, list(planned), list(self.actual), self._pose)
+        pose = self.pose(planned)
+        if self.mode == "path":
+            self._frame = self.frames.next(pose)
+        return egm.robot_packet(self.stamp, self.tm, list(planned), list(self.actual), pose)
 
     def pose(self, q) -> tuple[float, ...]:
         """The TCP pose at joints ``q``: x, y, z (mm) and the quaternion qw, qx, qy, qz."""
@@ -95,9 +98,8 @@ class AbbController(RobotController):
             self.target.set(t, np.array(values))
         else:
             # the path frame from the planned poses of this packet and the one before, as the road reads them
-            frame = egm.path_frame(self._pose_prev or self._pose, self._pose, self._x_prev)
-            self._x_prev, self.frame = frame[0], frame
-            self.offset.set(t, np.array(egm.to_base(frame, (0.0, values[1], values[2]))))   # across the path
+            self.frame = self._frame
+            self.offset.set(t, np.array(egm.to_base(self.frame, (0.0, values[1], values[2]))))   # across the path
         return True
 
     def commanded(self, t: float, q_ref) -> np.ndarray:

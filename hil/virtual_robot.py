@@ -150,13 +150,15 @@ class VirtualRobot:
         finally:
             self.sock.setblocking(True)
 
-    def exchange(self, t: float, q_ref, answer_by: float, clock=time.monotonic) -> tuple[bool, float]:
-        """Send the packet of program time ``t``, take its answer if it arrives by clock time ``answer_by``:
+    def exchange(self, t: float, q_ref, answer_by: float, clock=time.monotonic,
+                 stamp_t: float | None = None) -> tuple[bool, float]:
+        """Send the packet of program time ``t`` (its stamp from the robot's clock at ``stamp_t``, by default
+        ``t``), take its answer if it arrives by clock time ``answer_by``:
         (answered in its cycle, round trip in s; NaN when late). The round trip runs from the send to the
         answer's arrival as the kernel stamped it (SO_TIMESTAMPNS), so a robot process that the host runs late
         neither lengthens it nor takes a late answer for one in time."""
         self._drain()
-        packet = self.c.packet(t, q_ref)
+        packet = self.c.packet(t if stamp_t is None else stamp_t, q_ref)
         wall_by = time.time_ns() + int(1e9 * (answer_by - clock()))
         t_send = time.time_ns()
         self.sock.sendto(packet, self.address)
@@ -208,15 +210,22 @@ def run_cycles(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> Cyc
     deadlines = Deadlines(c.period, start=t0 + t_start)
     for k in range(n):
         deadlines.sleep_until()
-        t = deadlines.due - t0
+        now = time.monotonic()
+        # the cycle runs, and is logged, when it starts: a real controller's interpolation starts on its deadline,
+        # this process on a shared host may start late (the catch-up rule then runs it at once on a deadline up to
+        # a period past), and a cycle stamped with its deadline would carry a correction read later than its
+        # time says (the HIL's end-to-end delay then came out short, issue 45). The packet's stamp keeps the
+        # robot's own clock, the deadline.
+        t = now - t0
         log.t[k], log.due[k] = t, deadlines.due
-        log.send_lag_s[k] = time.monotonic() - deadlines.due
+        log.send_lag_s[k] = now - deadlines.due
         q_ref = np.asarray(vr.reference(t), dtype=float)
         log.q_ref[k] = q_ref
         if vr.stopped_at is None:
             if k % c.every == 0:
                 log.sent[k], log.sent_unix[k] = True, time.time()
-                log.answered[k], log.rtt_s[k] = vr.exchange(t, q_ref, deadlines.due + c.period)
+                log.answered[k], log.rtt_s[k] = vr.exchange(t, q_ref, deadlines.due + c.period,
+                                                            stamp_t=deadlines.due - t0)
                 log.stamp[k] = c.stamp
                 if log.answered[k]:
                     log.answer[k, :len(c.answer)] = c.answer

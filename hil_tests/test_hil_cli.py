@@ -21,9 +21,10 @@ from stiffness.part.rows import read_against
 from tools.cli import main
 
 WINDOWS = {f"{w}_{k}_mm" for w in ("entry", "exit", "steady") for k in ("peak", "mean")}   # issue 26
-ISO_9283 = {"repeats", *(k + t for k in ("path_accuracy_mm", "path_repeatability_mm") for t in ("", "_uncompensated"))}
+ISO_9283 = {"repeats", *(k + t for k in ("path_accuracy_mm", "path_repeatability_mm", "path_accuracy_at_deg",
+                                         "path_repeatability_at_deg") for t in ("", "_uncompensated"))}
 KEYS = {"mean_error_mm", "max_error_mm", "mean_error_mm_uncompensated", "max_error_mm_uncompensated", "cycles",
-        "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated", "delay_ms",
+        "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated", "delay_ms", "delay_band_ms", "delay_ms_repeats",
         *WINDOWS, *(k + "_uncompensated" for k in WINDOWS), *ISO_9283,
         "robot_interface", "late_answers", "reply_latency_p99_ms"}                     # issue 37: the robot road
 
@@ -53,6 +54,10 @@ def test_circle_prints_both_errors_and_writes_the_plot(tmp_path):
     assert s["mean_error_mm"] <= 0.10 * s["mean_error_mm_uncompensated"], s
     assert s["max_error_mm"] <= s["max_error_mm_uncompensated"]
     assert s["repeats"] == 2 and s["path_repeatability_mm"] > 0.0, s
+    low, high = s["delay_band_ms"]                    # issue 45, item 5: the real-time delays in their band, or flagged
+    assert len(s["delay_ms_repeats"]) == 1, s
+    assert all(low <= d <= high for d in [s["delay_ms"], *s["delay_ms_repeats"]]) or (
+        not s["timing"]["trustworthy"] and "end-to-end delay" in s["timing"]["verdict"]), s
     assert s["path_accuracy_mm"] < s["path_accuracy_mm_uncompensated"], s
     assert (tmp_path / "hil_circle.png").exists()
     detail = json.loads((tmp_path / "summary.json").read_text())

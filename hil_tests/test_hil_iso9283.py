@@ -71,6 +71,30 @@ def test_a_circle_cut_twice_is_read_where_each_cut_crosses_the_normal_planes():
     assert np.isnan(in_planes(path, cuts[0], np.array([7.0]))).all()      # an angle the cut never reaches
 
 
+def test_the_worst_points_are_given_as_the_angles_a_user_reads():
+    """Issue 45, item 8: with the first 30 deg reached by one cut only (the planes kept start at 30 deg), the
+    accuracy's bump at 200 deg and the spread's at 120 deg are reported there, not as their index among the
+    planes kept (340 and 180: 720 planes, 0.5 deg apart, the first 60 dropped)."""
+    center, radius = np.array([1.8, 0.0, 0.8]), 0.035
+
+    def outward(phi):
+        return np.column_stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)])
+
+    def bump(phi, deg):
+        return np.exp(-0.5 * ((np.degrees(phi) - deg) / 5.0) ** 2)
+
+    path = SimpleNamespace(center=center, outward=outward, point=lambda phi: center + radius * outward(phi))
+    cuts = []
+    for k, start in enumerate((0.0, np.radians(30.0))):
+        phi = np.linspace(start, 2 * np.pi, 20_000)
+        r = radius + (0.02 + 0.05 * bump(phi, 200.0) + (-1) ** k * 0.03 * bump(phi, 120.0)) / 1000.0
+        p = center + np.column_stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(phi)])
+        cuts.append({"t": phi - start, "p": p, "angle": phi % (2 * np.pi), "cut": np.ones(len(phi), dtype=bool)})
+    f = circle_figures(path, cuts, 720)
+    assert f.worst_accuracy_at == pytest.approx(200.0, abs=0.5)
+    assert f.worst_repeatability_at == pytest.approx(120.0, abs=0.5)
+
+
 @pytest.fixture(scope="module")
 def lockstep_twice(tmp_path_factory):
     """Both passes of the paper's circle cut twice in lock step (a few seconds)."""
@@ -85,6 +109,9 @@ def test_in_lock_step_the_repeats_are_one_path(lockstep_twice):
     res = lockstep_twice
     s = res.summary
     assert s["repeats"] == 2
+    low, high = s["delay_band_ms"]                     # issue 45, item 5: the loop's delay in its band, each cut's
+    assert len(s["delay_ms_repeats"]) == 1 and s["delay_ms_repeats"][0] == pytest.approx(s["delay_ms"], abs=0.01)
+    assert low <= s["delay_ms"] <= high and s["timing"]["trustworthy"], s
     phi = np.linspace(0.0, 2 * np.pi, len(res.world.path.phi) - 1, endpoint=False)
     for name, suffix in (("compensated", ""), ("uncompensated", "_uncompensated")):
         ev = res.evaluations[name]

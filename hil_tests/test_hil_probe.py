@@ -12,15 +12,11 @@ In lock step (`hil.lockstep`): the figures do not depend on how busy the host is
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 from hil_lib import ROOT
 
 from hil.circle import cut
-from hil.probe import probe
-from hil.report import errors, evaluate_pass
-from hil.run import run_pass
 from hil.scenario import load_scenario
 from stiffness.model.stiffness_model import StiffnessModel
 from tools.cli import main
@@ -94,16 +90,13 @@ def test_diagnose_from_the_probe_names_a_hidden_hysteresis_and_the_control_nothi
 
 def _rsi_cut(model, folder, trace=None, probe_log=None) -> dict:
     """One compensated cut through the robot road (a virtual KUKA RSI robot, real time) by the robot with geometric
-    errors: its mean path error (mm) and what tells a pass that went wrong (the service's cycles and exceeded
-    deadlines, the robot's late answers); and its probe of the part when asked."""
-    sc, truth = load_scenario(), StiffnessModel.from_yaml(BUILT)
-    result = run_pass(sc, truth, Path(model), True, folder, trace=trace, robot_interface="kuka_rsi")
-    world, ev = evaluate_pass(sc, truth, result)
-    if probe_log is not None:
-        probe(sc, world, truth.robot, ev).write(probe_log)
-    stats = result.stats[-1]
-    return {"mean_mm": errors(ev)[0], "cycles": stats.get("cycles"), "exceeded": stats.get("exceed_count"),
-            "late_answers": int(result.log["late"])}
+    errors, its probe of the part when asked: its mean path error (mm) and what tells a pass that went wrong (the
+    service's cycles and exceeded deadlines, the robot's late answers)."""
+    c = cut(load_scenario(), BUILT, model, folder, trace, lockstep=False, robot_interface="kuka_rsi",
+            probe_log=probe_log)
+    stats = c.result.stats[-1]
+    return {"mean_mm": c.mean_error_mm, "cycles": stats.get("cycles"), "exceeded": stats.get("exceed_count"),
+            "late_answers": int(c.result.log["late"])}
 
 
 @pytest.mark.realtime

@@ -124,19 +124,17 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     tr = trace(tmp_path)
     assert np.abs(corrections(tr, np.arange(len(tr["cycle"])))).max() > 1e-3     # a correction to find
     assert check_answers_are_cycles_corrections(d, tr, settings) > 0.95 * len(d.answered) - 100
-    # the trace's joints are the commanded ones: the packet's programmed joints plus what the robot held when it
-    # sent it (the correction of the answer before; RSI: to the digit, EGM path: the whole joint correction
-    # behind the path correction, within its size)
+    # the trace's joints are the commanded ones: the packet's programmed joints plus the correction the robot took
+    # with its answer (RSI: to the digit; EGM path: the whole joint correction behind the path correction, within
+    # its size)
     u = tr["unix_time_s"]
     c_max = np.abs(corrections(tr, np.arange(len(u)))).max()
     for r in np.flatnonzero((u > d.sent_unix[0] + 0.3) & (u < d.sent_unix[-1]))[::7]:
         # the packets of the 100 ms before the row (and 5 ms after: the row's stamp and the packet's are two clocks)
         near = np.flatnonzero((d.sent_unix >= u[r] - 0.1) & (d.sent_unix <= u[r] + 0.005))
-        near = near[near > 0]
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
         if settings.interface == "kuka_rsi":
-            commanded = d.q_ref[near] + (d.q_cmd[near - 1] - d.q_ref[near - 1])
-            assert np.abs(commanded - q).max(axis=1).min() <= 1e-4, r
+            assert np.abs(d.q_cmd[near] - q).max(axis=1).min() <= 1e-4, r
         else:
             assert np.abs(d.q_ref[near] - q).max(axis=1).min() <= c_max + 1e-4, r
 
@@ -174,9 +172,8 @@ def test_the_shipped_kuka_config_obeys_the_robots_enable_and_traces_its_joints(t
     u = tr["unix_time_s"]
     for r in np.flatnonzero((u > on.sent_unix[0] + 0.3) & (u < on.sent_unix[-1]))[::11]:
         near = np.flatnonzero((on.sent_unix >= u[r] - 0.1) & (on.sent_unix <= u[r] + 0.005))
-        near = near[near > 0]
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
-        held = on.q_cmd[near - 1] - on.q_ref[near - 1]
+        held = on.q_cmd[near] - on.q_ref[near]
         assert np.abs(on.q_ref[near] - (q - held)).max(axis=1).min() <= 0.01, r
 
 

@@ -17,17 +17,17 @@ its start; the probe reads none of them.
 
 from __future__ import annotations
 
-import http.client
 import json
 import time
-from collections.abc import Collection
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from stiffness.errors import ConfigError
-from stiffness.files.yaml_syntax import read_yaml
 
+if TYPE_CHECKING:
+    from collections.abc import Collection
+
+MAX_ANSWER = 64 * 1024      # bytes of an answer read at most: the probes' JSON is a few hundred
 # probe -> (HTTP path, the verdict's key in its JSON); `plc_interface.health` explains each verdict
 PROBES: dict[str, tuple[str, str]] = {
     "health": ("/health", "healthy"),
@@ -63,15 +63,15 @@ def load_register_map(config_path: Path, relative: str):
     return RegisterMap.from_yaml(resolve_path(config_path, relative))
 
 
-@dataclass(frozen=True)
 class Endpoints:
     """What `read_endpoints` found: the config file, and its ``monitoring`` (`MonitoringSettings`),
-    ``plc`` (`PlcSettings`) and ``ads`` (`AdsSettings`) sections as the service reads them."""
+    ``plc`` (`PlcSettings`) and ``ads`` (`AdsSettings`) sections as the service reads them. (A plain class,
+    not a dataclass: the probe imports neither dataclasses nor inspect.)"""
 
-    path: Path
-    monitoring: Any
-    plc: Any
-    ads: Any
+    __slots__ = ("ads", "monitoring", "path", "plc")
+
+    def __init__(self, path: Path, monitoring, plc, ads):
+        self.path, self.monitoring, self.plc, self.ads = path, monitoring, plc, ads
 
     def resolve(self, relative: str) -> Path:
         """A path written in the config, found as the service finds it (`resolve_path`)."""
@@ -85,6 +85,8 @@ class Endpoints:
 def read_endpoints(path: str | Path, sections: Collection[str] = ()) -> Endpoints:
     """The probe's sections of the service config at ``path`` (`endpoints_from`); ConfigError names the
     file, the key and the value."""
+    from stiffness.files.yaml_syntax import read_yaml  # here: a probe that remembers the config reads no YAML
+
     return endpoints_from(read_yaml(path), Path(path), sections)
 
 
@@ -99,7 +101,11 @@ def endpoints_from(data: dict, path: Path, sections: Collection[str] = ()) -> En
 
     unknown = [k for k in data if sections and k not in sections]
     if unknown:
-        raise ConfigError(f"{path}: {unknown[0]} is not a known key")
+        from stiffness.files.kinds import looks_like
+
+        like = looks_like(data, sections)
+        raise ConfigError(f"{path}: {unknown[0]} is not a known key" + (
+            f" of a service config: this file looks like {like} (docs/config.md)" if like else ""))
     schemas = {"monitoring": MonitoringSettings, "plc": PlcSettings, "ads": AdsSettings}
     return Endpoints(path, **{name: validate(schema, data[name], str(path), name) if name in data else schema()
                               for name, schema in schemas.items()})
@@ -109,26 +115,38 @@ def read_probe(host: str, port: int, probe: str = "health", timeout_s: float = 1
     """The JSON of ``probe`` (a key of `PROBES`) from the service's I/O process at ``host:port``, within
     ``timeout_s`` in total.
 
-    Raises OSError (or http.client.HTTPException) when nothing answers in time, ValueError naming the
-    address and the HTTP status when the answer is not the probe's JSON (a dict with its verdict key).
+    One HTTP/1.0 GET on a socket, the whole answer read until the server closes (HTTP/1.0: no chunks, no
+    keep-alive; the I/O process serves with wsgiref, `plc_interface.monitoring`). Not http.client: it imports
+    the email package and ssl, some 20 to 40 ms of a probe that an orchestrator runs every few seconds and that
+    otherwise costs the interpreter's start and this one request (docs/deploy.md#the-probes-cost).
+
+    Raises OSError when nothing answers in time, ValueError naming the address and the HTTP status when the
+    answer is not the probe's JSON (a dict with its verdict key).
     """
+    import socket
+
     path, key = PROBES[probe]
     deadline = time.monotonic() + timeout_s
-    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
-    try:
-        conn.connect()
-        conn.sock.settimeout(max(deadline - time.monotonic(), 0.01))
-        conn.request("GET", path, headers={"Accept": "application/json"})
-        resp = conn.getresponse()
-        body = resp.read(64 * 1024)
+    request = f"GET {path} HTTP/1.0\r\nHost: {host}:{port}\r\nAccept: application/json\r\n\r\n".encode()
+    chunks, size = [], 0
+    with socket.create_connection((host, port), timeout=timeout_s) as sock:
+        sock.sendall(request)
+        while size < MAX_ANSWER:
+            sock.settimeout(max(deadline - time.monotonic(), 0.01))
+            chunk = sock.recv(MAX_ANSWER - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
         if time.monotonic() > deadline:
             raise TimeoutError(f"{host}:{port}{path} took longer than {timeout_s:g} s")
-    finally:
-        conn.close()
+    head, _, body = b"".join(chunks).partition(b"\r\n\r\n")
+    status = head.split(b"\r\n", 1)[0].decode("latin-1", "replace").split(" ")
+    code = status[1] if len(status) > 1 and status[0].startswith("HTTP/") else "?"
     try:
         answer = json.loads(body)
     except ValueError:
         answer = None
     if not isinstance(answer, dict) or key not in answer:
-        raise ValueError(f"{host}:{port}{path} answered HTTP {resp.status} without the {probe} JSON")
+        raise ValueError(f"{host}:{port}{path} answered HTTP {code} without the {probe} JSON")
     return answer

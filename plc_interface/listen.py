@@ -17,17 +17,44 @@ def why_not_listening(host: str, port: int, key: str, error: BaseException | Non
     """What keeps a server from listening on ``host:port`` (the config's ``key`` names the port), said
     as the operating system says it when this process binds the address now; ``error`` (the server's own
     failure) is the answer when the bind succeeds here."""
+    why = bind_problem(host, port, key)
+    if why is not None:
+        return why
+    return str(error) if error is not None else "the address could not be listened on"
+
+
+def bind_problem(host: str, port: int, key: str, transport: str = "tcp") -> str | None:
+    """Why this process cannot bind ``host:port`` (``transport`` tcp or udp) now, in words with what to do, or
+    None when it can (`bind_error`)."""
+    e = bind_error(host, port, transport)
+    if e is None:
+        return None
+    if isinstance(e, socket.gaierror):
+        return f"{host} is not an address of this machine ({e.strerror or e})"
+    return explain(e, host, port, key, transport)
+
+
+def bind_error(host: str, port: int, transport: str = "tcp") -> OSError | None:
+    """The operating system's error of binding ``host:port`` (``transport`` tcp or udp) now (a socket.gaierror
+    for a name that resolves to no address), or None when the bind succeeds. The socket is closed at once:
+    `stiffcomp run --check` asks this of every address the service would listen on. TCP binds as the servers
+    do (SO_REUSEADDR: a port in TIME_WAIT is no reason); UDP without it, as the robot road binds (with it, a
+    second UDP socket could share a port in use)."""
+    kind = socket.SOCK_DGRAM if transport == "udp" else socket.SOCK_STREAM
     try:
-        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
-    except (socket.gaierror, UnicodeError) as e:
-        return f"{host} is not an address of this machine ({getattr(e, 'strerror', None) or e})"
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=kind)[0]
+    except UnicodeError as e:
+        return socket.gaierror(str(e))
+    except socket.gaierror as e:
+        return e
     with socket.socket(family, kind, proto) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)        # as servers bind: TIME_WAIT is no reason
+        if kind == socket.SOCK_STREAM:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             s.bind(address)
         except OSError as e:
-            return explain(e, host, port, key)
-    return str(error) if error is not None else "the address could not be listened on"
+            return e
+    return None
 
 
 def explain(e: OSError, host: str, port: int, key: str, transport: str = "tcp") -> str:

@@ -10,17 +10,16 @@ Two processes, as TwinCAT separates its real-time task from the ADS router and t
 They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
 builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
 
-The two processes watch each other, so neither dies unnoticed. The main thread of this process (the
-caller of `Service.watch_io`, between its waits) notices an I/O process that died, logs it, latches
-``io_process`` (the cycle ramps the correction to zero), and then restarts it, at most
-``faults.io_restarts`` times, or fails the service (`failure`; `stiffcomp run` exits 1). The I/O process
-exits with code 1 when this one dies (`plc_interface.io_process`).
+The two processes watch each other, so neither dies unnoticed. The main thread of this process (the caller of
+`Service.watch_io`, between its waits) notices an I/O process that died, logs it, latches ``io_process`` (the
+cycle ramps the correction to zero), and then restarts it, at most ``faults.io_restarts`` times, or fails the
+service (`failure`; `stiffcomp run` exits 1). The I/O process exits with code 1 when this one dies.
 
-Start-up validates everything first: the config, the model (and whether the real-time predictor supports
-all its effects), the register map against the contract and the F/T source. Then the I/O process starts,
-then the cycle. With ``cycle.compiled`` the signal path is compiled (`service.kernel`: numba loads it from
-its disk cache, or compiles it the first time) in a thread that runs while the I/O process starts, so the
-first cycle never waits for a compiler; a model with no compiled form runs on the Python path (one log line).
+Start-up validates everything first: the config, the model (and whether the real-time predictor supports all its
+effects), the register map against the contract and the F/T source. Then the I/O process starts, then the cycle.
+With ``cycle.compiled`` the signal path is compiled (`service.kernel`: numba loads it from its disk cache, or
+compiles it the first time) in a thread that runs while the I/O process starts, so the first cycle never waits
+for a compiler; a model with no compiled form runs on the Python path (one log line).
 """
 
 from __future__ import annotations
@@ -114,8 +113,7 @@ class Service:
         except BaseException:
             self.image.close()
             raise
-        if trace is not None:
-            self.trace = TraceRing()
+        self.trace = TraceRing() if trace is not None else None
         self.record = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
         self.compile_s: float | None = None     # how long the compiled path took to be ready (s)
         self._compiling = None
@@ -138,8 +136,7 @@ class Service:
             log.warning("the cycle runs on the Python path: %s", e)
             return
         self._packers, self._steady = self.values.compiled(self, self._to_plc)
-        self.compile_s = time.perf_counter() - t0
-        log.info("compiled signal path ready in %.2f s", self.compile_s)
+        self.compile_s = time.perf_counter() - t0       # `start` says it, once the I/O process serves
 
     def _task_tuple(self, state: int) -> list[float]:
         """The task's counters of the cycle now, in `TaskValues`' order, also into the values' task part
@@ -263,6 +260,8 @@ class Service:
                 self.stop()             # frees the image and the source (the I/O process cleaned up itself)
                 raise
         self.wait_compiled()
+        if self.compile_s is not None:  # said only now: a start that failed before this line says nothing ready
+            log.info("compiled signal path ready in %.2f s", self.compile_s)
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
                                lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
@@ -301,7 +300,8 @@ class Service:
             self._steady.call = None
         self.image.close()
         self.source.close()
-        log.info("service stopped after %d cycles (status: stopped)", self.info.cycle_count)
+        log.info("service stopped after %d cycles (status: stopped)" if task is not None else
+                 "the service did not start: %d cycles ran (status: stopped)", self.info.cycle_count)
 
     def _start_io(self, settings: IoSettings):
         """A running I/O process serving ``settings`` on this image (it cleans up after itself on error)."""

@@ -30,6 +30,7 @@ from plc_interface.register_map import RegisterMap
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.settings import MonitoringSettings, PlcSettings
 from stiffness.errors import StiffnessError, quote
+from stiffness.files.kinds import looks_like
 from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
 
 from .compensation import ModelConfig
@@ -90,6 +91,14 @@ class ServiceConfig(Strict):
         correction off (docs/robot.md)."""
         return self.plc.enable_on_start and not (self.robot.enabled and self.plc.role == "none")
 
+    @property
+    def commander(self) -> str:
+        """Who writes the command word and the heartbeat, as messages name it: the PLC, or (``plc.role: none`` with
+        a robot interface) the robot, whose packets are the heartbeat."""
+        if self.robot.enabled and self.plc.role == "none":
+            return f"the robot ({self.robot.served().split(' on ')[0]} packets)"
+        return "the PLC"
+
     def register_map(self) -> RegisterMap:
         """The register map ``plc.register_map`` names; a bad or missing map raises ServiceConfigError
         naming this config file, the key and its value, then what is wrong in the map."""
@@ -119,13 +128,26 @@ class ConfigSections(SimpleNamespace):
 
 
 def _read(path: Path) -> dict:
-    """The config file's mapping through the one YAML loader; ServiceConfigError names the file."""
+    """The config file's mapping through the one YAML loader; ServiceConfigError names the file, and what the
+    file looks like when it is another of the project's files (a register map passed as the config)."""
     if not path.exists():
         raise ServiceConfigError(f"{path}: config file not found")
     try:
-        return read_yaml(path)
+        data = read_yaml(path)
     except StiffnessError as e:
         raise ServiceConfigError(str(e)) from e
+    check_kind(path, data)
+    return data
+
+
+def check_kind(path: Path, data: dict) -> None:
+    """ServiceConfigError naming the first key that is not a section and what the file looks like, when its
+    top-level keys are more another kind's (`stiffness.files.kinds`) than a service config's."""
+    like = looks_like(data, ServiceConfig.model_fields)
+    if like is not None:
+        key = next(k for k in data if k not in ServiceConfig.model_fields)
+        raise ServiceConfigError(f"{path}: {key} is not a known key of a service config: this file looks like "
+                                 f"{like} (docs/config.md)")
 
 
 def read_sections(path: str | Path, *names: str) -> ConfigSections:

@@ -20,7 +20,8 @@ log = logging.getLogger("stiffcomp.faults")
 class FaultMonitor:
     """The latched fault word, with a trip count and the last message per fault kind."""
 
-    def __init__(self) -> None:
+    def __init__(self, commander: str = "the PLC") -> None:
+        self.commander = commander          # who writes the command word: "the PLC", or the robot on its road
         self.word = 0
         self.trips = {f.kind: 0 for f in Fault}
         self.last_message: dict[str, str] = {}
@@ -37,7 +38,7 @@ class FaultMonitor:
 
     def reset(self) -> None:
         if self.word:
-            log.warning("faults reset by the PLC (were: %s)", ", ".join(self.active()))
+            log.warning("faults reset by %s (were: %s)", self.commander, ", ".join(self.active()))
         self.word = 0
 
     def active(self) -> list[str]:

@@ -327,7 +327,7 @@ class Cycle:
     @classmethod
     def from_config(cls, cfg, model: StiffnessModel, vector: np.ndarray | None = None) -> Cycle:
         """The cycle as the service config composes it: each part is handed its own section."""
-        faults = FaultMonitor()
+        faults = FaultMonitor(cfg.commander)
         period = cfg.cycle.period_ms / 1000.0
         dynamics = Dynamics(cfg.dynamics, period, cfg.resolve)
         if dynamics.active:

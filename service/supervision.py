@@ -159,5 +159,5 @@ class Supervisor:
         self.prev_hb, self.hb_change_t, self.plc_seen = heartbeat(self.prev_hb, self.hb_change_t, self.plc_seen,
                                                                   float(hb), t, enable_rose)
         if heartbeat_late(self.hb_timeout, enabled_by_plc, t, self.hb_change_t):
-            self.faults.trip(Fault.PLC_HEARTBEAT, f"plc_heartbeat unchanged for {(t - self.hb_change_t) * 1000:.0f} "
-                             f"ms (timeout {self.hb_timeout * 1000:g} ms)")
+            self.faults.trip(Fault.PLC_HEARTBEAT, f"plc_heartbeat of {self.faults.commander} unchanged for "
+                             f"{(t - self.hb_change_t) * 1000:.0f} ms (timeout {self.hb_timeout * 1000:g} ms)")

@@ -294,3 +294,15 @@ def test_the_robot_port_is_exposed_and_documented_where_the_others_are(interface
     assert re.search(rf"^\| [^|]*\b{port}/udp\b", deploy, re.MULTILINE) and f"-p {port}:{port}/udp" in deploy
     if interface == "kuka_rsi":
         assert f"containerPort: {port}, protocol: UDP" in deploy
+
+
+def test_the_docs_agree_on_the_virtual_robots_timeout_and_rkorrs_frame():
+    """docs/robot.md and docs/hil.md give the HIL's virtual robot the timeout it has; RKorr is the robot's root
+    frame (POSCORR's RefCorrSys RobRoot), not $BASE, which the shipped KRL sets to the part's."""
+    from hil.virtual_robot import TIMEOUT_COUNT
+
+    robot_md, hil_md = ((ROOT / "docs" / n).read_text() for n in ("robot.md", "hil.md"))
+    assert f"stops after {TIMEOUT_COUNT} late answers in a row" in robot_md
+    assert f"stops after {TIMEOUT_COUNT} late in a row" in hil_md
+    assert "`RefCorrSys` RobRoot" in robot_md and "`RefCorrSys` Base;" not in robot_md
+    assert "$BASE = BASE_DATA" in (KUKA / "StiffCompCut.src").read_text()

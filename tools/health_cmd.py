@@ -19,20 +19,23 @@ printed in one line.
 A probe runs every few seconds, so this command stays light: it reads the ``monitoring``, ``plc`` and
 ``ads`` sections with the service's own schemas (`plc_interface.endpoints.read_endpoints`), so it
 refuses what the service refuses there, and a top-level key the service does not know, and never
-imports NumPy, scipy or the model (tests/tools/test_health_cmd.py holds its import set). A site config
+imports NumPy, scipy or the model (tests/tools/test_health_cmd.py holds its import set). A config it has
+validated, unchanged since (its bytes and the schemas' code), is not validated again: `tools.health_memo`
+keeps the monitoring address, and that probe imports neither pydantic nor pyyaml. A site config
 copied out of the container names a model and a replay inside the image, which this command never
 opens, so it works from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
 
-import http.client
 import sys
 import time
 
 from plc_interface.endpoints import PROBES, Endpoints, read_endpoints, read_probe
 from service.paths import DEFAULT_CONFIG, SECTIONS
 from stiffness.errors import ConfigError
+
+from .health_memo import digest, recall, remember
 
 TIMEOUT_S = 1.0
 MODBUS_GAP_S = 0.2          # between the two readings of the Modbus block: the count must rise in it
@@ -59,9 +62,16 @@ def register(sub) -> None:
 def run(args) -> int:
     try:
         check_options(args)
-        ep = read_endpoints(args.config, SECTIONS)
-        if ep.monitoring.enabled:
-            passed, reason = check(*address(ep.monitoring.host, ep.monitoring.port, args), probe=args.probe)
+        http = recall(args.config)          # a config validated before and unchanged since: no schema import
+        if http is None:
+            before = digest(args.config)
+            ep = read_endpoints(args.config, SECTIONS)
+            if ep.monitoring.enabled:
+                http = ep.monitoring.host, ep.monitoring.port
+                if before is not None:
+                    remember(args.config, before, *http)
+        if http is not None:
+            passed, reason = check(*address(*http, args), probe=args.probe)
         else:
             passed, reason = check_block(ep, reader_for(ep, args), probe=args.probe)
     except ConfigError as e:
@@ -74,11 +84,13 @@ def run(args) -> int:
 def check_options(args) -> None:
     """``--host`` and ``--port`` checked as the config's keys are, by the schema of the section they stand
     for (a port 1 to 65535); ConfigError naming the option."""
+    given = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
+    if not given:                   # nothing to check: the probe of every few seconds imports no schema for it
+        return
     from pydantic import ValidationError
 
     from plc_interface.settings import MonitoringSettings
 
-    given = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
     try:
         MonitoringSettings.model_validate(given)
     except ValidationError as e:
@@ -95,7 +107,7 @@ def check(host: str, port: int, timeout_s: float = TIMEOUT_S, probe: str = "heal
     """(passed, reason) of ``probe`` (a key of `PROBES`) over HTTP, within ``timeout_s`` in total."""
     try:
         answer = read_probe(host, port, probe, timeout_s)
-    except (OSError, http.client.HTTPException):
+    except OSError:
         return False, f"no answer from the service's I/O process at {host}:{port}"
     except ValueError as e:
         return False, str(e)

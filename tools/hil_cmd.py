@@ -39,7 +39,11 @@ def register(sub) -> None:
                    help="the virtual PLC applies each correction this much later (the scenario's plc.extra_delay_ms)")
     c.add_argument("--robot-interface", choices=("kuka_rsi", "abb_egm"), default=None,
                    help="cut through the robot road instead of the PLC: a virtual KUKA RSI or ABB EGM robot on its "
-                        "own 4 ms clock, the service without a PLC (docs/robot.md)")
+                        "own clock, set up as the shipped config/robot_<interface>.yaml (RSI at 4 ms; EGM path "
+                        "correction every 48 ms), the service without a PLC (docs/robot.md)")
+    c.add_argument("--robot-config", default=None, metavar="CONFIG.yaml",
+                   help="with --robot-interface: take robot.<interface> from this service config instead of the "
+                        "shipped one (e.g. EGM path corrections every 24 ms)")
     c.add_argument("--lockstep", action="store_true",
                    help="step the service, sensor and PLC together in one process, as fast as the host runs "
                         "them (deterministic; no real time, no protocols' transport)")
@@ -147,10 +151,33 @@ def _iso_line(s: dict, compensated: bool) -> str:
     def both(key: str) -> str:
         if s[key] is None:
             return "-"
-        return f"{s[key + '_uncompensated']:.3f} / {s[key]:.3f} mm" if compensated else f"{s[key]:.3f} mm"
+        where = key.replace("_mm", "_at_deg")
+
+        def one(suffix: str) -> str:
+            return f"{s[key + suffix]:.3f} mm at {s[where + suffix]:.1f} deg"
+
+        return f"{one('_uncompensated')} / {one('')}" if compensated else one("")
 
     return (f"ISO 9283 over {s['repeats']} cut(s) of each pass{', without / with compensation' if compensated else ''}"
             f": path accuracy AT_p {both('path_accuracy_mm')}, path repeatability RT_p {both('path_repeatability_mm')}")
+
+
+def _robot_section(args) -> dict | None:
+    """robot.<interface> of ``--robot-config``, or None (the shipped one); ConfigError names the file and key."""
+    if args.robot_config is None:
+        return None
+    from stiffness.errors import ConfigError
+    from stiffness.files.yaml_syntax import read_yaml
+
+    if args.robot_interface is None:
+        raise ConfigError("--robot-config sets up the robot road: give --robot-interface too")
+    section = (read_yaml(args.robot_config).get("robot") or {}).get(args.robot_interface)
+    if not isinstance(section, dict):
+        raise ConfigError(f"{args.robot_config}: robot.{args.robot_interface} is missing (--robot-config with "
+                          f"--robot-interface {args.robot_interface})")
+    from hil.circle import check_robot_section
+
+    return check_robot_section(args.robot_interface, section)
 
 
 def run(args) -> int:
@@ -168,6 +195,7 @@ def run(args) -> int:
 
         TraceOptions(Path(args.trace)).check()          # a bad name fails now, not after the first pass
     _check_outputs_and_reach(args, scenario)
+    robot_section = _robot_section(args)
     dynamic = None
     if args.dynamic_compensation:
         from hil.dynamics import DynamicOptions
@@ -179,7 +207,7 @@ def run(args) -> int:
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
                      lockstep=args.lockstep, dynamic=dynamic, repeat=repeat, robot_interface=args.robot_interface,
-                     probe_log=Path(args.probe) if args.probe else None)
+                     robot_section=robot_section, probe_log=Path(args.probe) if args.probe else None)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))

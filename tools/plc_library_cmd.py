@@ -1,10 +1,15 @@
 """`stiffcomp plc-library -o DIR`: write the PLC's side of the contract as TwinCAT 3 sources and PLCopen XML
-(docs/plc.md), from the contract and the register map the config names."""
+(docs/plc.md), from the contract and the register map the config names.
+
+The config is read as `stiffcomp run --check` reads it (`service.config.load_config`: every section with the
+service's schema, the checks across sections, the files it names), so a misspelt section (``plcc:``) or the
+register map passed as the config exits 2 naming the file and the key, instead of writing the default layout
+the PLC would then use against the wrong registers."""
 
 from __future__ import annotations
 
-from plc_interface.plc_library import FORMATS, Endpoint, generate
-from service.config import DEFAULT_CONFIG, read_sections
+from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
+from service.config import DEFAULT_CONFIG, load_config
 
 from .common import check_output_folder, write_output
 
@@ -16,14 +21,23 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="folder to write twincat/ and plcopen/ into")
     p.add_argument("--config", default=str(DEFAULT_CONFIG), help="service config naming the register map")
     p.add_argument("--format", choices=list(CHOICES), default="both", help="what to write (default both)")
+    p.add_argument("--modbus-host", metavar="ADDRESS",
+                   help="the service's IPv4 address as the PLC dials it (default plc.host, which is refused where it "
+                        "is a bind address such as 0.0.0.0 or a host name)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    cfg = load_config(args.config)
     out = check_output_folder("-o", args.output)
-    cfg = read_sections(args.config, "plc", "ads")
-    endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, cfg.plc.host, cfg.plc.port, cfg.plc.device_id)
-    files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    host, key = (args.modbus_host, "--modbus-host") if args.modbus_host else (cfg.plc.host, f"{args.config}: plc.host")
+    endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, host, cfg.plc.port, cfg.plc.device_id, key)
+    try:
+        files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+    except EndpointError as e:
+        if args.modbus_host:
+            raise
+        raise EndpointError(f"{e}: give the address the PLC reaches the service at with --modbus-host ADDRESS") from e
     for rel, data in files.items():
         write_output(out / rel, lambda p, data=data: p.write_bytes(data))
     print(f"plc-library: {len(files)} files in {out}")

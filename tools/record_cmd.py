@@ -10,6 +10,7 @@ a synthetic milling load, to make a log without hardware. The format follows OUT
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 import time
 
@@ -112,22 +113,33 @@ def run(args) -> int:
         if sensor is not None:
             sensor.stop()
     print(f"recorded {args.out}: {sent} requests sent on {interface}:{channel}")
-    print(summarize(args.out, cfg.resolve(cfg.source.ati.dbc), protocol.base_id))
+    text, samples, others = summarize(args.out, cfg.resolve(cfg.source.ati.dbc), protocol.base_id, arb)
+    print(text)
+    if samples == 0:        # a reference of the idle sensor that holds none of it: say so, exit 1
+        heard = (f"{others} other frame(s) came, none of them the sensor's short data at source.ati.base_id = "
+                 f"{protocol.base_id:#x}" if others else "nothing answered")
+        print(f"record: no sensor sample in {args.out}: {heard} (check source.can.interface, channel and "
+              "source.ati.base_id against the sensor's settings; --virtual-sensor records a synthetic one)",
+              file=sys.stderr)
+        return 1
     return 0
 
 
-def summarize(path: str, dbc_path, base_id: int) -> str:
-    """Decode the log with the protocol's DBC (cantools) and summarise each signal."""
+def summarize(path: str, dbc_path, base_id: int, request_id: int | None = None) -> tuple[str, int, int]:
+    """Decode the log with the protocol's DBC (cantools) and summarise each signal: (the summary, the samples
+    decoded, the frames that are neither a sample nor our own request ``request_id``)."""
     import cantools
 
     db = cantools.database.load_file(str(dbc_path))
     shift = base_id - min(m.frame_id for m in db.messages)      # the DBC is written for its own base id
     values: dict[str, list[float]] = {}
+    others = 0
     with can.LogReader(path) as reader:
         for msg in reader:
             try:
                 decoded = db.decode_message(msg.arbitration_id - shift, bytes(msg.data), decode_choices=False)
             except (KeyError, ValueError, cantools.database.DecodeError):
+                others += msg.arbitration_id != request_id
                 continue
             for name, v in decoded.items():
                 values.setdefault(name, []).append(float(v))
@@ -136,4 +148,4 @@ def summarize(path: str, dbc_path, base_id: int) -> str:
         if values.get(name):
             v = np.array(values[name])
             lines.append(f"  {name:>6}: min {v.min():9.2f}  mean {v.mean():9.2f}  max {v.max():9.2f}")
-    return "\n".join(lines)
+    return "\n".join(lines), len(values.get("Fz", [])), others

@@ -1,8 +1,8 @@
 """`stiffcomp run`: the cyclic compensation service (docs/service.md).
 
 Validates the whole config before anything starts (a bad config exits with code 2), then runs
-until --duration elapses, Ctrl-C or SIGTERM (``--check`` stops after the validation: nothing started,
-no port opened, so it also checks an edited file beside a running service); both stop it cleanly (the correction ramps to zero) with
+until --duration elapses, Ctrl-C or SIGTERM (``--check`` stops after the validation and the checks of this machine a start needs, `service.preflight`:
+nothing started, no port kept open); both stop it cleanly (the correction ramps to zero) with
 exit code 0. SIGHUP reloads the config file (`Service.on_hangup`, docs/service.md): the run file
 (`tools.run_file`) tells `stiffcomp reload` this process's pid and each reload's outcome. Between its
 waits the main thread watches the I/O process (`Service.watch_io`); exit code 1 when the service failed
@@ -77,17 +77,16 @@ def run(args) -> int:
     cfg = load_config(args.config)
     service = Service(cfg, trace_options(args))   # everything validated and opened, nothing started yet
     if args.check:
-        service.stop()                  # closes what the constructor opened; nothing ran
-        print(f"{args.config}: ok, the service would start: model {cfg.resolve(cfg.model.file)}, register map "
-              f"{cfg.resolve(cfg.plc.register_map)}, source {cfg.source.type} (nothing started)")
-        return 0
+        return check(args, cfg, service)
     stop = threading.Event()
     hangup = threading.Event()
     run_file = RunFile(args.config)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, lambda *_: hangup.set())
+    started = False
     try:
         service.start()                 # inside: a port in use still frees the image and the handlers
+        started = True
         if run_file.claim():
             run_file.write(service)
         else:
@@ -117,10 +116,27 @@ def run(args) -> int:
         run_file.release()
         for s, h in previous.items():
             signal.signal(s, h)
-        service.log_stats()
+        if started:                     # a start that failed ran nothing: no statistics that read like a run
+            service.log_stats()
         if args.stats_json:
             service.write_stats(args.stats_json)
     return 1 if service.failed.is_set() else 0
+
+
+def check(args, cfg, service) -> int:
+    """``--check``: the service was built (config, model, map, source); close it, then ask this machine what the
+    start needs (`service.preflight`): a refusal exits 2 naming the keys, what run would warn about is said."""
+    from service.preflight import check_start
+
+    service.stop()                      # closes what the constructor opened; nothing ran
+    found = check_start(cfg)
+    print(f"{args.config}: ok, the service would start: model {cfg.resolve(cfg.model.file)}, register map "
+          f"{cfg.resolve(cfg.plc.register_map)}, source {cfg.source.type} (nothing started)")
+    if found.checked:
+        print("  listens: " + ", ".join(found.checked))
+    for note in found.notes:
+        print(f"  note: {note}")
+    return 0
 
 
 def _first_cycle(service, stop, timeout_s: float = 30.0) -> None:

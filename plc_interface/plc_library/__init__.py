@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from ..register_map import RegisterMap
 from . import plcopen, twincat
-from .blocks import ads_block, main_program, modbus_block
+from .blocks import TASK, ads_block, command_bit_block, main_program, modbus_block
 from .declarations import (
     Endpoint,
+    EndpointError,
     bit_structs,
     block_struct,
     check_map,
@@ -27,16 +28,17 @@ from .model import Library
 FORMATS = ("twincat", "plcopen")
 PLCOPEN_FILE = "StiffComp.xml"
 
-__all__ = ["FORMATS", "Endpoint", "build", "generate"]
+__all__ = ["FORMATS", "Endpoint", "EndpointError", "build", "generate"]
 
 
 def build(rmap: RegisterMap, endpoint: Endpoint) -> Library:
-    """The library for ``rmap``; RegisterMapError where a map cannot be served by one request each way."""
+    """The library for ``rmap``; RegisterMapError where a map cannot be served by one request each way (or
+    scales a count or a bit word), EndpointError where the service's Modbus address is not one a PLC dials."""
     check_map(rmap)
     types = [block_struct(rmap, "to_plc"), block_struct(rmap, "from_plc"), task_info_struct(),
              task_state_enum(), *bit_structs()]
     return Library(types, [contract_gvl(rmap), settings_gvl(endpoint)],
-                   [ads_block(rmap), modbus_block(rmap), main_program()])
+                   [command_bit_block(), ads_block(rmap), modbus_block(rmap), main_program()], TASK)
 
 
 def generate(rmap: RegisterMap, endpoint: Endpoint, formats: tuple[str, ...] = FORMATS) -> dict[str, bytes]:

@@ -14,23 +14,49 @@
 
 from __future__ import annotations
 
+import ipaddress
 import itertools
+import struct
 from dataclasses import dataclass
 
 from ..ads.area import MB_GROUP, TASKINFO, TASKINFO_FIELDS, TASKINFO_GROUP, Layout
 from ..ads.symbols import IEC_TYPES
-from ..contract import Command, Fault, Status, TaskState
-from ..errors import RegisterMapError
-from ..register_map import Register, RegisterMap
-from .model import Enum, Gvl, Struct, Var, VarList
+from ..contract import VALUES, Command, Fault, Status, TaskState
+from ..errors import PlcError, RegisterMapError
+from ..register_map import Register, RegisterMap, struct_fields
+from .model import (
+    BOOL,
+    BYTE,
+    DWORD,
+    TIME,
+    UDINT,
+    UINT,
+    WORD,
+    ArrayType,
+    Derived,
+    Elementary,
+    Enum,
+    Gvl,
+    StringType,
+    Struct,
+    Var,
+    VarList,
+)
 
-SIZES = {"BOOL": 1, "BYTE": 1, "WORD": 2, "UINT": 2, "INT": 2, "UDINT": 4, "DINT": 4, "REAL": 4, "DWORD": 4}
-TO_PLC, FROM_PLC = "ST_StiffCompToPlc", "ST_StiffCompFromPlc"
-TASK_INFO, TASK_STATE = "ST_StiffCompTaskInfo", "E_StiffCompTaskState"
-STATUS_BITS, FAULT_BITS = "ST_StiffCompStatus", "ST_StiffCompFaults"
+TO_PLC, FROM_PLC = Derived("ST_StiffCompToPlc"), Derived("ST_StiffCompFromPlc")
+TASK_INFO, TASK_STATE = Derived("ST_StiffCompTaskInfo"), Derived("E_StiffCompTaskState")
+STATUS_BITS, FAULT_BITS = Derived("ST_StiffCompStatus"), Derived("ST_StiffCompFaults")
 CONTRACT, SETTINGS = "GVL_StiffCompContract", "GVL_StiffCompSettings"
 MODBUS_MAX_READ, MODBUS_MAX_WRITE = 125, 123      # registers in one FC3/FC4 read, one FC16 write
 RECORDS = {"to_plc": TO_PLC, "from_plc": FROM_PLC}
+BIT_WORDS = ("command_word", "status_word", "fault_word")
+# TF6250's FB_MBReadRegs/FB_MBWriteRegs take the server's address as sIPAddr : STRING(15), a dotted IPv4
+# address (Beckhoff, TF6250 manual, "FB_MBReadRegs"): the longest such text is 15 characters
+HOST_LENGTH = 15
+
+
+class EndpointError(PlcError):
+    """The service's address as the config gives it is not one the PLC's Modbus client can dial."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +68,22 @@ class Endpoint:
     modbus_host: str = "127.0.0.1"
     modbus_port: int = 502
     unit_id: int = 1
+    host_setting: str = "plc.host"      # where modbus_host came from, for the error that refuses it
+
+
+def check_host(host: str, key: str) -> None:
+    """EndpointError unless ``host`` (the setting ``key`` gave it) is an address TF6250 can dial: a dotted
+    IPv4 address (at most `HOST_LENGTH` characters) that names one host, not a bind-all or multicast one."""
+    try:
+        addr = ipaddress.ip_address(host)
+    except ValueError:
+        addr = None
+    if addr is None or addr.version != 4:
+        why = "a host name" if addr is None else "an IPv6 address"
+        raise EndpointError(f"{key} = {host!r} is {why}: the PLC's Modbus client (TF6250, sIPAddr : "
+                            f"STRING({HOST_LENGTH})) dials a dotted IPv4 address")
+    if addr.is_unspecified or addr.is_multicast or host == "255.255.255.255":
+        raise EndpointError(f"{key} = {host!r} is a bind address (every interface), not one a PLC can dial")
 
 
 def camel(name: str) -> str:
@@ -53,10 +95,21 @@ def hex16(value: int) -> str:
     return f"16#{value:04X}"
 
 
+def iec_type(r: Register) -> Elementary:
+    """The IEC type of register ``r``'s field (the ADS symbol's type)."""
+    return Elementary(IEC_TYPES[r.type])
+
+
+def bit_type(r: Register) -> Elementary:
+    """The bit string a bit word is handled as: WORD for one register, DWORD for two (IEC 61131-3 takes AND,
+    OR on BOOL and bit strings only, not on UINT)."""
+    return WORD if r.count == 1 else DWORD
+
+
 def _field(r: Register) -> Var:
     unit = f" [{r.unit}]" if r.unit else ""
     scale = f" (raw = value * {r.scale:g})" if r.scale != 1.0 else ""
-    return Var(r.name, IEC_TYPES[r.type], comment=f"{r.description}{unit}{scale}".strip())
+    return Var(r.name, iec_type(r), comment=f"{r.description}{unit}{scale}".strip())
 
 
 def block_struct(rmap: RegisterMap, direction: str) -> Struct:
@@ -67,44 +120,45 @@ def block_struct(rmap: RegisterMap, direction: str) -> Struct:
     for r in regs:
         if r.address > pos:
             n = r.address - pos
-            fields.append(Var(f"reserved_{pos:04X}", f"ARRAY[1..{n}] OF WORD", comment="no register here"))
+            fields.append(Var(f"reserved_{pos:04X}", ArrayType(1, n, WORD), comment="no register here"))
             offset += 2 * n
-        size = SIZES[IEC_TYPES[r.type]]
+        size = 2 * r.count
         natural &= offset % size == 0
         fields.append(_field(r))
         offset += size
         pos = r.address + r.count
-    widest = max(SIZES[IEC_TYPES[r.type]] for r in regs)
+    widest = 2 * max(r.count for r in regs)
     natural &= offset % widest == 0
     table = regs[0].table.replace("_", " ")
     comment = (f"{direction}: {table} {hex16(regs[0].address)}..{hex16(pos - 1)} ({offset} bytes), one field per "
                "register of the map; generated by `stiffcomp plc-library`, do not edit")
-    return Struct(RECORDS[direction], tuple(fields), comment, pack=not natural)
+    return Struct(RECORDS[direction].name, tuple(fields), comment, pack=not natural)
 
 
 def task_info_struct() -> Struct:
+    sizes = {at: struct.calcsize("<" + code) for code, at in struct_fields(TASKINFO.format)}
     fields, offset = [], 0
     for name, typ, at, source, _ in TASKINFO_FIELDS:
         if at > offset:
-            fields.append(Var(f"reserved_{offset}", f"ARRAY[1..{at - offset}] OF BYTE"))
-        fields.append(Var(name, typ, comment=f"from {source}"))
-        offset = at + SIZES[typ]
+            fields.append(Var(f"reserved_{offset}", ArrayType(1, at - offset, BYTE)))
+        fields.append(Var(name, Elementary(typ), comment=f"from {source}"))
+        offset = at + sizes[at]
     if TASKINFO.size > offset:
-        fields.append(Var(f"reserved_{offset}", f"ARRAY[1..{TASKINFO.size - offset}] OF BYTE"))
-    return Struct(TASK_INFO, tuple(fields), "TwinCAT_SystemInfoVarList._TaskInfo[1] as the service serves it "
+        fields.append(Var(f"reserved_{offset}", ArrayType(1, TASKINFO.size - offset, BYTE)))
+    return Struct(TASK_INFO.name, tuple(fields), "TwinCAT_SystemInfoVarList._TaskInfo[1] as the service serves it "
                   f"(index group {hex16(TASKINFO_GROUP)})", pack=True)
 
 
 def bit_structs() -> list[Struct]:
-    status = Struct(STATUS_BITS, tuple(Var(f"b{camel(s.name)}", "BOOL", comment=f"status_word bit "
-                                           f"{s.bit_length() - 1}") for s in Status), "status_word, bit by bit")
-    faults = Struct(FAULT_BITS, tuple(Var(f"b{camel(f.kind)}", "BOOL", comment=f"fault_word bit "
-                                          f"{f.bit_length() - 1}") for f in Fault), "fault_word, bit by bit")
+    status = Struct(STATUS_BITS.name, tuple(Var(f"b{camel(s.name)}", BOOL, comment=f"status_word bit "
+                                                f"{s.bit_length() - 1}") for s in Status), "status_word, bit by bit")
+    faults = Struct(FAULT_BITS.name, tuple(Var(f"b{camel(f.kind)}", BOOL, comment=f"fault_word bit "
+                                               f"{f.bit_length() - 1}") for f in Fault), "fault_word, bit by bit")
     return [status, faults]
 
 
 def task_state_enum() -> Enum:
-    return Enum(TASK_STATE, "UINT", tuple((s.name, int(s), "") for s in TaskState), "task_state, as TwinCAT's")
+    return Enum(TASK_STATE.name, UINT, tuple((s.name, int(s), "") for s in TaskState), "task_state, as TwinCAT's")
 
 
 def check_map(rmap: RegisterMap) -> None:
@@ -120,6 +174,10 @@ def check_map(rmap: RegisterMap) -> None:
         if words > most:
             raise RegisterMapError(f"{rmap.source}: {direction} spans {words} registers: one Modbus request "
                                    f"carries at most {most}")
+    for r in rmap.registers:
+        if r.scale != 1.0 and VALUES[r.direction][r.name].type != "float32":
+            raise RegisterMapError(f"{rmap.source}: {r.direction}: {r.name}: scale = {r.scale:g}: a count, bit word "
+                                   "or index takes scale 1 (the blocks compare and decode it as it is)")
 
 
 def _span(rmap: RegisterMap, direction: str) -> tuple[Register, int]:
@@ -128,35 +186,43 @@ def _span(rmap: RegisterMap, direction: str) -> tuple[Register, int]:
 
 
 def contract_gvl(rmap: RegisterMap) -> Gvl:
-    word = {n: IEC_TYPES[rmap.by_name[n].type] for n in ("command_word", "status_word", "fault_word")}
+    word = {n: bit_type(rmap.by_name[n]) for n in BIT_WORDS}
     bits = [Var(f"CMD_{c.name}", word["command_word"], hex16(int(c)), "command_word") for c in Command]
     bits += [Var(f"STATUS_{s.name}", word["status_word"], hex16(int(s)), "status_word") for s in Status]
     bits += [Var(f"FAULT_{f.name}", word["fault_word"], hex16(int(f)), "fault_word") for f in Fault]
     layout = Layout(rmap)
-    where = [Var("ADS_IGRP", "UDINT", hex16(MB_GROUP), "%MB: the Modbus words end to end"),
-             Var("ADS_IGRP_TASKINFO", "UDINT", hex16(TASKINFO_GROUP), f"{TASK_INFO}"),
-             Var("ADS_CB_TASKINFO", "UDINT", str(TASKINFO.size))]
+    where = [Var("ADS_IGRP", UDINT, hex16(MB_GROUP), "%MB: the Modbus words end to end"),
+             Var("ADS_IGRP_TASKINFO", UDINT, hex16(TASKINFO_GROUP), TASK_INFO.name),
+             Var("ADS_CB_TASKINFO", UDINT, str(TASKINFO.size))]
     for direction, tag in (("to_plc", "TO_PLC"), ("from_plc", "FROM_PLC")):
         first, words = _span(rmap, direction)
-        where += [Var(f"ADS_IOFFS_{tag}", "UDINT", str(layout.mb_offset(first)), f"{RECORDS[direction]} in %MB"),
-                  Var(f"CB_{tag}", "UDINT", str(2 * words), f"bytes of {RECORDS[direction]}"),
-                  Var(f"MB_ADDR_{tag}", "WORD", hex16(first.address), f"Modbus {first.table}"),
-                  Var(f"MB_WORDS_{tag}", "WORD", str(words))]
+        record = RECORDS[direction].name
+        where += [Var(f"ADS_IOFFS_{tag}", UDINT, str(layout.mb_offset(first)), f"{record} in %MB"),
+                  Var(f"CB_{tag}", UDINT, str(2 * words), f"bytes of {record}"),
+                  Var(f"MB_ADDR_{tag}", WORD, hex16(first.address), f"Modbus {first.table}"),
+                  Var(f"MB_WORDS_{tag}", WORD, str(words))]
     return Gvl(CONTRACT, (VarList("VAR_GLOBAL", tuple(bits + where), constant=True),),
                "The contract's bits and the register map's layout; generated by `stiffcomp plc-library`, do not "
                "edit")
 
 
 def settings_gvl(end: Endpoint) -> Gvl:
+    """The settings an integrator edits. The timeouts hold together: a request may take up to
+    tRequestTimeout, so the service counts as lost only after longer than that without a move
+    (tServiceTimeout), and the service's own watch on the PLC (faults.plc_heartbeat_timeout_ms, 200 ms
+    shipped) is longer than one write may take."""
+    check_host(end.modbus_host, end.host_setting)
     settings = (
-        Var("sAmsNetId", "STRING(23)", f"'{end.net_id}'", "the service's AMS Net ID (ads.net_id)"),
-        Var("nAmsPort", "UINT", str(end.ams_port), "the service's AMS port (ads.ams_port)"),
-        Var("sModbusHost", "STRING(15)", f"'{end.modbus_host}'", "the service's IP address (plc.host)"),
-        Var("nModbusPort", "UINT", str(end.modbus_port), "the service's Modbus TCP port (plc.port)"),
-        Var("nUnitId", "BYTE", str(end.unit_id), "Modbus unit id"),
-        Var("tRequestTimeout", "TIME", "T#100MS", "one ADS or Modbus request"),
-        Var("tServiceTimeout", "TIME", "T#50MS",
-            "bValid drops when the service's heartbeat and cycle count stand still this long"),
-        Var("tPulse", "TIME", "T#20MS", "how long a tare or reset bit stays set after its input's rising edge"),
+        Var("sAmsNetId", StringType(23), f"'{end.net_id}'", "the service's AMS Net ID (ads.net_id)"),
+        Var("nAmsPort", UINT, str(end.ams_port), "the service's AMS port (ads.ams_port)"),
+        Var("sModbusHost", StringType(HOST_LENGTH), f"'{end.modbus_host}'",
+            "the service's IPv4 address as the PLC reaches it (plc.host, or plc-library --modbus-host)"),
+        Var("nModbusPort", UINT, str(end.modbus_port), "the service's Modbus TCP port (plc.port)"),
+        Var("nUnitId", BYTE, str(end.unit_id), "Modbus unit id"),
+        Var("tRequestTimeout", TIME, "T#100MS", "one ADS or Modbus request; keep it below tServiceTimeout"),
+        Var("tServiceTimeout", TIME, "T#150MS",
+            "bAlive drops when the service's heartbeat and cycle count stand still this long; longer than "
+            "tRequestTimeout, so one slow request does not drop it"),
+        Var("tPulse", TIME, "T#20MS", "a tare or reset bit stays set at least this long, and clear as long after"),
     )
     return Gvl(SETTINGS, (VarList("VAR_GLOBAL", settings),), "Connection settings: edit these for your site")

@@ -1,35 +1,84 @@
-"""The PLC library's objects as data: variables, structs, enums, variable lists, GVLs and POUs.
+"""The PLC library's objects as data: types, variables, structs, enums, variable lists, GVLs and POUs.
 
 Each output format (`twincat`, `plcopen`) renders the same objects; the structured text of the
 declarations is written here once (`declaration`), so a TwinCAT file and the PLCopen file cannot say two
-different things. Types are written as structured text (``UINT``, ``ARRAY[1..6] OF REAL``, ``STRING(23)``,
-a struct's or a block's name); `parse_type` reads them back for the PLCopen writer.
+different things. A type is an object (`Elementary`, `StringType`, `ArrayType`, `Derived`): its ``st``
+is how structured text spells it, and the PLCopen writer renders the same object as XML, so no format
+reads a type back from text.
 """
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
-ELEMENTARY = ("BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", "LINT", "USINT", "UINT",
-              "UDINT", "ULINT", "REAL", "LREAL", "TIME", "DATE", "DT", "TOD")
-_ARRAY = re.compile(r"^ARRAY\[(-?\d+)\.\.(-?\d+)\] OF (.+)$")
-_STRING = re.compile(r"^STRING\((\d+)\)$")
+
+@dataclass(frozen=True)
+class Elementary:
+    """An IEC 61131-3 elementary type (``BOOL``, ``WORD``, ``UINT``, ``REAL``, ``TIME``...)."""
+
+    name: str
+
+    @property
+    def st(self) -> str:
+        return self.name
+
+
+@dataclass(frozen=True)
+class StringType:
+    """``STRING(length)``: at most ``length`` characters."""
+
+    length: int
+
+    @property
+    def st(self) -> str:
+        return f"STRING({self.length})"
+
+
+@dataclass(frozen=True)
+class ArrayType:
+    """``ARRAY[lower..upper] OF base``."""
+
+    lower: int
+    upper: int
+    base: Type
+
+    @property
+    def st(self) -> str:
+        return f"ARRAY[{self.lower}..{self.upper}] OF {self.base.st}"
+
+
+@dataclass(frozen=True)
+class Derived:
+    """A named type: a struct, an enum or a function block (the library's own or a PLC library's)."""
+
+    name: str
+
+    @property
+    def st(self) -> str:
+        return self.name
+
+
+Type = Elementary | StringType | ArrayType | Derived
+
+BOOL, BYTE, WORD, DWORD = Elementary("BOOL"), Elementary("BYTE"), Elementary("WORD"), Elementary("DWORD")
+INT, UINT, DINT, UDINT = Elementary("INT"), Elementary("UINT"), Elementary("DINT"), Elementary("UDINT")
+REAL, TIME = Elementary("REAL"), Elementary("TIME")
+JOINTS_REAL = ArrayType(1, 6, REAL)
 
 
 @dataclass(frozen=True)
 class Var:
-    """One declaration: name, type (structured text), initial value (structured text, "" for none), comment."""
+    """One declaration: name, type, initial value (structured text, "" for none), comment."""
 
     name: str
-    type: str
+    type: Type
     init: str = ""
     comment: str = ""
 
     def line(self) -> str:
         init = f" := {self.init}" if self.init else ""
         comment = f" // {self.comment}" if self.comment else ""
-        return f"    {self.name} : {self.type}{init};{comment}"
+        return f"    {self.name} : {self.type.st}{init};{comment}"
 
 
 @dataclass(frozen=True)
@@ -43,7 +92,7 @@ class Struct:
 @dataclass(frozen=True)
 class Enum:
     name: str
-    base: str
+    base: Elementary
     values: tuple[tuple[str, int, str], ...]      # name, value, comment
     comment: str = ""
 
@@ -71,6 +120,16 @@ class Pou:
     comment: str = ""
 
 
+@dataclass(frozen=True)
+class Task:
+    """The cyclic task the example program runs in (the PLCopen configuration's resource holds it)."""
+
+    name: str
+    interval_ms: float
+    priority: int
+    program: str                # the PROGRAM it calls
+
+
 @dataclass
 class Library:
     """Everything the generator writes, in the order a project needs it (types first)."""
@@ -78,6 +137,7 @@ class Library:
     types: list[Struct | Enum] = field(default_factory=list)
     gvls: list[Gvl] = field(default_factory=list)
     pous: list[Pou] = field(default_factory=list)
+    task: Task | None = None
 
 
 def _comment_block(text: str) -> list[str]:
@@ -105,34 +165,9 @@ def declaration(obj: Struct | Enum | Gvl | Pou) -> str:
         for k, (name, value, comment) in enumerate(obj.values):
             sep = "," if k < len(obj.values) - 1 else ""
             lines.append(f"    {name} := {value}{sep}" + (f" // {comment}" if comment else ""))
-        lines += [f") {obj.base};", "END_TYPE"]
+        lines += [f") {obj.base.st};", "END_TYPE"]
     elif isinstance(obj, Gvl):
         lines += ["{attribute 'qualified_only'}", *_var_lists(obj.lists)]
     else:
         lines += [f"{obj.kind} {obj.name}", *_var_lists(obj.lists)]
     return "\n".join(lines) + "\n"
-
-
-@dataclass(frozen=True)
-class TypeRef:
-    """A parsed type: ``kind`` elementary, string, array or derived."""
-
-    kind: str
-    name: str = ""
-    length: int = 0
-    lower: int = 0
-    upper: int = 0
-    base: TypeRef | None = None
-
-
-def parse_type(text: str) -> TypeRef:
-    """The `TypeRef` of a type written as structured text."""
-    m = _ARRAY.match(text)
-    if m:
-        return TypeRef("array", lower=int(m.group(1)), upper=int(m.group(2)), base=parse_type(m.group(3)))
-    m = _STRING.match(text)
-    if m:
-        return TypeRef("string", length=int(m.group(1)))
-    if text in ELEMENTARY:
-        return TypeRef("elementary", text)
-    return TypeRef("derived", text)

@@ -2,16 +2,31 @@
 
 Types go to ``types/dataTypes``, the blocks and MAIN to ``types/pous`` (interfaces as variable lists,
 bodies as structured text), the global lists to ``instances/configurations`` as a configuration's
-``globalVars``. A struct that must be packed carries ``pack_mode`` as CODESYS writes an attribute (in
-``addData``), since the schema has no place for pragmas. The file carries no time of its own: ``creationDateTime`` is fixed, so the same contract
-and map give the same bytes.
+``globalVars``; the configuration's resource holds the task that runs MAIN (a ``pouInstance``), as an
+IEC 61131-3 configuration declares its resources and tasks (PLCopen TC6 v2.01, ``instances``). A struct
+that must be packed carries ``pack_mode`` as CODESYS writes an attribute (in ``addData``), since the
+schema has no place for pragmas. The file carries no time of its own: ``creationDateTime`` is fixed, so
+the same contract and map give the same bytes.
 """
 
 from __future__ import annotations
 
 from xml.sax.saxutils import escape, quoteattr
 
-from .model import Enum, Gvl, Library, Pou, Struct, TypeRef, Var, VarList, parse_type
+from .model import (
+    ArrayType,
+    Elementary,
+    Enum,
+    Gvl,
+    Library,
+    Pou,
+    StringType,
+    Struct,
+    Task,
+    Type,
+    Var,
+    VarList,
+)
 from .twincat import cdata
 
 NS = "http://www.plcopen.org/xml/tc6_0201"
@@ -28,12 +43,12 @@ def _text(text: str, tag: str = "documentation") -> str:
     return f'<{tag}><xhtml:p xmlns:xhtml="{XHTML}">{cdata(text)}</xhtml:p></{tag}>'
 
 
-def type_xml(t: TypeRef) -> str:
-    if t.kind == "elementary":
+def type_xml(t: Type) -> str:
+    if isinstance(t, Elementary):
         return f"<{t.name}/>"
-    if t.kind == "string":
+    if isinstance(t, StringType):
         return f'<string length="{t.length}"/>'
-    if t.kind == "array":
+    if isinstance(t, ArrayType):
         return (f'<array><dimension lower="{t.lower}" upper="{t.upper}"/><baseType>{type_xml(t.base)}</baseType>'
                 "</array>")
     return f"<derived name={quoteattr(t.name)}/>"
@@ -42,7 +57,7 @@ def type_xml(t: TypeRef) -> str:
 def variable(v: Var) -> str:
     init = f"<initialValue><simpleValue value={quoteattr(v.init)}/></initialValue>" if v.init else ""
     doc = _text(v.comment) if v.comment else ""
-    return f"<variable name={quoteattr(v.name)}><type>{type_xml(parse_type(v.type))}</type>{init}{doc}</variable>"
+    return f"<variable name={quoteattr(v.name)}><type>{type_xml(v.type)}</type>{init}{doc}</variable>"
 
 
 def _var_list(vl: VarList, tag: str) -> str:
@@ -55,7 +70,7 @@ def data_type(obj: Struct | Enum) -> str:
         base = "<struct>" + "".join(variable(v) for v in obj.fields) + "</struct>"
     else:
         values = "".join(f"<value name={quoteattr(n)} value={quoteattr(str(x))}/>" for n, x, _ in obj.values)
-        base = f"<enum><values>{values}</values><baseType><{obj.base}/></baseType></enum>"
+        base = f"<enum><values>{values}</values><baseType>{type_xml(obj.base)}</baseType></enum>"
     doc = _text(obj.comment) if obj.comment else ""
     pack = PACKED if isinstance(obj, Struct) and obj.pack else ""
     return f"<dataType name={quoteattr(obj.name)}><baseType>{base}</baseType>{pack}{doc}</dataType>"
@@ -78,6 +93,15 @@ def global_lists(gvls: list[Gvl]) -> str:
     return "".join(out)
 
 
+def resource(task: Task | None) -> str:
+    """The configuration's one resource, with the task that runs the example program (IEC duration ``T#1MS``)."""
+    if task is None:
+        return '<resource name="PLC"/>'
+    return (f'<resource name="PLC"><task name={quoteattr(task.name)} interval="T#{task.interval_ms:g}MS" '
+            f'priority="{task.priority}"><pouInstance name={quoteattr(task.program)} '
+            f'typeName={quoteattr(task.program)}/></task></resource>')
+
+
 def project(lib: Library, name: str = "StiffComp") -> bytes:
     """The PLCopen XML file of ``lib``."""
     parts = [
@@ -89,6 +113,6 @@ def project(lib: Library, name: str = "StiffComp") -> bytes:
          '<ld><scaling x="1" y="1"/></ld><sfc><scaling x="1" y="1"/></sfc></coordinateInfo></contentHeader>\n'),
         "<types>\n<dataTypes>\n", *(data_type(t) + "\n" for t in lib.types), "</dataTypes>\n<pous>\n",
         *(pou(p) + "\n" for p in lib.pous), "</pous>\n</types>\n",
-        (f'<instances><configurations><configuration name="{escape(name)}">\n{global_lists(lib.gvls)}\n'
-         "</configuration></configurations></instances>\n</project>\n")]
+        (f'<instances><configurations><configuration name="{escape(name)}">\n{resource(lib.task)}\n'
+         f"{global_lists(lib.gvls)}\n</configuration></configurations></instances>\n</project>\n")]
     return "".join(parts).encode("utf-8")

@@ -44,7 +44,7 @@ class AbbEgm(RobotInterface):
     def restart(self) -> None:
         """A new session (after `programmed` read its first packet, which sets the pose joint mode holds)."""
         super().restart()
-        self.last_pose = self.last_x = None                 # path mode: the last planned pose and path frame's x
+        self.frames = egm.PathFrames()                      # path mode: the path frame, packet by packet
 
     def restarted(self, stamp: int, last: int) -> bool:
         # a new EGM instruction counts from the start again (however short the last one was)
@@ -70,6 +70,5 @@ class AbbEgm(RobotInterface):
         if self.mode == "joint":
             return egm.joint_answer(self.seqno, [a + b for a, b in zip(q, correction)], p.tm_ms)
         d = self.jacobian.motion(q, correction)[:3]
-        frame = egm.path_frame(self.last_pose or p.pose, p.pose, self.last_x)
-        self.last_pose, self.last_x = p.pose, frame[0]
+        frame = self.frames.next(p.pose)
         return egm.path_answer(self.seqno, egm.to_path(frame, d), max(round(age_ms), MIN_AGE_MS), p.tm_ms)

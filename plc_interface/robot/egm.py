@@ -193,6 +193,19 @@ def path_frame(pose_prev, pose, x_prev=None) -> tuple[Vec, Vec, Vec]:
     raise ValueError(f"no path frame at {pose}")       # not reached: the tool's x is square to its z
 
 
+class PathFrames:
+    """The path frame of each packet in turn, from its planned pose and the one before (`path_frame`): what the
+    road answers a path correction in and what the robot reads it in, one rule for both."""
+
+    def __init__(self):
+        self.pose = self.x = None
+
+    def next(self, pose) -> tuple[Vec, Vec, Vec]:
+        frame = path_frame(self.pose or pose, pose, self.x)
+        self.pose, self.x = pose, frame[0]
+        return frame
+
+
 def to_path(frame, d) -> Vec:
     """A base-frame vector ``d`` in the path ``frame``'s coordinates."""
     return tuple(r[0] * d[0] + r[1] * d[1] + r[2] * d[2] for r in frame)

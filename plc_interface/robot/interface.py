@@ -83,6 +83,10 @@ class RobotInterface:
         """The joint correction (deg) the robot holds: the one behind the last answer it took."""
         return self.history[-1][0]
 
+    def held_before(self, missed: int) -> tuple[float, ...]:
+        """What the robot holds if it did not take the last ``missed`` answers (RSI's ``Delay`` rose by that)."""
+        return self.history[-1 - min(missed, len(self.history) - 1)][0]
+
     def hold(self, correction, values) -> None:
         """Remember an answer: the joint ``correction`` behind it and the ``values`` the robot holds once it takes
         it (for a relative answer, the total of the increments)."""
@@ -106,8 +110,9 @@ class RobotInterface:
         as what the robot holds once it takes it."""
         raise NotImplementedError
 
-    def evidence(self, p: RobotPacket) -> str | None:
-        """A warning when the packets contradict a setting about what they hold (None: nothing to say)."""
+    def evidence(self, p: RobotPacket) -> tuple[str, str] | None:
+        """(the setting's key, a warning) when the packets contradict a setting about what they hold (None:
+        nothing to say, or said already)."""
         return None
 
     def check_stats(self) -> dict:

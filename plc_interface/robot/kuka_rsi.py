@@ -135,7 +135,7 @@ class KukaRsi(RobotInterface):
         self.hold(correction, values)
         return rsi.answer(k.sen_type, p.stamp, sent, k.cartesian)
 
-    def evidence(self, p: RobotPacket) -> str | None:
+    def evidence(self, p: RobotPacket) -> tuple[str, str] | None:
         if self.check is None:
             return None
         slope = self.check.add(p, self.held)
@@ -148,11 +148,12 @@ class KukaRsi(RobotInterface):
         if self._said == holds:
             return None
         self._said = holds
-        return (f"robot.kuka_rsi.joints_include_correction is {str(self.k.includes_correction).lower()}, but the "
-                f"robot's packets say ASPos {'holds' if holds else 'does not hold'} the correction: AIPos - ASPos "
-                f"follows the held correction with a slope of {slope:.2f} over {CHECK_PACKETS} packets (1: ASPos "
-                f"without it, 0: with it); set joints_include_correction: {str(holds).lower()} (docs/robot.md, "
-                "\"Which joints the cycle uses\")")
+        setting = str(self.k.includes_correction).lower()
+        return "joints_include_correction", (
+            f"robot.kuka_rsi.joints_include_correction is {setting}, but the robot's packets say ASPos "
+            f"{'holds' if holds else 'does not hold'} the correction: AIPos - ASPos follows the held correction with "
+            f"a slope of {slope:.2f} over {CHECK_PACKETS} packets (1: ASPos without it, 0: with it); set "
+            f"joints_include_correction: {str(holds).lower()} (docs/robot.md, \"Which joints the cycle uses\")")
 
     def check_stats(self) -> dict:
         if self.check is None:

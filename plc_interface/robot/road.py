@@ -9,15 +9,18 @@ The robot is the clock. `RobotRoad.received` runs for every datagram, in the I/O
 3. a stamp that fell back far (the robot's program started the interface again), or the first packet after a
    silence of ``faults.plc_heartbeat_timeout_ms``, begins a new session: the robot holds no correction, and the
    answers ramp in from zero over ``limits.fault_ramp_s``;
-4. the commanded joints, programmed plus the correction the robot holds, go into the image's ``q1..q6``, as a
-   PLC reports its joints: the cycle computes at them and the trace records them. With ``plc.role: none`` the
+4. the commanded joints, programmed plus the correction the robot holds once it takes this packet's answer, go
+   into the image's ``q1..q6``, as a PLC reports its joints: the cycle computes at them and the trace records
+   them. With ``plc.role: none`` the
    road also writes the command word (the robot's own element; without one, enable as ``plc.enable_on_start``
    says) and steps ``plc_heartbeat``;
 5. the answer is the newest correction the cycle published, never waiting for the cycle.
 
-After a silence, a robot without a command element cannot acknowledge anything: the road raises the reset bit
-for it only while the latched fault is its own silence's (``plc_heartbeat``); any other latched fault stays, is
-logged, and waits for the robot's own reset bit or a restart.
+A robot without a command element cannot acknowledge anything. At its first contact since the service started the
+road raises the reset bit for it, as a PLC starting up does (what latched before anyone was there, e.g. a sensor
+that came up late, is cleared if its cause is gone); after a later silence or restart only while the latched
+fault is its own silence's (``plc_heartbeat``): any other stays, is logged, and waits for the robot's own reset
+bit or a restart of the service.
 """
 
 from __future__ import annotations
@@ -67,6 +70,17 @@ class RoadSettings:
         return out
 
 
+@dataclass
+class Session:
+    """One session of the robot's: from a packet that began it (after a silence, or a stamp that fell back) on."""
+
+    began: float = 0.0                  # when its first packet came (s, the road's clock): the ramp counts from it
+    stamp: int | None = None            # the last stamp taken
+    late: int | None = None             # the robot's own count of late answers in the last packet (RSI's Delay)
+    steps: list[int] = field(default_factory=list)     # its first stamp steps (the robot's own cycle)
+    said_kept_faults: bool = False      # the warning about faults its return does not reset was given
+
+
 class RobotRoad:
     """The robot interface as a part of the I/O server (`plc_interface.io_server.IoServer`).
 
@@ -92,19 +106,20 @@ class RobotRoad:
         self._n_latency = 0
         self.heartbeat = 0
         self._strangers: set[str] = set()
-        self._last_t: float | None = None           # the last packet taken
+        self.session = Session()
+        self._to_check = None                       # the packet just answered, for the interface's checks
+        self._last_t: float | None = None           # the last packet taken (any session)
         self._heard_t: float | None = None          # the last packet from the robot's address, taken or not
-        self._session_t = 0.0
-        self._last_stamp: int | None = None
-        self._last_late: int | None = None
-        self._steps: list[int] = []                 # the first stamp steps of a session (the robot's own cycle)
         self.cycle_seen: float | None = None        # the robot's cycle as its stamps say, in stamp units
         self._step = self.iface.stamp_step
         self._slow_ns = r.cycle_ms * 1_000_000
         self._q_names = [f"q{i}" for i in range(1, 7)]
         has_element = r.interface == "kuka_rsi" and r.kuka_rsi.command_element is not None
-        self.reset = RecoveryReset(clears=0 if has_element else int(Fault.PLC_HEARTBEAT))
-        self._kept_faults_said = False
+        # the robot's first contact since the start resets what was latched before anyone was there (a sensor
+        # that came up late), as a PLC's start-up does; a later session only the fault of the robot's silence
+        self._first_reset = RecoveryReset(clears=0 if has_element else 0xFFFF)
+        self._later_reset = RecoveryReset(clears=0 if has_element else int(Fault.PLC_HEARTBEAT))
+        self.reset = self._first_reset
 
     # -- life cycle -------------------------------------------------------------------------------
     async def start(self) -> None:
@@ -150,7 +165,7 @@ class RobotRoad:
         try:
             p = iface.parse(data)
             silent = self._last_t is None or now - self._last_t > self.settings.silence_s
-            last = self._last_stamp
+            last = self.session.stamp
             restarted = not silent and last is not None and p.stamp <= last and iface.restarted(p.stamp, last)
             new = silent or restarted
             if not new and p.stamp == last:
@@ -160,7 +175,7 @@ class RobotRoad:
                 raise PacketError("stamp", f"{iface.stamp_name} {p.stamp} is below the last one taken ({last}): "
                                   "a packet out of order")
             missed = 0 if new else self._missed(p)
-            held = ZERO6 if new else iface.history[-1 - min(missed, len(iface.history) - 1)][0]
+            held = ZERO6 if new else iface.held_before(missed)
             q = iface.programmed(p, held, new)
             self._check_limits(q)
         except PacketError as e:
@@ -172,20 +187,27 @@ class RobotRoad:
         elif missed:
             iface.missed(missed)
         self._note_counts(p)
-        self._last_t, self._last_stamp = now, p.stamp
-        held = iface.held
+        self._last_t, self.session.stamp = now, p.stamp
+        self._to_check = p
         out = self.image.outputs()
-        self._write_inputs(p, [a + b for a, b in zip(q, held)], now, out)
-        warning = iface.evidence(p)
-        if warning:
-            log.warning("robot road: %s", warning)
-            if self.metrics is not None:
-                self.metrics.count_robot_contradiction("joints_include_correction")
-        ramp = min(1.0, (now - self._session_t) / self.settings.ramp_s) if self.settings.ramp_s > 0 else 1.0
+        ramp = min(1.0, (now - self.session.began) / self.settings.ramp_s) if self.settings.ramp_s > 0 else 1.0
         correction = [ramp * out[f"correction_q{i}"] for i in range(1, 7)]
         reply = iface.answer(p, q, correction, out["sample_age_ms"])
+        # the commanded joints from this packet on: programmed plus the correction the robot takes with this answer
+        self._write_inputs(p, [a + b for a, b in zip(q, iface.held)], now, out)
         self.counts["answered"] += 1
         return reply
+
+    def after_answer(self) -> None:
+        """What waits until the answer is sent: the interface's checks of the packet just answered (tens of us,
+        kept off the answer's latency)."""
+        p, self._to_check = self._to_check, None
+        contradicted = None if p is None else self.iface.evidence(p)
+        if contradicted:
+            key, warning = contradicted
+            log.warning("robot road: %s", warning)
+            if self.metrics is not None:
+                self.metrics.count_robot_contradiction(key)
 
     def _new_session(self, now: float, stamp: int, heard: float | None, restarted: bool) -> None:
         self.counts["sessions"] += 1
@@ -193,7 +215,7 @@ class RobotRoad:
             self.counts["restarts"] += 1
             log.warning("robot road: the robot's %s fell back from %d to %d: its program started the interface "
                         "again; a new session, answered from zero correction", self.iface.stamp_name,
-                        self._last_stamp, stamp)
+                        self.session.stamp, stamp)
         elif self.counts["sessions"] > 1:
             quiet_ms = 1000.0 * (now - self._last_t)
             if heard is not None and heard > self._last_t:
@@ -202,12 +224,10 @@ class RobotRoad:
             else:
                 log.warning("robot road: the robot speaks again after %.0f ms of silence: a new session, answered "
                             "from zero correction", quiet_ms)
-        self._session_t = now
-        self._last_stamp = self._last_late = None
-        self._steps = []
+        self.session = Session(began=now)
         self.iface.restart()
+        self.reset = self._first_reset if self.counts["sessions"] == 1 else self._later_reset
         self.reset.recovered(now)
-        self._kept_faults_said = False
 
     def _check_limits(self, q: list[float]) -> None:
         for j, (v, (lo, hi)) in enumerate(zip(q, self.settings.limits_deg)):
@@ -216,21 +236,21 @@ class RobotRoad:
 
     def _missed(self, p) -> int:
         """How many answers the robot says it did not take since its last packet (RSI's ``Delay`` rose)."""
-        return max(p.late - self._last_late, 0) if p.late is not None and self._last_late is not None else 0
+        return max(p.late - self.session.late, 0) if p.late is not None and self.session.late is not None else 0
 
     def _note_counts(self, p) -> None:
         late = gaps = 0
         if p.late is not None:
-            if self._last_late is not None and p.late > self._last_late:
-                late = p.late - self._last_late
-            self._last_late = p.late
-        if self._last_stamp is not None:
-            step = p.stamp - self._last_stamp
-            if len(self._steps) < CYCLE_CHECK_PACKETS:
-                self._steps.append(step)             # gaps counted once the robot's own step is known
-                if len(self._steps) == CYCLE_CHECK_PACKETS:
+            if self.session.late is not None and p.late > self.session.late:
+                late = p.late - self.session.late
+            self.session.late = p.late
+        if self.session.stamp is not None:
+            step = p.stamp - self.session.stamp
+            if len(self.session.steps) < CYCLE_CHECK_PACKETS:
+                self.session.steps.append(step)             # gaps counted once the robot's own step is known
+                if len(self.session.steps) == CYCLE_CHECK_PACKETS:
                     self._cycle_check()
-                    gaps = sum(max(d // self._step - 1, 0) for d in self._steps)
+                    gaps = sum(max(d // self._step - 1, 0) for d in self.session.steps)
             elif step > self._step:
                 gaps = step // self._step - 1
         self._late("late_reported", "reported", late)
@@ -240,10 +260,12 @@ class RobotRoad:
         """The session's first steps of the stamp, against the configured cycle: a robot whose stamps rise by a
         whole multiple of it (a 12 ms IPO against cycle_ms 4) is named once, and its gaps counted on its own
         step."""
-        seen = int(np.median(self._steps))
+        # a robot on the configured cycle sends some packets one step apart however loaded the link; one on a
+        # longer cycle never does
+        seen = min(self.session.steps)
         self.cycle_seen = seen
         want = self.iface.stamp_step
-        if seen != want and seen > 0 and seen % want == 0:
+        if seen > want and seen % want == 0:
             self._step = seen
             r = self.settings.robot
             unit = "ms" if self.iface.stamp_name == "IPOC" else "packets"
@@ -270,8 +292,8 @@ class RobotRoad:
                 command = _ENABLE if s.enable_on_start else 0
                 if self.reset.bit(now, fault_word):
                     command |= int(Command.RESET)
-                elif fault_word and now - self._session_t <= self.reset.hold_s and not self._kept_faults_said:
-                    self._kept_faults_said = True
+                elif fault_word and now - self.session.began <= self.reset.hold_s and not self.session.said_kept_faults:
+                    self.session.said_kept_faults = True
                     log.warning("robot road: the robot is back, but fault_word 0x%04X holds faults beyond its "
                                 "silence; they stay latched (the correction off) until the robot's own reset bit "
                                 "(robot.kuka_rsi.command_element, bit 2) or a restart", fault_word)
@@ -330,6 +352,7 @@ class _Datagrams(asyncio.DatagramProtocol):
         if reply is not None:
             self.transport.sendto(reply, addr)
             self.road.sent(t_in, time.perf_counter_ns())
+            self.road.after_answer()
 
     def error_received(self, exc: Exception) -> None:      # e.g. ICMP port unreachable after a send
         self.road.errors.report("robot", "send failed", repr(exc))

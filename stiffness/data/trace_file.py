@@ -183,6 +183,35 @@ class Gap:
                 "to_s": self.to_s}
 
 
+REPORT_GAP = 2.5     # reports farther apart than this many typical spacings: the robot stood still between them
+
+
+def between_reports(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The joints ``q`` (rows at times ``t``) where they were reported less often than every row, interpolated
+    between the reports.
+
+    A row holds the joints last reported: a PLC every few cycles, a robot through the robot road every packet
+    (ABB's EGM path corrections every 48 ms: 2.4 mm of a 50 mm/s feed). The robot moved between two reports,
+    so a trace read as it is holds a staircase whose steps cut the corners of a contour (a path of 2.4 mm chords
+    on a 31 mm radius lies up to 0.02 mm inside it). Where the rows that bring new joints are at most 3 in 4 of the
+    rows, the joints between two reports no farther apart than `REPORT_GAP` typical spacings are the cubic spline
+    through the reports (scipy's CubicSpline: 1e-4 deg off a 20 deg, 0.5 Hz motion reported every 54 rows, where
+    PCHIP is 0.06 deg off); a longer pause is a robot that stood still, and is kept."""
+    changed = np.flatnonzero(np.r_[True, np.any(np.diff(q, axis=0) != 0.0, axis=1)])
+    if len(changed) < 4 or len(changed) > 0.75 * len(q):
+        return q
+    from scipy.interpolate import CubicSpline
+
+    spacing = np.diff(t[changed])
+    breaks = np.flatnonzero(spacing > REPORT_GAP * np.median(spacing))
+    out = q.copy()
+    for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(changed) - 1]):
+        if b - a >= 1:
+            k = changed[a:b + 1]
+            out[k[0]:k[-1] + 1] = CubicSpline(t[k], q[k], axis=0)(t[k[0]:k[-1] + 1])
+    return out
+
+
 @dataclass
 class Trace:
     """A trace read back: one array per column (``trace.time_s``, ``trace.q_deg`` ...)."""
@@ -202,6 +231,11 @@ class Trace:
     time_s = property(lambda self: self.column("time_s"))
     cycle = property(lambda self: self.column("cycle").astype(np.int64))
     q_deg = property(lambda self: self.block(Q))
+
+    @property
+    def commanded_q_deg(self) -> np.ndarray:
+        """The commanded joints of every row, where the robot moved between its reports (`between_reports`)."""
+        return between_reports(self.time_s, self.q_deg)
     wrench_base = property(lambda self: self.block(WRENCH))
     correction_deg = property(lambda self: self.block(CORRECTION))
     fault_word = property(lambda self: self.column("fault_word").astype(np.int64))

@@ -54,7 +54,7 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
     run = trace.column("task_state") == TASK_RUN
     if not run.any():
         raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
-    F = robot.frames(np.radians(trace.q_deg))
+    F = robot.frames(np.radians(trace.commanded_q_deg))    # as `read_against` reads them
     c_all = F[:, 7, :3, 3]
     moving = at_feed(trace.time_s, c_all) & run
     if moving.sum() < 3:

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy import signal
@@ -60,6 +61,7 @@ from ..data.trace_file import Gap, Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
 from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
+from .suspects import causes, explain, frame_fit
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
@@ -130,7 +132,7 @@ class PartRows:
         keep = (rows[np.r_[True, np.diff(np.floor(tr.time_s[rows] / history_step_s)) > 0]]
                 if history_step_s is not None else rows[:0])
         t = np.concatenate([self.t, tr.time_s[keep]])
-        q = np.concatenate([self.q_deg, tr.q_deg[keep]])
+        q = np.concatenate([self.q_deg, tr.commanded_q_deg[keep]])
         wb = np.concatenate([self.wrench_base, self.smooth_wrench[keep]])
         n = len(self.t)
         defl = np.full((len(t), 6), np.nan)
@@ -163,7 +165,8 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     run = trace.column("task_state") == TASK_RUN
     if not run.any():
         raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
-    F = robot.frames(np.radians(trace.q_deg))
+    q_cmd = trace.commanded_q_deg
+    F = robot.frames(np.radians(q_cmd))
     c_all, a_all = F[:, 7, :3, 3], F[:, 7, :3, 2]
     moving = at_feed(trace.time_s, c_all) & run
     if moving.sum() < 3:
@@ -186,7 +189,15 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     p = part.in_base(frame)
     blind = trace.gaps() + jumps(trace, c_all, run)         # rows lost, and joints that jumped
     blind.sort(key=lambda b: b.row)
-    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, blind)
+    def why_far(near: np.ndarray, some: bool = False) -> str:
+        """Why the points lie off the path: all of them (the refusal), or ``some`` (the causes alone)."""
+        fit = None if best_fit or part.frame is None else (
+            lambda: frame_fit(part, _best_fit(part, c_all[idx], a, r), np.vstack([e1, e2]), c2, r))
+        span = 1000.0 * (float(np.max(np.ptp(c2, axis=0))) + 2 * r)
+        return (causes if some else partial(explain, trace_source=trace.source))(
+            part, near_m=near, path_span_mm=span, fit=fit, near_mm=near_mm)
+
+    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, blind, why_far)
     lost = gap_of(c_all, [b.row for b in blind], u_of)
     for k in np.nonzero(used & (lost >= 0))[0]:
         left[k] = int(lost[k])
@@ -214,7 +225,7 @@ def _why(blind: Gap | Jump) -> str:
 
 
 def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray, c2: np.ndarray, r: float,
-           near_mm: float, blind: list[Gap | Jump]) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
+           near_mm: float, blind: list[Gap | Jump], why_far=None) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
     """Each point's fractional trace row where the path (moving rows ``idx``, in-plane ``c2``) passes abeam of
     it (in-plane ``p2``): which points are used, their rows, and why each other one is left out (a reason, or
     the index of the ``blind`` span it lies beside). A point far off the path where the trace is blind is left
@@ -224,11 +235,9 @@ def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray,
     at = {row: k for k, b in enumerate(blind) for row in range(b.row - getattr(b, "still", 0), b.row + 2)}
     beside_gap = np.isin(idx[j], list(at))
     far = np.abs(near - r) > near_mm / 1000.0
-    if (far & ~beside_gap).mean() > 0.5:
-        raise DataError(f"{part.source}: the trace {trace.source} never passes the measured contour: the tool's "
-                        f"centre came no closer than {1000 * np.median(near):.1f} mm (median over the points) "
-                        f"where the tool radius is {part.tool_radius_mm:g} mm; they do not belong together, or "
-                        "the part_frame is wrong")
+    if (far & ~beside_gap).mean() > 0.5:            # the causes, each with its evidence (`suspects.explain`)
+        raise DataError(why_far(near) if why_far is not None else
+                        f"{part.source}: the trace {trace.source} never passes the measured contour")
     problems, used, u_of, left = Problems(), np.zeros(len(p2), dtype=bool), np.full(len(p2), np.nan), {}
     for k in range(len(p2)):
         if far[k] and beside_gap[k]:
@@ -243,8 +252,9 @@ def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray,
             else:
                 u_of[k], used[k] = _abeam(idx, c2, p2[k], cand), True
     if problems:
+        why = f". {why_far(near, some=True)}" if why_far is not None and problems.count >= max(3, 0.1 * len(p2)) else ""
         raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
-                        "nothing was used", problems)
+                        f"nothing was used{why}", problems)
     return used, u_of, left
 
 
@@ -276,7 +286,7 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
     d = (p - c) @ (np.eye(3) - np.outer(a, a))
     dist = np.linalg.norm(d, axis=1)
     n = d / dist[:, None]
-    q = at(trace.q_deg)
+    q = at(trace.commanded_q_deg)
     c_nom = robot.frames(np.radians(q - at(trace.correction_deg)))[:, 7, :3, 3]
     shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
     e = (dist - r) * 1000.0

@@ -67,5 +67,5 @@ def _interp(x: np.ndarray, u: np.ndarray) -> np.ndarray:
 def _at(rows: PartRows, u: np.ndarray, curve_mm: np.ndarray | None) -> PartRows:
     """``rows`` with time, joints and wrench taken at the fractional trace rows ``u``, and the curve's term."""
     tr = rows.trace
-    return dataclasses.replace(rows, t=_interp(tr.time_s, u), q_deg=_interp(tr.q_deg, u),
+    return dataclasses.replace(rows, t=_interp(tr.time_s, u), q_deg=_interp(tr.commanded_q_deg, u),
                                wrench_base=_interp(rows.smooth_wrench, u), curve_mm=curve_mm)

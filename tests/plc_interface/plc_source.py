@@ -8,6 +8,7 @@ types, global constants and their values, enum values; byte offsets are summed f
 from __future__ import annotations
 
 import functools
+import hashlib
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,12 +29,19 @@ class Field:
 
 
 def parse_file(path: Path):
-    """The blark parse results of one TwinCAT file; AssertionError naming the file when any part fails."""
+    """The blark parse results of one TwinCAT file; AssertionError naming the file when any part fails. Parsed
+    once per content for the session (blark takes a second or two for a block; the run tests parse the same
+    files)."""
+    return list(_parsed(str(path), hashlib.sha256(Path(path).read_bytes()).hexdigest()))
+
+
+@functools.cache
+def _parsed(path: str, digest: str) -> tuple:
     results = list(parse(path))
     assert results, f"{path}: blark found nothing to parse"
     for r in results:
         assert r.exception is None, f"{path}: blark: {r.exception}"
-    return results
+    return tuple(results)
 
 
 @functools.cache

@@ -12,14 +12,19 @@ import re
 from pathlib import Path
 from xml.etree import ElementTree
 
+import numpy as np
 import pytest
 import xmlschema
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from plc_source import constant, constants, enum_values, packed, struct_fields, summary
 
+from hil.testing import write_config
 from plc_interface.ads.symbols import IEC_TYPES, symbols_from_map
 from plc_interface.contract import Command, Fault, Status, TaskState
-from plc_interface.register_map import RegisterMap
+from plc_interface.plc_library.blocks import real_bounds, real_literal
+from plc_interface.register_map import INT_RANGE, RegisterMap
 from tools.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -48,8 +53,8 @@ def moved_map_config(tmp_path: Path) -> tuple[Path, RegisterMap]:
     regs.append({"name": "dq_q1", "address": 0x8050})
     data["to_plc"]["registers"] = regs
     (tmp_path / "moved.yaml").write_text(yaml.safe_dump(data))
-    cfg = tmp_path / "service.yaml"
-    cfg.write_text("plc: {register_map: moved.yaml, port: 1502}\nads: {net_id: 10.1.2.3.1.1}\n")
+    cfg = write_config(tmp_path, {"plc": {"register_map": "moved.yaml", "port": 1502},
+                                  "ads": {"net_id": "10.1.2.3.1.1"}})       # a whole config: plc-library reads it as run
     return cfg, RegisterMap.from_yaml(tmp_path / "moved.yaml")
 
 
@@ -252,6 +257,75 @@ def test_a_map_with_a_gap_between_the_plcs_registers_is_refused(tmp_path, capsys
     data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
     data["from_plc"]["registers"][-1]["address"] += 1           # payload_index one word further
     (tmp_path / "gap.yaml").write_text(yaml.safe_dump(data))
-    (tmp_path / "service.yaml").write_text("plc: {register_map: gap.yaml}\n")
+    write_config(tmp_path, {"plc": {"register_map": "gap.yaml"}})
     refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "payload_index", "gap")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_plcopen_configuration_has_a_resource_whose_task_runs_main():
+    root = ElementTree.parse(COMMITTED / "plcopen" / "StiffComp.xml").getroot()
+    config = _first(root, ".//p:configuration")
+    task = _first(config, "p:resource/p:task")
+    assert (task.get("interval"), task.get("priority")) == ("T#1MS", "20")
+    assert _first(task, "p:pouInstance").get("typeName") == "MAIN"
+    assert {g.get("name") for g in config.findall("p:globalVars", {"p": NS})} == {CONTRACT, "GVL_StiffCompSettings"}
+
+
+def test_bit_words_and_their_bits_are_word():
+    """IEC's AND and OR take bit strings: the bits, the words the blocks decode and the command they build."""
+    code = summary(COMMITTED / "twincat")
+    gvl = code.globals[CONTRACT].declarations
+    assert {str(d.type) for n, d in gvl.items() if str(n).startswith(("CMD_", "STATUS_", "FAULT_"))} == {"WORD"}
+    for block in ("FB_StiffComp", "FB_StiffCompModbus"):
+        decl = code.function_blocks[block].declarations
+        assert {n: str(decl[n].type) for n in ("nStatusWord", "nFaultWord", "nCommand")} == dict.fromkeys(
+            ("nStatusWord", "nFaultWord", "nCommand"), "WORD")
+
+
+@pytest.mark.parametrize(("host", "words"), [
+    ("0.0.0.0", ("plc.host", "'0.0.0.0'", "bind address", "--modbus-host")),
+    ("stiffcomp.cell.example", ("plc.host", "host name", "IPv4", "--modbus-host")),
+    ("a-very-long-host-name-for-the-service.example", ("host name", "STRING(15)")),
+    ("::", ("IPv6",)),
+])
+def test_a_host_the_plc_cannot_dial_is_refused_and_nothing_written(tmp_path, capsys, host, words):
+    write_config(tmp_path, {"plc": {"host": host}})          # a whole config: plc-library reads it as run does
+    refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), str(tmp_path / "service.yaml"), *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_plcs_target_is_taken_from_modbus_host_where_plc_host_binds_all(tmp_path, capsys):
+    write_config(tmp_path, {"plc": {"host": "0.0.0.0"}})
+    assert generate(tmp_path / "out", tmp_path / "service.yaml", "--modbus-host", "192.168.10.20") == 0
+    code = summary(tmp_path / "out" / "twincat", "*.TcGVL")
+    assert str(code.globals["GVL_StiffCompSettings"].declarations["sModbusHost"].value) == "'192.168.10.20'"
+    capsys.readouterr()
+    refused(capsys, generate(tmp_path / "again", tmp_path / "service.yaml", "--modbus-host", "0.0.0.0"),
+            "--modbus-host", "bind address")
+
+
+def test_a_scaled_count_or_bit_word_is_refused(tmp_path, capsys):
+    data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
+    data["to_plc"]["registers"][0]["scale"] = 10                 # the heartbeat
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(data))
+    write_config(tmp_path, {"plc": {"register_map": "m.yaml"}})
+    refused(capsys, generate(tmp_path / "out", tmp_path / "service.yaml"), "heartbeat", "scale = 10", "scale 1")
+
+
+@given(st.floats(1e-9, 1e9))
+@settings(max_examples=50)
+def test_a_scale_is_written_as_an_iec_real_literal(x):
+    text = real_literal(x)
+    assert re.fullmatch(r"\d+\.\d+(E-?\d+)?", text), text
+    assert float(text) == x
+
+
+@pytest.mark.parametrize("code", sorted(INT_RANGE))
+def test_the_limits_before_a_real_to_int_conversion_lie_inside_the_type(code):
+    """REAL_TO_DINT of a REAL outside DINT overflows: the limits are the widest REALs inside the range."""
+    lo, hi = real_bounds(code)
+    lowest, highest = INT_RANGE[code]
+    assert float(np.float32(lo)) == lo and float(np.float32(hi)) == hi
+    assert lowest <= lo < hi <= highest
+    assert float(np.nextafter(np.float32(hi), np.float32(np.inf))) > highest
+    assert float(np.nextafter(np.float32(lo), np.float32(-np.inf))) < lowest

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from road_lib import ROBOT, ROBOT_AT, Clock, Q, new_image, publish
 
 from hil.testing import CONFIG
 from hil.virtual_robot import controller_for
-from plc_interface.contract import Command, Fault, to_plc
+from plc_interface.contract import Command, Fault
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 from plc_interface.robot import egm, rsi
@@ -20,24 +21,11 @@ from plc_interface.robot.interface import ZERO6, interface_for
 from plc_interface.robot.road import RoadSettings, RobotRoad
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.robot.tcp import TcpJacobian
-from stiffness.kinematics.robot import load_robot
-
-ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
-Q = [0.0, -60.0, 90.0, 0.0, 60.0, 0.0]
-ROBOT_AT = ("127.0.0.1", 40000)
-
-
-class Clock:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
 
 
 @pytest.fixture
 def image():
-    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    im = new_image()
     yield im
     im.close()
 
@@ -48,9 +36,6 @@ def road_on(image, clock=None, **robot) -> RobotRoad:
     return RobotRoad(image, RoadSettings(section, enable_on_start=True, silence_s=0.1, ramp_s=0.2, limits_deg=limits,
                                          robot_file=str(ROBOT.source)), clock=clock or Clock())
 
-
-def publish(image, correction, fault_word: int = 0) -> None:
-    image.publish(to_plc(fault_word=fault_word, **{f"correction_q{i + 1}": v for i, v in enumerate(correction)}))
 
 
 def q_of(image) -> list[float]:
@@ -112,14 +97,23 @@ def test_commands_and_heartbeat_without_a_plc_and_a_new_session_after_silence(im
 
 
 def test_the_robots_return_resets_only_the_fault_its_silence_latched(image, caplog):
-    """Without a PLC nobody acknowledges a fault: the robot's return clears its own silence's fault, and any other
-    latched fault stays, with one warning that says how to reset it."""
+    """Without a PLC nobody acknowledges a fault: the robot's first contact resets what latched before it (as a
+    PLC's start-up does); its return after a silence clears only its own silence's fault, and any other latched
+    fault stays, with one warning that says how to reset it."""
     clock = Clock()
     road = road_on(image, clock)
-    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT | Fault.SENSOR_SATURATED))
+    publish(image, [0.0] * 6, fault_word=int(Fault.SENSOR_TIMEOUT))       # the sensor came up late
     road.received(rsi.robot_packet(1000, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE | Command.RESET)
+    clock.t += 0.5                                                          # silent, then back
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT))
+    road.received(rsi.robot_packet(1500, Q, Q), ROBOT_AT)
+    assert image.inputs().command_word == int(Command.ENABLE | Command.RESET)
+    clock.t += 0.5
+    publish(image, [0.0] * 6, fault_word=int(Fault.PLC_HEARTBEAT | Fault.SENSOR_SATURATED))
+    road.received(rsi.robot_packet(2000, Q, Q), ROBOT_AT)
     clock.t += 0.004
-    road.received(rsi.robot_packet(1004, Q, Q), ROBOT_AT)
+    road.received(rsi.robot_packet(2004, Q, Q), ROBOT_AT)
     assert image.inputs().command_word == int(Command.ENABLE)
     assert sum("faults beyond its silence" in r.message for r in caplog.records) == 1
 
@@ -226,9 +220,12 @@ def test_answers_the_robot_missed_are_taken_off_as_its_delay_says(correction, st
             clock.t += 0.004
             robot.actual = None                                # AIPos as commanded, no servo lag
             publish(im, dq)
+            held = robot.holds(t, q)
             answer = road.received(robot.packet(t, q), ROBOT_AT)
-            # the commanded joints: programmed plus what the robot holds (AIPos holds it)
-            assert q_of(im) == pytest.approx(np.add(q, robot.holds(t, q)), abs=1e-4)
+            # the road took off AIPos what the robot holds (AIPos holds it): the programmed joints, to which the
+            # commanded ones add the correction the robot takes with this answer
+            assert road.iface.history[-2][0] == pytest.approx(held, abs=3e-6)
+            assert q_of(im) == pytest.approx(np.add(q, np.float32(dq)), abs=1e-4)
             if taken:
                 assert robot.take(answer, t, q) and robot.holds(t, q) == pytest.approx(dq, abs=3e-6)
             else:

@@ -11,36 +11,23 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from road_lib import LIMITS, ROBOT, ROBOT_AT, Clock, Q, new_image, publish
 
 from hil.testing import CONFIG
 from hil.virtual_robot import controller_for
 from plc_interface.contract import to_plc
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
 from plc_interface.robot import egm, rsi
 from plc_interface.robot.kuka_rsi import CHECK_PACKETS
 from plc_interface.robot.road import RoadSettings, RobotRoad
 from plc_interface.robot.settings import RobotSettings
 from plc_interface.robot.tcp import motion_of_rkorr, rkorr
-from stiffness.kinematics.robot import load_robot
 
-ROBOT = load_robot(CONFIG / "robots" / "kr125.yaml")
-Q = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
-ROBOT_AT = ("127.0.0.1", 40000)
-LIMITS = [(float(lo), float(hi)) for lo, hi in ROBOT.limits_deg]
-
-
-class Clock:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
+Q = np.array(Q)
 
 
 @pytest.fixture
 def image():
-    im = ProcessImage(RegisterMap.from_yaml(CONFIG / "registers.yaml"))
+    im = new_image()
     yield im
     im.close()
 
@@ -49,10 +36,6 @@ def road_on(image, clock, section: dict, ramp_s: float = 0.0) -> RobotRoad:
     s = RobotSettings.model_validate(section)
     return RobotRoad(image, RoadSettings(s, enable_on_start=True, silence_s=0.2, ramp_s=ramp_s, limits_deg=LIMITS,
                                          robot_file=str(ROBOT.source)), clock=clock)
-
-
-def publish(image, correction) -> None:
-    image.publish(to_plc(**{f"correction_q{i + 1}": float(v) for i, v in enumerate(correction)}))
 
 
 def hold(image, seconds: float, old_answer: bool = False) -> np.ndarray:
@@ -159,6 +142,7 @@ def test_kuka_joints_are_checked_against_the_packets(image, caplog, holds):
             q_ref = Q + 2.0 * np.sin(0.5 * t)                   # a moving robot: the servo lags
             publish(image, 0.04 * np.sin(np.array([3.0, 2.0, 4.0, 5.0, 3.5, 2.5]) * t))
             robot.take(road.received(robot.packet(t, q_ref), ROBOT_AT), t, q_ref)
+            road.after_answer()                                 # as the I/O loop does once the answer is sent
             robot.commanded(t, q_ref)
         check = road.stats()["joints_check"]
         assert check["windows"] >= n // CHECK_PACKETS - 1 and abs(check["slope"] - (0.0 if holds else 1.0)) < 0.2
@@ -221,3 +205,65 @@ def test_a_failing_answer_is_counted_once_not_logged_per_packet(image, caplog):
         proto.datagram_received(rsi.robot_packet(1000 + 4 * k, Q, Q), ROBOT_AT)
     assert road.counts["dropped"] == {"failed": 50} and road.counts["answered"] == 0
     assert sum("failed" in r.message for r in caplog.records) <= 2
+
+
+def test_an_egm_path_correction_is_never_younger_than_one_ms(image):
+    """ABB's age counts whole milliseconds since the measurement; a public sender never sends less than 1."""
+    clock = Clock()
+    road = road_on(image, clock, {"interface": "abb_egm", "abb_egm": {"mode": "path"}})
+    robot = controller_for(RobotSettings.model_validate({"interface": "abb_egm", "abb_egm": {"mode": "path"}}), ROBOT)
+    image.publish(to_plc(sample_age_ms=0.0, correction_q1=0.01))
+    _, kind, _, age, _ = egm.read_answer(road.received(robot.packet(0.0, Q), ROBOT_AT))
+    assert kind == "path" and age == 1
+
+
+@pytest.mark.parametrize("section", [{"interface": "kuka_rsi"}, {"interface": "abb_egm", "abb_egm": {"mode": "path"}}],
+                         ids=["rsi", "egm_path"])
+def test_the_virtual_robot_takes_an_answer_extra_delay_later(section):
+    """`hil circle --extra-delay-ms` on the robot road: the robot holds an answer only that much after it came."""
+    s = RobotSettings.model_validate(section)
+    iface = controller_for(s, ROBOT, delay_s=0.012)
+    from plc_interface.robot.interface import interface_for
+
+    road = interface_for(s, str(ROBOT.source))
+    p = road.parse(iface.packet(0.0, Q))
+    assert iface.take(road.answer(p, list(Q), [0.02] * 6, 5.0), 0.0, Q)
+    assert np.abs(iface.holds(0.008, Q)).max() == 0.0
+    assert np.abs(iface.holds(0.012, Q)).max() > 0.001
+
+
+def test_without_a_plc_the_heartbeat_fault_and_its_reset_name_the_robot(caplog):
+    from service.faults import FaultMonitor
+    from service.supervision import Supervisor
+
+    faults = FaultMonitor("the robot (KUKA RSI packets)")
+    sup = Supervisor(faults, np.array(LIMITS), 0.1, 10)
+    sup.update(0.0, 1, 1, list(Q), False, [])
+    sup.update(0.5, 1, 1, list(Q), False, [])
+    assert "plc_heartbeat of the robot (KUKA RSI packets) unchanged" in faults.last_message["plc_heartbeat"]
+    sup.update(0.6, 1 | 4, 2, list(Q), False, [])
+    assert any("faults reset by the robot (KUKA RSI packets)" in r.message for r in caplog.records)
+
+
+def test_the_config_names_who_commands():
+    from service.config import load_config
+
+    assert load_config(CONFIG / "robot_kuka_rsi.yaml").commander == "the robot (KUKA RSI packets)"
+    assert load_config(CONFIG / "default.yaml").commander == "the PLC"
+    assert not load_config(CONFIG / "robot_kuka_rsi.yaml").cycle_enables_on_start
+
+
+def test_every_interface_has_its_module_on_both_sides():
+    """A robot interface is a sub-section, a road module and a virtual controller, found by one name."""
+    from hil.virtual_robot import CONTROLLERS
+    from plc_interface.robot import settings as robot_settings
+    from plc_interface.robot.interface import INTERFACES, RobotInterface, interface_for
+
+    named = set(robot_settings.INTERFACES) - {"none"}
+    assert named == set(INTERFACES) == set(CONTROLLERS) == set(robot_settings.NAMES)
+    for name in named:
+        assert name in robot_settings.RobotSettings.model_fields
+        section = {"interface": name, name: {"mode": "joint"}} if name == "abb_egm" else {"interface": name}
+        s = RobotSettings.model_validate(section)
+        assert isinstance(interface_for(s), RobotInterface)
+        assert controller_for(s, ROBOT).period > 0

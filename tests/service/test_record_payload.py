@@ -39,6 +39,17 @@ def test_record_from_the_virtual_sensor_then_replay(tmp_path, suffix, capsys):
     assert np.abs(np.array(readings)).max() < 2500
 
 
+def test_a_sensor_that_never_answers_is_named_not_recorded_in_silence(tmp_path, capsys):
+    """Issue 45, item 9: no sensor on the bus (a wrong channel) wrote a log of requests alone and exited 0; the
+    reference of the idle sensor then held none of it. Exit 1, one line naming what to check."""
+    cfg = write_config(tmp_path, {"source": {"can": {"channel": "rec_nobody"}}})
+    out = tmp_path / "idle.blf"
+    assert main(["record", str(out), "--config", str(cfg), "--duration", "0.2"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"record: no sensor sample in {out}: nothing answered"), err
+    assert "source.can.interface, channel and source.ati.base_id" in err[0]
+
+
 def test_record_refuses_an_unknown_log_type(tmp_path, capsys):
     assert main(["record", str(tmp_path / "x.mp3"), "--duration", "0.1"]) == 2
     assert "must be one of" in capsys.readouterr().err

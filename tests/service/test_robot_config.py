@@ -18,7 +18,8 @@ def test_the_default_is_no_robot_road_and_the_io_process_gets_none(tmp_path):
 
 
 def test_a_road_without_a_plc_owns_the_commands_and_takes_the_faults_timeout_and_ramp(tmp_path):
-    cfg = load_config(write_config(tmp_path, {"plc": {"role": "none"}, "robot": {"interface": "abb_egm"},
+    cfg = load_config(write_config(tmp_path, {"plc": {"role": "none"},
+                                              "robot": {"interface": "abb_egm", "abb_egm": {"mode": "joint"}},
                                               "faults": {"plc_heartbeat_timeout_ms": 80}, "limits": {"fault_ramp_s": 0.3}}))
     road = io_settings(cfg, load_model(cfg).robot).robot
     assert road.owns_commands and road.silence_s == pytest.approx(0.08) and road.ramp_s == 0.3
@@ -32,6 +33,8 @@ def test_a_road_without_a_plc_owns_the_commands_and_takes_the_faults_timeout_and
      ["faults.plc_heartbeat_timeout_ms = 8", "cycle_ms = 4"]),
     ({"robot": {"interface": "kuka_rsi", "kuka_rsi": {"cycle_ms": 5}}}, ["robot.kuka_rsi.cycle_ms"]),
     ({"robot": {"interface": "abb_egm", "peer": "robot-1"}}, ["robot.peer"]),
+    ({"robot": {"interface": "abb_egm"}, "faults": {"plc_heartbeat_timeout_ms": 80}},      # path mode: 48 ms
+     ["faults.plc_heartbeat_timeout_ms = 80", "abb_egm cycle_ms = 48"]),
     ({"robot": {"interface": "kuka_rsi", "kuka_rsi": {"sen_type": "Im Free"}}}, ["robot.kuka_rsi.sen_type"]),
 ])
 def test_a_bad_robot_section_is_refused_naming_the_key(tmp_path, overrides, words):
