@@ -24,6 +24,7 @@ from .dynamics import (
 )
 from .iso9283 import circle_figures
 from .lockstep import run_lockstep
+from .probe import ProbeResult, probe
 from .report import end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
 from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
@@ -71,7 +72,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
                dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
-               repeat: int = 1, robot_section: dict | None = None) -> CircleResult:
+               repeat: int = 1, robot_section: dict | None = None, probe_log: Path | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -85,7 +86,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     ``robot_section`` says (default: the shipped config/robot_<interface>.yaml's; EGM in path mode at 48 ms, its
     joint mode refused: position guidance runs no RAPID path, ABB's EGM manual). ``repeat``:
     each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
-    the first cut of each is the one every other figure, the trace and the part come from.
+    the first cut of each is the one every other figure, the trace and the part come from. ``probe_log``: after
+    the last pass the robot probes the part it cut (`hil.probe`) and the log is written there.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
@@ -140,6 +142,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                                "explained_static": round(found.explained_static, 5)}
     if cmm is not None:
         parts[names[-1]].write(cmm)
+    if probe_log is not None:
+        probe(scenario, world, truth.robot, evals[names[-1]]).write(probe_log)
     if report is not None:
         write_report(Path(report), world, evals, passes, summary)
     return CircleResult(summary, passes, evals, world, parts)
@@ -227,20 +231,22 @@ def robot_road(log: dict) -> dict:
 
 @dataclass
 class Cut:
-    """One compensated cut: its path error (mm), the part the virtual CMM measured, the pass itself."""
+    """One compensated cut: its path error (mm), the part the virtual CMM measured, the pass itself, and the
+    robot's own probe of the part when asked for."""
 
     mean_error_mm: float
     max_error_mm: float
     part: CmmResult
     result: PassResult
+    probed: ProbeResult | None = None
 
 
 def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, trace: Path | None = None,
         cmm: Path | None = None, lockstep: bool = True, robot_interface: str | None = None,
-        robot_section: dict | None = None) -> Cut:
+        robot_section: dict | None = None, probe_log: Path | None = None) -> Cut:
     """Cut the circle once with compensation (the learning loop: cut, measure, learn, cut again); writes
-    the service's ``trace`` and the virtual CMM's ``cmm`` when given. ``robot_interface``: through the robot
-    road (in real time), as `run_circle` says."""
+    the service's ``trace``, the virtual CMM's ``cmm`` and the robot's own ``probe_log`` (`hil.probe`) when
+    given. ``robot_interface``: through the robot road (in real time), as `run_circle` says."""
     truth = StiffnessModel.from_yaml(truth_path)
     if robot_interface is not None:
         if lockstep:
@@ -255,8 +261,11 @@ def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, t
     part = measure(scenario, world, ev)
     if cmm is not None:
         part.write(cmm)
+    probed = probe(scenario, world, truth.robot, ev) if probe_log is not None else None
+    if probed is not None:
+        probed.write(probe_log)
     mean, worst = errors(ev)
-    return Cut(mean, worst, part, result)
+    return Cut(mean, worst, part, result, probed)
 
 
 def write_report(folder: Path, world: World, evals: dict, passes: dict, summary: dict) -> None:

@@ -69,6 +69,20 @@ class CmmConfig(Strict):
     part_frame: PoseConfig | None = None
 
 
+class ProbeConfig(Strict):
+    """The virtual probe: the robot touches the contour it machined (`hil.probe`, `stiffcomp hil circle --probe`)."""
+
+    touches: int = Field(120, ge=3, le=10_000)          # 84 or more: `part diagnose` of a 36-parameter model
+    stylus_radius_mm: float = Field(1.5, gt=0.0, le=50.0)
+    speed_mm_s: float = Field(5.0, gt=0.0, le=500.0)            # the probing speed along the normal
+    latency_ms: float = Field(1.0, ge=0.0, le=100.0)             # from the trigger to the latch, stated in the log
+    latency_jitter_ms: float = Field(0.5, ge=0.0, le=100.0)      # +- around it, uniform: what the log cannot state
+    repeatability_mm: float = Field(0.03, ge=0.0, le=5.0)        # ISO 9283 RP, taken as 3 sigma per axis
+    seed: int = 17
+    entry_exit_mask_deg: float = Field(10.0, ge=0.0, le=180.0)
+    depth_mm: float = Field(2.0, ge=0.0, le=100.0)
+
+
 class Scenario(Strict):
     truth: str
     model: str
@@ -80,6 +94,7 @@ class Scenario(Strict):
     plc: PlcConfig = Field(default_factory=PlcConfig)
     payload: GravityConfig = Field(default_factory=GravityConfig)     # the truth: what the sensor carries
     cmm: CmmConfig = Field(default_factory=CmmConfig)
+    probe: ProbeConfig = Field(default_factory=ProbeConfig)
 
     path: Path = Field(default=Path("<scenario>"), exclude=True)
 

@@ -1,8 +1,8 @@
 """docs/part.md's examples are what the commands print (issue 35, item 14).
 
 Every code block of the page that opens with a `$ stiffcomp ...` line is run, in the page's order, in a folder
-of its own that holds examples/ and config/ as a checkout does (and the truth_h.yaml the page describes, made
-as it says), in lock step, so the figures are the same on every run. What each prints is held to the page's
+of its own that holds examples/ and config/ as a checkout does (and the truth_h.yaml and truth_gh.yaml the page
+describes, made as it says), in lock step, so the figures are the same on every run. What each prints is held to the page's
 lines: the same words, every number within two units of its last printed digit (an integer exactly), and
 `...` standing for lines (a line of its own) or for text within a line left out.
 """
@@ -89,6 +89,10 @@ def test_the_pages_examples_are_what_the_commands_print(tmp_path, monkeypatch, c
     d = truth.to_dict()
     d["effects"].append({"effect": "hysteresis", "joint": 1, "offset_deg": 0.012})
     StiffnessModel.from_dict(d, "truth_h", robot=truth.robot).to_yaml(tmp_path / "truth_h.yaml")
+    built = StiffnessModel.from_yaml(ROOT / "examples" / "truth_geometric_errors.yaml")       # the same hysteresis on
+    d = built.to_dict()                                                                      # the robot with DH errors
+    d["effects"].append({"effect": "hysteresis", "joint": 1, "offset_deg": 0.012})
+    StiffnessModel.from_dict(d, "truth_gh", robot=built.robot).to_yaml(tmp_path / "truth_gh.yaml")
     monkeypatch.chdir(tmp_path)
     for command, shown in found:
         argv = shlex.split(command)

@@ -82,3 +82,30 @@ def synthetic_cut(truth: StiffnessModel, folder: Path, name: str = "cut", center
     write_part(folder / f"{name}_part.csv", (wall - T[:3, 3]) @ T[:3, :3] * 1000.0, TOOL_RADIUS_MM, frame, name)
     return SyntheticCut(folder / f"{name}.csv", folder / f"{name}_part.csv",
                         np.einsum("na,na->n", dX[pick], n) * 1000.0, wall, frame)
+
+
+STYLUS_RADIUS_MM = 1.5
+
+
+def probe_touches(cut: SyntheticCut, robot, touches: int = 36, stylus_radius_mm: float = STYLUS_RADIUS_MM,
+                  center_q=CENTER_Q, ik_points: int = 720) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The robot's own probe of ``cut``'s wall: ``touches`` of its points, each touched by a stylus of
+    ``stylus_radius_mm`` moving along the wall's normal, the joints latched at the contact (no latency, no
+    repeatability) by ``robot``'s inverse kinematics (the robot that cut it: its geometry is the truth's).
+    Returns the latched joints (deg), the approach directions (base) and which of the part's points were touched."""
+    import pinocchio as pin
+
+    from hil.path import solve_ik
+
+    path = _circle(robot, tuple(center_q), ik_points)
+    pick = np.linspace(0, len(cut.points_base) - 1, touches).astype(int)
+    wall = cut.points_base[pick]
+    a = path.R_tool[:, 2]
+    n = (wall - path.center) @ (np.eye(3) - np.outer(a, a))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    centre = wall - stylus_radius_mm / 1000.0 * n
+    q, guess = [], np.radians(center_q)
+    for x in centre:
+        guess = solve_ik(robot, pin.SE3(path.R_tool, x), guess)
+        q.append(np.degrees(guess))
+    return np.array(q), n, pick

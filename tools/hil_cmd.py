@@ -29,6 +29,9 @@ def register(sub) -> None:
     c.add_argument("--cmm", default=None, metavar="FILE.csv|FILE.qif",
                    help="write the cut part as the virtual CMM measures it: a part CSV, or QIF 3 results to a .qif "
                         "file (docs/part_format.md)")
+    c.add_argument("--probe", default=None, metavar="FILE.csv",
+                   help="after the cut the robot probes the part it cut (the scenario's probe section) and writes the "
+                        "probe log to FILE (docs/part_format.md)")
     c.add_argument("--repeat", default="1", metavar="N",
                    help="cut each pass N times (ISO 9283's cycles) for path_accuracy_mm and path_repeatability_mm "
                         "(default 1: no repeatability)")
@@ -128,7 +131,7 @@ def _check_outputs_and_reach(args, scenario) -> None:
     from stiffness.errors import ConfigError
     from stiffness.model.stiffness_model import StiffnessModel
 
-    for option, path in (("--cmm", args.cmm), ("--modes-data", args.modes_data)):
+    for option, path in (("--cmm", args.cmm), ("--probe", args.probe), ("--modes-data", args.modes_data)):
         if path is not None:
             check_output_file(option, path)
     robot = StiffnessModel.from_yaml(args.truth or scenario.resolve(scenario.truth)).robot
@@ -204,7 +207,7 @@ def run(args) -> int:
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
                      lockstep=args.lockstep, dynamic=dynamic, repeat=repeat, robot_interface=args.robot_interface,
-                     robot_section=robot_section)
+                     robot_section=robot_section, probe_log=Path(args.probe) if args.probe else None)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
@@ -233,6 +236,8 @@ def run(args) -> int:
             qif = args.cmm.lower().endswith(".qif")
             print(f"part measurement: {args.cmm}" + (f" (QIF 3; `stiffcomp part` reads it with "
                                                        f"{res.cmm[list(res.passes)[-1]].qif_options})" if qif else ""))
+        if args.probe:
+            print(f"probe log: {args.probe} (the robot's own touches; `stiffcomp part` reads it without a part frame)")
         if args.report:
             print(f"report: {Path(args.report) / 'hil_circle.png'}, {Path(args.report) / 'summary.json'}")
     return 0

@@ -6,7 +6,8 @@
     stiffcomp part features FILE.qif [--json]
 
 PART may be a CMM's QIF 3 results file (.qif; `tools.part_qif`: --feature, --results, --tool-radius-mm,
---part-frame).
+--part-frame), or the robot's own probe log (`stiffness.data.probe_log`: its header names the latched joints;
+no part frame, so --part-frame and --best-fit are refused with it).
 
 TRACE is `stiffcomp run --trace` (or `hil circle --trace`); PART a CMM's or a probe's points in the part
 format (docs/part_format.md).
@@ -51,7 +52,7 @@ def _common(p, more: bool = False) -> None:
 
     p.add_argument("model", help="model YAML")
     p.add_argument("trace", help="the trace of the cut (`stiffcomp run --trace FILE`, .csv or .parquet)")
-    p.add_argument("part", help="the part's measured points (docs/part_format.md)")
+    p.add_argument("part", help="the part's measured points, or the robot's own probe log (docs/part_format.md)")
     if more:
         p.add_argument("--part", dest="more", nargs=2, action="append", default=[], metavar=("TRACE", "PART"),
                        help="another part and the trace of its cut (repeat for more)")
@@ -82,18 +83,41 @@ def _check_options(args) -> None:
         check_number("--prior-relative", args.prior_relative, "a fraction of each value", above=0.0)
     if getattr(args, "output", None):
         check_output_file("-o", args.output)
-    part_qif.check_options(args, [args.part] + [x[1] for x in getattr(args, "more", [])])
+    parts = [args.part] + [x[1] for x in getattr(args, "more", [])]
+    _check_probe_options(args, parts)
+    part_qif.check_options(args, parts)
+
+
+def _check_probe_options(args, parts: list[str]) -> None:
+    """A probe log is in the robot's base already: a part frame or a best fit given with one is refused."""
+    from stiffness.data.probe_log import PART_FRAME_MEANINGLESS, is_probe_log
+    from stiffness.errors import ConfigError
+
+    probes = [p for p in parts if is_probe_log(p)]
+    if not probes:
+        return
+    if args.part_frame is not None:
+        raise ConfigError(f"--part-frame is meaningless with the probe log {probes[0]}: {PART_FRAME_MEANINGLESS}")
+    if args.best_fit:
+        raise ConfigError(f"--best-fit is meaningless with the probe log {probes[0]}: {PART_FRAME_MEANINGLESS}, so "
+                          "there is no placement to fit")
 
 
 def _parts(args, model) -> tuple[list, list[dict]]:
     """Each part read against its trace, and the features of its QIF file left out (their points cannot be
     read): named in the part's notes (the text) and returned for the JSON's ``left_out_features``."""
+    from stiffness.data.probe_log import is_probe_log, read_probe
     from stiffness.data.trace_file import read_trace
+    from stiffness.part.probe import read_probe_against
     from stiffness.part.rows import read_against
 
     pairs = [(args.trace, args.part)] + [tuple(x) for x in getattr(args, "more", [])]
     out, features_left_out = [], []
     for k, (trace, part) in enumerate(pairs):
+        if is_probe_log(part):
+            out.append(read_probe_against(read_probe(part), read_trace(trace), model.robot, f"part {k + 1}",
+                                          near_mm=args.near_mm, smooth_hz=args.smooth_hz))
+            continue
         measurement, left_out = part_qif.read_any(part, args)
         rows = read_against(measurement, read_trace(trace), model.robot, f"part {k + 1}",
                             best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz)

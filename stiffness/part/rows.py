@@ -168,7 +168,7 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     q_cmd = trace.commanded_q_deg
     F = robot.frames(np.radians(q_cmd))
     c_all, a_all = F[:, 7, :3, 3], F[:, 7, :3, 2]
-    moving = _moving(trace.time_s, c_all) & run
+    moving = at_feed(trace.time_s, c_all) & run
     if moving.sum() < 3:
         raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {part.source}")
     a = np.median(a_all[moving], axis=0)
@@ -295,7 +295,7 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
                     notes)
 
 
-def _moving(t: np.ndarray, c: np.ndarray) -> np.ndarray:
+def at_feed(t: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Samples where the tool moves at a cutting feed: faster than a quarter of its typical speed."""
     v = np.zeros(len(t))
     dt = np.diff(t)

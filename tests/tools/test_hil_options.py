@@ -2,7 +2,7 @@
 the service takes, an option of the dynamic pass without it, and the dynamic pass without the static one it
 builds on each exit 2 naming the option (nothing is ignored in silence, nothing starts). So do a --repeat that
 is not a whole number of 1 or more, a circle the arm cannot follow from --center-q (the inverse kinematics
-fails), a --cmm or --modes-data file in a folder that does not exist (written at the end of the cut), and
+fails), a --cmm, --probe or --modes-data file in a folder that does not exist (written at the end of the cut), and
 --added-damping or --mode-error the service would refuse
 (after two passes, naming its temporary config)."""
 
@@ -27,6 +27,7 @@ from tools.cli import main
      r"this pose cannot be followed: inverse kinematics did not converge .* at 0 deg along the circle \(a point out "
      r"of the arm's reach.*the scenario's: 0 -60 90 0 60 0\)")),
     (["--cmm", "{tmp}/missing/part.csv"], r"--cmm {tmp}/missing/part\.csv: the folder {tmp}/missing does not exist"),
+    (["--probe", "{tmp}/missing/probe.csv"], r"--probe {tmp}/missing/probe\.csv: the folder {tmp}/missing does not exist"),
     (["--dynamic-compensation", "--modes-data", "{tmp}/missing/tap.csv"],
      r"--modes-data {tmp}/missing/tap\.csv: the folder {tmp}/missing does not exist"),
     (["--dynamic-compensation", "--added-damping", "-1"],
@@ -40,7 +41,7 @@ from tools.cli import main
     (["--repeat", "2.5"], r"--repeat 2\.5: must be a whole number, at least 1"),
     (["--repeat", "three"], r"--repeat three: must be a whole number, at least 1"),
 ], ids=["delay<0", "delay>100", "center-nan", "service-delay<0", "delay-alone", "dynamic-options-alone",
-        "dynamic-without-static", "center-out-of-reach", "cmm-folder", "modes-data-folder", "added-damping<0",
+        "dynamic-without-static", "center-out-of-reach", "cmm-folder", "probe-folder", "modes-data-folder", "added-damping<0",
         "added-damping>2", "mode-error=-1", "mode-error=nan", "repeat=0", "repeat=2.5", "repeat=three"])
 def test_a_bad_option_exits_2_naming_it_before_any_pass(args, message, capsys, tmp_path):
     refused(args, message, capsys, tmp_path)

@@ -1,0 +1,212 @@
+"""A probe log: the robot probes its own machined contour with a touch probe in the spindle
+(docs/part_format.md, "A probe log").
+
+A CSV file: a few ``# key: value`` lines (YAML), then a header row and one row per touch:
+
+    # stiffcomp probe: the paper's circle, probed by the robot after the cut
+    # tool_radius_mm: 4.0
+    # stylus_radius_mm: 1.5
+    # probe_frame: {xyz_mm: [0.0, 0.0, 250.0], rpy_deg: [0.0, 0.0, 0.0]}
+    touch,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,approach_x,approach_y,approach_z
+    1,0.5303,-59.6431,89.7312,0.0000,59.9119,0.5303,0.984808,0.173648,0.000000
+
+q1_deg .. q6_deg         the joints the controller latched at the probe's trigger, deg (KUKA's $AXIS_INT after a
+                         fast measurement input, ABB's SearchL hit through CalcJointT)
+approach_x, _y, _z       the nominal direction the probe moved in when it touched, robot base axes (made unit)
+touch                    a label per touch (optional; the line number names a touch otherwise)
+tool_radius_mm           the cutter's radius (required): the wall lies that far from the cutter's axis
+stylus_radius_mm         the stylus ball's radius (required; its effective radius, from a ring gauge)
+probe_frame              the stylus ball's centre in the flange (DH frame 6): xyz_mm and rpy_deg as the robot
+                         YAML's ``tcp`` (required)
+probing_speed_mm_s,      optional, together: the probe moved on at the probing speed for the trigger's
+trigger_latency_ms       latency before the joints were latched; the reader takes that distance back along the
+                         approach
+
+The touched point, in the robot's base, through the model's own (nominal) kinematics:
+
+    p = FK_probe(q_trigger) + (r_s - v tau) d        d the approach direction, r_s the stylus radius
+
+and the cut's commanded tool centre is FK(q_commanded + correction) through the same kinematics, at nearly
+the same joints: the robot's geometric errors (its DH table's, its encoders' offsets) cancel to first order
+between the two, and no part frame is needed (both are in the robot's base). A ``part_frame`` key is refused
+by name: it would mean nothing here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydantic import Field, ValidationError
+
+from ..errors import DataError, Problems, quote
+from ..files.csv_table import read_table
+from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
+from ..kinematics.robot import PoseConfig, Robot
+from .part_points import PartMeasurement
+
+JOINT_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
+APPROACH_COLS = ("approach_x", "approach_y", "approach_z")
+HEADER = "touch," + ",".join(JOINT_COLS + APPROACH_COLS)
+PART_FRAME_MEANINGLESS = ("a probe log needs no part frame: its touches are the robot's own joints, read through "
+                          "the same kinematics as the trace, in the robot's base")
+
+
+class ProbeHeader(Strict):
+    """The ``# key: value`` lines of a probe log."""
+
+    stiffcomp_probe: str | None = None
+    tool_radius_mm: float = Field(gt=0.0, le=500.0)
+    stylus_radius_mm: float = Field(gt=0.0, le=50.0)
+    probe_frame: PoseConfig
+    probing_speed_mm_s: float | None = Field(None, gt=0.0, le=1000.0)
+    trigger_latency_ms: float | None = Field(None, ge=0.0, le=100.0)
+
+
+@dataclass
+class ProbeLog:
+    """The touches of a probe log: latched joints, approach directions and the probe's geometry."""
+
+    source: str
+    q_deg: np.ndarray              # (N, 6) latched at each trigger
+    approach: np.ndarray           # (N, 3) unit, base axes
+    labels: list[str]
+    lines: np.ndarray              # (N,) the file line of each touch
+    tool_radius_mm: float
+    stylus_radius_mm: float
+    probe_frame: PoseConfig
+    probing_speed_mm_s: float | None = None
+    trigger_latency_ms: float | None = None
+    title: str = ""
+
+    def __len__(self) -> int:
+        return len(self.q_deg)
+
+    @property
+    def overtravel_mm(self) -> float:
+        """How far the probe moved on between the contact and the latch: v tau (mm; 0 when not given)."""
+        if self.probing_speed_mm_s is None or self.trigger_latency_ms is None:
+            return 0.0
+        return self.probing_speed_mm_s * self.trigger_latency_ms / 1000.0
+
+    def centres(self, robot: Robot) -> np.ndarray:
+        """The stylus ball's centre at each trigger (N, 3, m, base) through ``robot``'s kinematics."""
+        F = robot.frames(np.radians(self.q_deg))
+        return (F[:, 6] @ self.probe_frame.matrix())[:, :3, 3]
+
+    def points(self, robot: Robot) -> np.ndarray:
+        """The touched points (N, 3, m, base): each centre plus the stylus radius, less the overtravel, along
+        the approach."""
+        reach = (self.stylus_radius_mm - self.overtravel_mm) / 1000.0
+        return self.centres(robot) + reach * self.approach
+
+    def as_part(self, robot: Robot) -> PartMeasurement:
+        """The touched points as a part measured in the robot's base (its frame the identity)."""
+        return PartMeasurement(self.source, self.points(robot) * 1000.0, self.labels, self.lines,
+                               self.tool_radius_mm, np.eye(4), self.title)
+
+    def where(self, k: int) -> str:
+        return f"{self.source}: line {self.lines[k]}"
+
+
+def is_probe_log(path: str | Path) -> bool:
+    """Whether ``path`` is a probe log rather than a CMM's points: its header row names the latched joints."""
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            for line in f:
+                if line.startswith("#") or not line.strip():
+                    continue
+                return "q1_deg" in [c.strip() for c in line.split(",")]
+    except (OSError, UnicodeDecodeError):
+        return False
+    return False
+
+
+def read_probe(path: str | Path) -> ProbeLog:
+    """Read and check a probe log; DataError names the file and the line of every problem."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: probe log not found")
+    problems = Problems()
+    table = read_table(path, problems, HEADER)
+    header = _header(path, table.head)
+    cols = table.cols
+    missing = [c for c in JOINT_COLS + APPROACH_COLS if c not in cols]
+    if missing:
+        raise DataError(f"{path}: line {table.header_line}: missing column(s) {', '.join(missing)}; a probe log "
+                        f"needs {HEADER} (docs/part_format.md)")
+    idx = [cols.index(c) for c in JOINT_COLS + APPROACH_COLS]
+    label_col = cols.index("touch") if "touch" in cols else None
+    q, d, labels, where = [], [], [], []
+    for line, row in table.rows:
+        try:
+            v = [float(row[i]) for i in idx]
+        except ValueError:
+            problems.add(f"{path}: line {line}: the joints and the approach must be numbers, got "
+                         f"{', '.join(quote(row[i].strip()) for i in idx)}")
+            continue
+        if not all(math.isfinite(x) for x in v):
+            problems.add(f"{path}: line {line}: a value is not finite")
+            continue
+        n = float(np.linalg.norm(v[6:]))
+        if n < 1e-6:
+            problems.add(f"{path}: line {line}: the approach direction is zero: give the direction the probe "
+                         "moved in when it touched")
+            continue
+        q.append(v[:6])
+        d.append(np.array(v[6:]) / n)
+        labels.append(row[label_col].strip() if label_col is not None else str(line))
+        where.append(line)
+    if problems:
+        raise DataError(f"{path}: {problems.count} problem(s); nothing was loaded", problems)
+    if len(q) < 3:
+        raise DataError(f"{path}: {len(q)} touch(es); a contour needs at least 3")
+    return ProbeLog(str(path), np.array(q), np.array(d), labels, np.array(where), header.tool_radius_mm,
+                    header.stylus_radius_mm, header.probe_frame, header.probing_speed_mm_s,
+                    header.trigger_latency_ms, header.stiffcomp_probe or "")
+
+
+def _header(path: Path, head: list[str]) -> ProbeHeader:
+    try:
+        data = yaml.load("\n".join(head), Loader=NoAliasLoader) or {}
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise DataError(f"{path}:{where}: the '# key: value' lines are not valid YAML: "
+                        f"{getattr(e, 'problem', e)}") from None
+    if not isinstance(data, dict):
+        raise DataError(f"{path}: the '#' lines must be 'key: value' lines (tool_radius_mm, stylus_radius_mm, "
+                        "probe_frame)")
+    data = {str(k).replace(" ", "_"): v for k, v in data.items()}
+    if "part_frame" in data:
+        raise DataError(f"{path}: part_frame: {PART_FRAME_MEANINGLESS}; remove the key")
+    if (data.get("probing_speed_mm_s") is None) != (data.get("trigger_latency_ms") is None):
+        raise DataError(f"{path}: probing_speed_mm_s and trigger_latency_ms go together (the probe moves on v tau "
+                        "between the contact and the latch); give both or neither")
+    try:
+        return ProbeHeader.model_validate(data)
+    except ValidationError as e:
+        raise DataError(format_validation_error(str(path), e)) from None
+
+
+def write_probe(path: str | Path, q_deg: np.ndarray, approach: np.ndarray, tool_radius_mm: float,
+                stylus_radius_mm: float, probe_frame: PoseConfig, title: str = "",
+                probing_speed_mm_s: float | None = None, trigger_latency_ms: float | None = None) -> Path:
+    """Write touches (latched joints (N, 6) deg, approach directions (N, 3) base) as a probe log."""
+    path = Path(path)
+    lines = [f"# stiffcomp probe: {title or 'the robot probes its own part'}",
+             f"# tool_radius_mm: {tool_radius_mm:g}",
+             f"# stylus_radius_mm: {stylus_radius_mm:g}",
+             (f"# probe_frame: {{xyz_mm: [{', '.join(f'{v:.4f}' for v in probe_frame.xyz_mm)}], "
+              f"rpy_deg: [{', '.join(f'{v:.6g}' for v in probe_frame.rpy_deg)}]}}")]
+    if probing_speed_mm_s is not None and trigger_latency_ms is not None:
+        lines += [f"# probing_speed_mm_s: {probing_speed_mm_s:g}", f"# trigger_latency_ms: {trigger_latency_ms:g}"]
+    lines.append(HEADER)
+    # joints to 1e-6 deg: 0.03 um at 2 m of reach, below any probe's resolution
+    lines += [f"{k + 1}," + ",".join(f"{v:.6f}" for v in q) + "," + ",".join(f"{v:.6f}" for v in d)
+              for k, (q, d) in enumerate(zip(q_deg, approach))]
+    path.write_text("\n".join(lines) + "\n")
+    return path

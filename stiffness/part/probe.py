@@ -1,0 +1,116 @@
+"""A probe log read against the trace of the cut it probed: the touches checked, then read as a part's points
+in the robot's base (docs/part.md, "The robot probes its own part").
+
+Each touch's point p = FK_probe(q_trigger) + (r_s - v tau) d (`stiffness.data.probe_log`) goes through the
+same reading as a CMM's point (`stiffness.part.rows.read_against`), its frame the identity: the commanded
+tool centre c(u) = FK(q(u)) of the trace and p are both the model's forward kinematics of joints a fraction of
+a degree apart, so what the robot's geometry gets wrong, DH lengths, twists and encoder offsets, is nearly the
+same in both and leaves e = |P (p - c(u))| - r to second order (the joints' difference times the error's
+gradient: a few um for a 0.2 mm, 0.02 deg table error at 1 mm of deflection).
+
+Before that, each touch is checked against the path the trace cut, in the plane across the tool axis, and a
+touch that cannot be a touch of this contour is refused by line, nothing used:
+
+* the approach direction d must point toward the wall along its normal n (from the traced tool centre to the
+  point), within MAX_APPROACH_DEG: the point is taken r_s along d, so a slant of theta misplaces it by
+  r_s (1 - cos theta) along n, and a probe that moved away from the wall or along it touched something else;
+* the trigger must lie where the tool passed: the point within ``near_mm`` of the tool radius off the path;
+* the stylus radius must fit: when most touches lie off the wall by one common distance beyond ``near_mm``,
+  the radius is named with the one that puts them on it, rather than every touch as far off; most touches off
+  by distances that differ: the log and the trace do not belong together.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..data.probe_log import ProbeLog
+from ..data.trace_file import Trace
+from ..errors import DataError, Problems
+from ..kinematics.robot import Robot
+from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, read_against
+
+MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
+CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
+
+
+def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",
+                       near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
+    """The touches of ``probe`` checked against ``trace`` (module docstring), then read as a part's points in
+    the robot's base (`read_against`)."""
+    check_touches(probe, trace, robot, near_mm)
+    rows = read_against(probe.as_part(robot), trace, robot, label, near_mm=near_mm, smooth_hz=smooth_hz)
+    taken = (f", {probe.overtravel_mm * 1000:.1f} um of overtravel (v tau) taken back along the approach"
+             if probe.overtravel_mm else "")
+    rows.notes.insert(0, f"{probe.source}: {len(probe)} touches of the robot's own probe (stylus radius "
+                         f"{probe.stylus_radius_mm:g} mm{taken}), read in the robot's base: no part frame")
+    return rows
+
+
+def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = NEAR_MM) -> np.ndarray:
+    """Each touch's deviation from the traced path, e = |P (p - c)| - r (mm), after the checks of the module's
+    docstring; DataError naming the file and every touch's line that fails one."""
+    run = trace.column("task_state") == TASK_RUN
+    if not run.any():
+        raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
+    F = robot.frames(np.radians(trace.commanded_q_deg))    # as `read_against` reads them
+    c_all = F[:, 7, :3, 3]
+    moving = at_feed(trace.time_s, c_all) & run
+    if moving.sum() < 3:
+        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {probe.source}")
+    a = np.median(F[moving, 7, :3, 2], axis=0)
+    a /= np.linalg.norm(a)
+    e1, e2 = plane_basis(a)
+    c = c_all[moving]
+    c2 = np.column_stack([c @ e1, c @ e2])
+    tree = cKDTree(c2)
+    x = probe.centres(robot)
+    x2 = np.column_stack([x @ e1, x @ e2])
+    dist, j = tree.query(x2)
+    n = (x2 - c2[j]) / np.maximum(dist, 1e-12)[:, None]        # across the path, toward the stylus centre
+    p = probe.points(robot)
+    p2 = np.column_stack([p @ e1, p @ e2])
+    dist_p, j_p = tree.query(p2)
+    near_path = dist < CENTRE_ON_PATH_MM / 1000.0                # a stylus about the cutter's size: its centre
+    n[near_path] = ((p2 - c2[j_p]) / np.maximum(dist_p, 1e-12)[:, None])[near_path]    # tells no side
+    d2 = np.column_stack([probe.approach @ e1, probe.approach @ e2])
+    toward = np.einsum("nk,nk->n", n, d2)
+    side = 1.0 if np.median(toward) >= 0 else -1.0                # the wall beyond the centre (r_s < r) or not
+    r = probe.tool_radius_mm / 1000.0
+    rs = probe.stylus_radius_mm / 1000.0 - probe.overtravel_mm / 1000.0
+    e_mm = (np.where(near_path, dist_p - r, side * dist - (r - rs))) * 1000.0
+    _stylus_fits(probe, e_mm, near_mm)
+    if (np.abs(e_mm) > near_mm).mean() > 0.5:
+        raise DataError(f"{probe.source}: the trace {trace.source} never passes the probed contour: the touches lie "
+                        f"a median {np.median(np.abs(e_mm)):.1f} mm off the wall it cut (tolerance {near_mm:g} mm), "
+                        "and not by one common distance; they do not belong together")
+    problems = Problems()
+    angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
+    for k in range(len(probe)):
+        d = probe.approach[k]
+        if angle[k] > MAX_APPROACH_DEG:
+            problems.add(f"{probe.where(k)}: the approach ({d[0]:+.3f}, {d[1]:+.3f}, {d[2]:+.3f}) is not toward "
+                         f"the contour: it makes {angle[k]:.0f} deg with the wall's normal there (at most "
+                         f"{MAX_APPROACH_DEG:g} deg: the probe moves toward the wall along its normal)")
+        elif abs(e_mm[k]) > near_mm:
+            problems.add(f"{probe.where(k)}: the trigger lies {e_mm[k]:+.2f} mm off the wall the trace "
+                         f"{trace.source} cut (tolerance {near_mm:g} mm): far from any point the tool traced, the "
+                         "probe touched something else")
+    if problems:
+        raise DataError(f"{probe.source}: {problems.count} touch(es) are not touches of the contour the trace "
+                        "cut; nothing was used", problems)
+    return e_mm
+
+
+def _stylus_fits(probe: ProbeLog, e_mm: np.ndarray, near_mm: float) -> None:
+    """Most touches off the wall by one distance beyond ``near_mm``: the stylus radius, not the touches."""
+    mid = float(np.median(e_mm))
+    common = np.abs(e_mm - mid) <= near_mm
+    if abs(mid) > near_mm and common.mean() > 0.5:
+        fit = probe.stylus_radius_mm - mid
+        better = (f"a stylus radius of about {fit:.1f} mm would put them on it, within the arm's deflection" if fit > 0 else
+                  "no stylus radius puts them on it: is tool_radius_mm the cutter's?")
+        raise DataError(f"{probe.source}: stylus_radius_mm = {probe.stylus_radius_mm:g} does not fit: "
+                        f"{int(common.sum())} of {len(e_mm)} touches lie {mid:+.2f} mm off the wall the trace cut "
+                        f"(median), {better}; give the stylus's effective radius (from a ring gauge)")
