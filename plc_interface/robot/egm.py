@@ -136,7 +136,7 @@ def robot_packet(seqno: int, tm_ms: int, planned_deg, feedback_deg, pose=None) -
 def read_answer(data: bytes) -> tuple[int, str, tuple[float, ...], int | None, int | None]:
     """(seqno, ``joints`` or ``path``, the six joints or the path offset x, y, z, the age in ms or None, the
     header's tm or None) of a sensor's answer, told apart by its header type; PacketError when it is not one.
-    The road's answers repeat, in tm, the tm of the robot's packet they answer (`plc_interface.robot.answers`)."""
+    The road's answers repeat, in tm, the tm of the robot's packet they answer (`plc_interface.robot.abb_egm`)."""
     for cls, mtype in ((pb.EgmSensor, CORRECTION), (pb.EgmSensorPathCorr, PATH_CORRECTION)):
         msg = cls()
         try:
