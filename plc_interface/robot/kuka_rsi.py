@@ -115,7 +115,7 @@ class KukaRsi(RobotInterface):
 
     def restart(self) -> None:
         super().restart()
-        if getattr(self, "check", None) is not None:
+        if self.check is not None:                          # set before the base class restarts
             self.check.reset()
 
     def parse(self, data: bytes) -> RobotPacket:

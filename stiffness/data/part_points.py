@@ -24,7 +24,6 @@ trace says the tool went only after scaling by 25.4 or 1000 is named as inches o
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,7 +31,7 @@ import numpy as np
 import yaml
 from pydantic import Field
 
-from ..errors import DataError, Problems, quote
+from ..errors import DataError, Problems
 from ..files.csv_table import read_table
 from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
 from ..kinematics.robot import PoseConfig
@@ -91,19 +90,9 @@ def read_part(path: str | Path) -> PartMeasurement:
         hint = f" ({unit} is not millimetres: the format is mm)" if unit else ""
         raise DataError(f"{path}: line {table.header_line}: missing column(s) {', '.join(missing)}{hint}; "
                         f"the format needs {', '.join(POINT_COLS)} (docs/part_format.md)")
-    idx = [cols.index(c) for c in POINT_COLS]
     label_col = cols.index("point") if "point" in cols else None
     pts, labels, where = [], [], []
-    for line, row in table.rows:
-        try:
-            p = [float(row[i]) for i in idx]
-        except ValueError:
-            problems.add(f"{path}: line {line}: x_mm, y_mm and z_mm must be numbers, got "
-                         f"{', '.join(quote(row[i].strip()) for i in idx)}")
-            continue
-        if not all(math.isfinite(v) for v in p):
-            problems.add(f"{path}: line {line}: a coordinate is not finite")
-            continue
+    for line, row, p in table.numbers(path, POINT_COLS, problems, "x_mm, y_mm and z_mm", "coordinate"):
         pts.append(p)
         labels.append(row[label_col].strip() if label_col is not None else str(line))
         where.append(line)

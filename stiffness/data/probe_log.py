@@ -34,7 +34,6 @@ by name: it would mean nothing here.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,7 +41,7 @@ import numpy as np
 import yaml
 from pydantic import Field, ValidationError
 
-from ..errors import DataError, Problems, quote
+from ..errors import DataError, Problems
 from ..files.csv_table import read_table
 from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
 from ..kinematics.robot import PoseConfig, Robot
@@ -138,19 +137,10 @@ def read_probe(path: str | Path) -> ProbeLog:
     if missing:
         raise DataError(f"{path}: line {table.header_line}: missing column(s) {', '.join(missing)}; a probe log "
                         f"needs {HEADER} (docs/part_format.md)")
-    idx = [cols.index(c) for c in JOINT_COLS + APPROACH_COLS]
     label_col = cols.index("touch") if "touch" in cols else None
     q, d, labels, where = [], [], [], []
-    for line, row in table.rows:
-        try:
-            v = [float(row[i]) for i in idx]
-        except ValueError:
-            problems.add(f"{path}: line {line}: the joints and the approach must be numbers, got "
-                         f"{', '.join(quote(row[i].strip()) for i in idx)}")
-            continue
-        if not all(math.isfinite(x) for x in v):
-            problems.add(f"{path}: line {line}: a value is not finite")
-            continue
+    for line, row, v in table.numbers(path, JOINT_COLS + APPROACH_COLS, problems, "the joints and the approach",
+                                      "value"):
         n = float(np.linalg.norm(v[6:]))
         if n < 1e-6:
             problems.add(f"{path}: line {line}: the approach direction is zero: give the direction the probe "

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import DataError, Problems
+from ..errors import DataError, Problems, quote
 
 
 @dataclass
@@ -23,6 +24,23 @@ class Table:
     header_line: int
     cols: list[str]
     rows: list[tuple[int, list[str]]]
+
+    def numbers(self, path, names: list[str], problems: Problems, what: str, noun: str):
+        """(line, fields, values) of each row whose columns ``names`` hold finite numbers; a row that does not
+        is added to ``problems`` naming the line (``what`` must be numbers; a ``noun`` is not finite) and left
+        out."""
+        idx = [self.cols.index(c) for c in names]
+        for line, row in self.rows:
+            try:
+                v = [float(row[i]) for i in idx]
+            except ValueError:
+                problems.add(f"{path}: line {line}: {what} must be numbers, got "
+                             f"{', '.join(quote(row[i].strip()) for i in idx)}")
+                continue
+            if not all(math.isfinite(x) for x in v):
+                problems.add(f"{path}: line {line}: a {noun} is not finite")
+                continue
+            yield line, row, v
 
 
 def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
