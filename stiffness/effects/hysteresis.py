@@ -26,10 +26,12 @@ Input:  the torque the joint's motion follows (YAML: bandwidth_hz, fixed, defaul
        "Hysteresis under a ripple"); the default is half that mode. Readings further apart than a few
        periods (a campaign's load steps) pass unchanged: the low-pass acts in time, on the readings' own
        time stamps (or the cycle's dt), and a reading with no time step passes as it is.
-Start:  z = 0 (the middle of the two branches: the history is unknown) with the first torque as the
-       turning point. Offline the state starts at each configuration's first reading and carries across
-       its load sequences in time order; the service starts it at start-up, after a tare and after a
-       fault reset (docs/service.md).
+Start:  z = 0 (the middle of the two branches: the history is unknown). The contacts stick while the
+       torque stays within tau_b of every torque since the start; the first move that takes it more than
+       tau_b above the lowest (below the highest) turns there, so z stays continuous in the torque.
+       Offline the state starts at each configuration's first reading and carries across its load
+       sequences in time order; the service starts it at start-up, after a tare and after a fault reset
+       (docs/service.md).
 
 `loading_law` is the one implementation of the law; the model's basis (through `LoadingState`), the HIL's
 robot stub (the truth model) and the service's real-time term (a `HistoryTerm`: delta_rz = h z, the state
@@ -73,7 +75,8 @@ def loading_law(s, p, tau, dt):
     """The loading state's law, one torque in time order: updates s in place and returns z.
 
     s = [z, turning torque tau_r (Nm), direction (-1, 0, 1), started (0 or 1), z at the turn z_r, the
-    extreme since the turn (Nm), the low-pass's two stages (Nm)]; p = [breakaway tau_b (Nm), transition
+    extreme since the turn (Nm), the low-pass's two stages (Nm)]; before the first move (direction 0)
+    s[1] and s[5] hold the lowest and the highest torque since the start; p = [breakaway tau_b (Nm), transition
     tau_t (Nm), bandwidth (Hz, 0: none)]; dt the time since the last torque (s; 0: a reading without a time
     step, taken as it is). The one implementation of the module's equation: `LoadingState`, the model's
     basis, the robot stub and the service's `HistoryTerm` (Python and compiled) all run it.
@@ -95,13 +98,25 @@ def loading_law(s, p, tau, dt):
         s[6] = tau
         s[7] = tau
     d = s[2]
-    if d != 0.0 and (tau - s[5]) * d >= 0.0:        # on in the same direction: a new extreme
+    if d == 0.0:                                     # not moved yet: s[1], s[5] the lowest, highest torque so far
+        if tau - s[1] > p[0]:                        # up by more than the breakaway from the lowest: turned there
+            d = 1.0
+        elif s[5] - tau > p[0]:                      # down by more than the breakaway from the highest
+            d = -1.0
+            s[1] = s[5]
+        else:                                        # stick (the range so far stays within the breakaway)
+            s[1] = min(s[1], tau)
+            s[5] = max(s[5], tau)
+            return s[0]
+        s[2] = d
+        s[4] = s[0]
+        s[5] = tau
+    elif (tau - s[5]) * d >= 0.0:                    # on in the same direction: a new extreme
         s[5] = tau
     elif abs(tau - s[5]) > p[0]:                     # back by more than the breakaway: it turned at s[5]
-        if d != 0.0:
-            s[1] = s[5]
-            s[4] = s[0]
-        d = 1.0 if tau > s[5] else -1.0
+        s[1] = s[5]
+        s[4] = s[0]
+        d = -d
         s[2] = d
         s[5] = tau
     else:                                            # stick

@@ -167,3 +167,15 @@ def test_yaml_round_trip_and_the_old_key(robot):
                                "m.yaml: effects[0]")
     with pytest.raises(ConfigError, match=r"transition_Nm = -1 is outside"):
         Hysteresis.from_config({"effect": "hysteresis", "joint": 3, "transition_Nm": -1}, robot, "m.yaml")
+
+
+def test_the_first_breakaway_is_measured_from_the_range_since_the_start():
+    """Before the first move the contacts stick while the torque stays within the breakaway of every torque
+    since the start; the first move beyond it turns at the lowest (highest) torque so far. CI's example:
+    from 0.5 down to 0 (exactly the breakaway, a stick) and up to 1 slips by 0.5 from 0, as it does when
+    the start is 6e-5 higher and the move down already broke away."""
+    a, b = run([0.5, 0.0, 1.0], 0.5, 1.0), run([0.5 + 6.1e-5, 0.0, 1.0], 0.5, 1.0)
+    assert a[1] == 0.0 and a[2] == pytest.approx(1.0 - np.exp(-0.5), abs=1e-12)
+    assert np.abs(a - b).max() <= 4 * 6.1e-5
+    down = run([0.0, 0.4, -0.3], 0.5, 0.0)             # 0.7 below the highest (0.4): the instant switch
+    np.testing.assert_array_equal(down, [0.0, 0.0, -1.0])
