@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from stiffness.data.probe_log import write_probe
 from stiffness.kinematics.robot import PoseConfig, Robot
+from stiffness.part.rows import foot_on_path
 
 from .iso9283 import cut_by_angle
 from .path import solve_ik
@@ -121,19 +122,9 @@ def _signed(tree: cKDTree, p: np.ndarray, P: np.ndarray, a: np.ndarray, x: np.nd
     The foot of the perpendicular on the polyline near the nearest sample (the samples a cycle apart)."""
     xp = x @ P
     _, j = tree.query(xp)
-    best = None
-    for s0 in (j - 1, j):
-        if s0 < 0 or s0 + 1 >= len(p):
-            continue
-        a0, b0 = p[s0] @ P, p[s0 + 1] @ P
-        seg = b0 - a0
-        L2 = float(seg @ seg)
-        t = 0.0 if L2 == 0 else float(np.clip((xp - a0) @ seg / L2, 0.0, 1.0))
-        foot = a0 + t * seg
-        dist = float(np.linalg.norm(xp - foot))
-        if best is None or dist < best[0]:
-            best = (dist, foot, seg)
-    dist, foot, seg = best
+    c = p @ P
+    dist, s, f = foot_on_path(c, xp, int(j))
+    foot = c[s] + f * (c[s + 1] - c[s]) if f > 0.0 else c[s]
     out = side * (xp - foot)
     # the wall's side: away from the circle's centre for a pocket (side +1), toward it for a boss
     radial = foot - (p.mean(axis=0) @ P)

@@ -11,8 +11,8 @@ gradient: a few um for a 0.2 mm, 0.02 deg table error at 1 mm of deflection).
 Before that, each touch is checked against the path the trace cut, in the plane across the tool axis, and a
 touch that cannot be a touch of this contour is refused by line, nothing used:
 
-* the approach direction d must point toward the wall along its normal n (from the traced tool centre to the
-  point), within MAX_APPROACH_DEG: the point is taken r_s along d, so a slant of theta misplaces it by
+* the approach direction d must point toward the wall along its normal n (from the traced tool path, the foot
+  of the perpendicular on it, to the point), within MAX_APPROACH_DEG: the point is taken r_s along d, so a slant of theta misplaces it by
   r_s (1 - cos theta) along n, and a probe that moved away from the wall or along it touched something else;
 * the trigger must lie where the tool passed: the point within ``near_mm`` of the tool radius off the path;
 * the stylus radius must fit: when most touches lie off the wall by one common distance beyond ``near_mm``,
@@ -29,10 +29,11 @@ from ..data.probe_log import ProbeLog
 from ..data.trace_file import Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, read_against
+from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, foot_on_path, plane_basis, read_against
 
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
+CHORD_STEPS = 20            # a chord between two traced samples up to this many typical steps long is the path
 
 
 def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",
@@ -64,16 +65,12 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
     e1, e2 = plane_basis(a)
     c = c_all[moving]
     c2 = np.column_stack([c @ e1, c @ e2])
-    tree = cKDTree(c2)
     x = probe.centres(robot)
-    x2 = np.column_stack([x @ e1, x @ e2])
-    dist, j = tree.query(x2)
-    n = (x2 - c2[j]) / np.maximum(dist, 1e-12)[:, None]        # across the path, toward the stylus centre
+    dist, n = _across(c2, np.column_stack([x @ e1, x @ e2]))    # across the path, toward the stylus centre
     p = probe.points(robot)
-    p2 = np.column_stack([p @ e1, p @ e2])
-    dist_p, j_p = tree.query(p2)
+    dist_p, n_p = _across(c2, np.column_stack([p @ e1, p @ e2]))
     near_path = dist < CENTRE_ON_PATH_MM / 1000.0                # a stylus about the cutter's size: its centre
-    n[near_path] = ((p2 - c2[j_p]) / np.maximum(dist_p, 1e-12)[:, None])[near_path]    # tells no side
+    n[near_path] = n_p[near_path]                                # tells no side
     d2 = np.column_stack([probe.approach @ e1, probe.approach @ e2])
     toward = np.einsum("nk,nk->n", n, d2)
     side = 1.0 if np.median(toward) >= 0 else -1.0                # the wall beyond the centre (r_s < r) or not
@@ -101,6 +98,25 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
         raise DataError(f"{probe.source}: {problems.count} touch(es) are not touches of the contour the trace "
                         "cut; nothing was used", problems)
     return e_mm
+
+
+def _across(c2: np.ndarray, x2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each in-plane point's distance from the traced path (in-plane samples ``c2``, in time order) and the unit
+    vector from the path to it: from the foot of the perpendicular on the chord beside the nearest sample.
+
+    The nearest sample alone would tilt the vector by atan(s / D), s the sample's way along the path from the
+    foot: a robot reporting every 4 ms at 50 mm/s, one report late, puts it 0.3 mm along at D = 2.5 mm (the
+    stylus centre's distance from the tool's when r - r_s = 2.5 mm), 7 deg. A chord tilts it by half the angle
+    the path turns along the chord (0.6 deg for 0.6 mm on a 17.5 mm radius). A chord longer than
+    `CHORD_STEPS` typical steps is no stretch of the path (the tool left it or stood): the sample is kept."""
+    _, j = cKDTree(c2).query(x2)
+    steps = np.linalg.norm(np.diff(c2, axis=0), axis=1)
+    longest = CHORD_STEPS * float(np.median(steps[steps > 0])) if (steps > 0).any() else 0.0
+    near, foot = np.zeros(len(x2)), np.zeros_like(x2)
+    for k in range(len(x2)):
+        near[k], s, f = foot_on_path(c2, x2[k], int(j[k]), lambda s: 0.0 < steps[s] <= longest)
+        foot[k] = c2[s] + f * (c2[s + 1] - c2[s]) if f > 0.0 else c2[s]
+    return near, (x2 - foot) / np.maximum(near, 1e-12)[:, None]
 
 
 def _stylus_fits(probe: ProbeLog, e_mm: np.ndarray, near_mm: float) -> None:

@@ -19,7 +19,7 @@ from stiffness.data.trace_file import read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part.probe import read_probe_against
+from stiffness.part.probe import _across, read_probe_against
 from stiffness.part.rows import read_against
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -170,3 +170,28 @@ def test_a_zero_approach_is_refused_by_line(probed, tmp_path):
     with pytest.raises(DataError) as e:
         read_probe(_log(tmp_path, q, n))
     assert "line 8: the approach direction is zero" in "\n".join(e.value.problems)
+
+
+@settings(max_examples=200, deadline=None)
+@given(radius_mm=st.floats(5.0, 200.0), step_mm=st.floats(0.05, 0.5), offset_mm=st.floats(0.5, 4.0),
+       late=st.lists(st.integers(0, 399), max_size=40), phi=st.floats(0.3, 5.9), inside=st.booleans())
+def test_the_wall_normal_is_the_paths_across_reports_that_came_late(radius_mm, step_mm, offset_mm, late, phi, inside):
+    """A circular path traced by reports ``step_mm`` apart, some missing (a robot's report the host took late,
+    up to several in a row): the vector from the path to a point ``offset_mm`` off it is the circle's radial
+    within half the angle the path turns along the longest chord beside it, and its distance the offset within
+    that chord's sagitta; the nearest report alone tilts it by atan(s / D) (7 deg in CI's failing RSI probe)."""
+    u = np.arange(0.0, 2 * np.pi * radius_mm, step_mm) / radius_mm
+    keep = np.ones(len(u), dtype=bool)
+    keep[[k for k in late if k < len(u)]] = False
+    keep[0] = keep[-1] = True
+    u = u[keep]
+    c2 = radius_mm * np.column_stack([np.cos(u), np.sin(u)]) / 1000.0
+    radial = np.array([np.cos(phi), np.sin(phi)])
+    x2 = (radius_mm + (-offset_mm if inside else offset_mm)) * radial[None, :] / 1000.0
+    dist, n = _across(c2, x2)
+    chord = float(np.diff(u).max())                   # the longest chord's angle
+    tilt = np.degrees(np.arccos(np.clip(abs(n[0] @ radial), -1.0, 1.0)))
+    assert tilt <= np.degrees(chord) / 2 + 1e-6, (tilt, np.degrees(chord))
+    assert n[0] @ radial * (-1 if inside else 1) > 0                                  # toward the point
+    sagitta_mm = radius_mm * (1 - np.cos(chord / 2))
+    assert abs(dist[0] * 1000.0 - offset_mm) <= sagitta_mm + offset_mm * (1 - np.cos(chord / 2)) + 1e-9
