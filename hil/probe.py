@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from stiffness.data.probe_log import write_probe
 from stiffness.kinematics.robot import PoseConfig, Robot
-from stiffness.part.rows import foot_on_path
+from stiffness.part.foot import foot_on_path
 
 from .iso9283 import cut_by_angle
 from .path import solve_ik

@@ -1,11 +1,9 @@
 """The README's discovery walk, end to end on the shipped example campaign, as a user runs it."""
 
 import json
-import subprocess
-import sys
 
 import pytest
-from stiffcomp_testlib import ROOT
+from stiffcomp_testlib import ROOT, run_cli
 
 pytestmark = pytest.mark.slow
 
@@ -13,8 +11,7 @@ DATA = ROOT / "examples" / "campaign_backlash.csv"
 
 
 def stiffcomp(*args):
-    r = subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=ROOT, capture_output=True, check=False,
-                       text=True, timeout=300)
+    r = run_cli(*args)
     assert r.returncode == 0, r.stderr
     return r
 

@@ -29,7 +29,8 @@ from ..data.probe_log import ProbeLog
 from ..data.trace_file import Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, foot_on_path, plane_basis, read_against
+from .foot import foot_on_path
+from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, read_against
 
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point

@@ -60,6 +60,7 @@ from ..data.part_points import PartMeasurement
 from ..data.trace_file import Gap, Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
+from .foot import foot_on_path
 from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
 from .suspects import causes, explain, frame_fit
 
@@ -328,23 +329,6 @@ def _abeam(idx: np.ndarray, c2: np.ndarray, p: np.ndarray, cand: np.ndarray) -> 
     j = int(cand[np.argmin(np.linalg.norm(c2[cand] - p, axis=1))])
     _, s, f = foot_on_path(c2, p, j, lambda s: idx[s + 1] == idx[s] + 1)
     return float(idx[s] + f)
-
-
-def foot_on_path(c2: np.ndarray, p: np.ndarray, j: int, chord=lambda s: True) -> tuple[float, int, float]:
-    """The foot of the perpendicular from ``p`` on the polyline ``c2`` (samples in time order) beside its
-    sample ``j``, on the chords s -> s + 1 (s = j - 1, j) that ``chord(s)`` takes for the path: its distance
-    from p, the chord s and the fraction along it; the sample j itself (fraction 0) where none is nearer."""
-    best = (float(np.linalg.norm(c2[j] - p)), j, 0.0)
-    for s in (j - 1, j):
-        if s < 0 or s + 1 >= len(c2) or not chord(s):
-            continue
-        seg = c2[s + 1] - c2[s]
-        L2 = float(seg @ seg)
-        f = 0.0 if L2 == 0 else float(np.clip((p - c2[s]) @ seg / L2, 0.0, 1.0))
-        dist = float(np.linalg.norm(c2[s] + f * seg - p))
-        if dist < best[0]:
-            best = (dist, s, f)
-    return best
 
 
 def _check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace: Trace) -> None:

@@ -1,19 +1,16 @@
-"""`stiffcomp fit` end to end, in a subprocess as a user runs it; bad inputs exit 2 with a clear message."""
+"""`stiffcomp fit` end to end, as a user runs it (`tools.cli.main`, in this process); bad inputs exit 2 with a clear message."""
 
 import json
-import subprocess
-import sys
 
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS, ROOT
+from stiffcomp_testlib import DATA, MODELS, ROOT, run_cli
 
 pytestmark = pytest.mark.slow
 
 
 def stiffcomp(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=cwd,
-                          capture_output=True, check=False, text=True, timeout=120)
+    return run_cli(*args, cwd=cwd)
 
 
 def test_fit_json_meets_reference(tmp_path):

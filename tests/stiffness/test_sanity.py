@@ -4,14 +4,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import DATA, MODELS, ROOT
+from stiffcomp_testlib import DATA, MODELS
+from stiffcomp_testlib import run_cli as stiffcomp
 
 from stiffness.data.measurements import read_measurements
 from stiffness.fit.identify import fit
@@ -69,9 +68,6 @@ def test_millimetres_given_as_metres_are_named(axial, campaign):
     assert any("millimetres given as metres" in x for x in fit(axial, in_m).warnings)
 
 
-def stiffcomp(*args):
-    return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=ROOT, capture_output=True,
-                          check=False, text=True, timeout=180)
 
 
 def test_fit_on_every_row_twice_warns_and_leaves_the_copies_out(tmp_path, campaign):

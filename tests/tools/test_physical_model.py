@@ -4,13 +4,12 @@ model"), can be bounded by the fit, is warned about by compare and refused by th
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS, ROOT
+from stiffcomp_testlib import DATA, MODELS
+from stiffcomp_testlib import run_cli as stiffcomp
 
 from hil.testing import write_config
 from stiffness.errors import ConfigError
@@ -21,9 +20,6 @@ pytestmark = pytest.mark.slow
 CAMPAIGN = DATA / "reference_campaign.csv"
 
 
-def stiffcomp(*args, timeout=180):
-    return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=ROOT, capture_output=True,
-                          check=False, text=True, timeout=timeout)
 
 
 def negative_model(tmp_path, entry: dict | None = None):

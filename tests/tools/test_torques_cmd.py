@@ -1,12 +1,11 @@
 """`stiffcomp torques` and the static torques `stiffcomp kcart` prints, run as a user runs them."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from stiffcomp_testlib import MODELS, ROOT
+from stiffcomp_testlib import run_cli as stiffcomp
 
 from stiffness.kinematics.statics import Statics
 from stiffness.model.stiffness_model import StiffnessModel
@@ -25,9 +24,6 @@ def MODEL(tmp_path_factory):
     return path
 
 
-def stiffcomp(*args):
-    return subprocess.run([sys.executable, "-m", "tools.cli", *map(str, args)], cwd=ROOT,
-                          capture_output=True, check=False, text=True, timeout=120)
 
 
 def test_torques_json_equals_statics_and_sums(MODEL):
