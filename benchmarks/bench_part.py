@@ -10,10 +10,14 @@ On the paper's circle (config/hil/circle.yaml) with examples/truth_reference.yam
 3. a hidden effect: a truth with hysteresis at joint 1 (0.012 deg) cut with the exact springs, `part diagnose`;
    and the control, the truth without it.
 
-    .venv/bin/python benchmarks/bench_part.py [--lockstep] [--plot FILE] [--json FILE]
+    .venv/bin/python benchmarks/bench_part.py [--lockstep] [--road kuka_rsi|abb_egm] [--learn-only]
+                                              [--plot FILE] [--json FILE]
 
 Real time by default (each cut is a service, a virtual sensor and a virtual PLC in processes of their own);
 the timing verdict of every cut is printed, since a busy host makes the compensated figures worse.
+``--road``: every cut through that robot road (a virtual KUKA RSI or ABB EGM robot in the PLC's place, real
+time only), and the first cut's part error as `part compare` reads it from the trace the road left beside the
+HIL's (issue 43). ``--learn-only``: step 1 alone.
 """
 
 from __future__ import annotations
@@ -58,13 +62,18 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--lockstep", action="store_true", help="each cut in lock step (deterministic, no real time)")
     ap.add_argument("--plot", default=None, metavar="FILE", help="the part error before and after learning (PNG)")
     ap.add_argument("--json", default=None, metavar="FILE")
+    ap.add_argument("--road", default=None, choices=["kuka_rsi", "abb_egm"],
+                    help="every cut through this robot road instead of the PLC's (real time)")
+    ap.add_argument("--learn-only", action="store_true", help="step 1 alone (cut, learn, cut again, exact)")
     args = ap.parse_args(argv)
+    if args.road and args.lockstep:
+        ap.error("the robot road runs on the robot's clock, in real time only: --road without --lockstep")
     t0 = time.monotonic()
     verdicts = []
 
     def run(place, truth, model, folder, traced=False):
         c = cut(scenario(place), truth, model, folder, folder / "trace.csv" if traced else None,
-                folder / "part.csv" if traced else None, lockstep=args.lockstep)
+                folder / "part.csv" if traced else None, lockstep=args.lockstep, robot_interface=args.road)
         s = c.result.stats[-1]
         verdicts.append(timing_verdict(int(s.get("cycles", 0)), int(s.get("exceed_count", 0)))["exceeded_share"])
         print(f"  cut {place} with {Path(model).stem}: mean path error {c.mean_error_mm:.4f} mm, part error "
@@ -76,19 +85,21 @@ def main(argv: list[str] | None = None) -> dict:
         start = scaled_model_file(TRUTH, 0.6, w / "start.yaml", keys=ROTATIONAL)     # 40 % too stiff
         model = StiffnessModel.from_yaml(start)
         prior = Prior.catalogue(model, 0.5)
-        first = {p: run(p, TRUTH, start, w / f"{p}_start", traced=True) for p in ("A", "B")}
+        first = {p: run(p, TRUTH, start, w / f"{p}_start", traced=True) for p in ("A",) + (() if args.learn_only else ("B",))}
         rows = {p: read_against(read_part(w / f"{p}_start" / "part.csv"), read_trace(w / f"{p}_start" / "trace.csv"),
-                                model.robot, f"part {p}") for p in ("A", "B")}
+                                model.robot, f"part {p}") for p in first}
+        compared = float(np.mean(np.abs(rows["A"].nominal_mm)))     # what `part compare` gives for part A
         one = learn(model, [rows["A"]], prior)
-        two = learn(model, [rows["A"], rows["B"]], prior)
         one.model.to_yaml(w / "learned_A.yaml")
-        two.model.to_yaml(w / "learned_AB.yaml")
         again = run("A", TRUTH, w / "learned_A.yaml", w / "A_learned")
         exact_a = run("A", TRUTH, TRUTH, w / "A_exact")
-        at_c = {name: run("C", TRUTH, path, w / f"C_{name}").mean_error_mm
-                for name, path in (("learned from A and B", w / "learned_AB.yaml"), ("exact", TRUTH), ("start", start))}
-        diag = {}
-        for name, hidden in ((f"{Hysteresis.name} at joint 1", True), ("control", False)):
+        at_c, diag, two = {}, {}, None
+        if not args.learn_only:
+            two = learn(model, [rows["A"], rows["B"]], prior)
+            two.model.to_yaml(w / "learned_AB.yaml")
+            at_c = {name: run("C", TRUTH, path, w / f"C_{name}").mean_error_mm for name, path in
+                    (("learned from A and B", w / "learned_AB.yaml"), ("exact", TRUTH), ("start", start))}
+        for name, hidden in () if args.learn_only else ((f"{Hysteresis.name} at joint 1", True), ("control", False)):
             truth = StiffnessModel.from_yaml(TRUTH)
             if hidden:
                 d = truth.to_dict()
@@ -106,14 +117,20 @@ def main(argv: list[str] | None = None) -> dict:
                           "verdict": pd.diagnosis.verdict, "message": pd.message}
         if args.plot:
             plot(first["A"], again, exact_a, Path(args.plot))
-    out = {"mode": "lock step" if args.lockstep else "real time",
+    out = {"mode": "lock step" if args.lockstep else "real time", "road": args.road or "plc",
            "learn": {"start_mm": first["A"].mean_error_mm, "learned_mm": again.mean_error_mm,
                      "exact_mm": exact_a.mean_error_mm, "ratio_to_exact": again.mean_error_mm / exact_a.mean_error_mm,
                      "part_error_before_mm": first["A"].part.part_error_mm, "part_error_after_mm": again.part.part_error_mm,
-                     "determined": len(one.determined)},
-           "third_place": {**{k: v for k, v in at_c.items()}, "ratio_to_exact": at_c["learned from A and B"] / at_c["exact"],
-                           "determined": len(two.determined)},
-           "diagnose": diag, "exceeded_share_max": max(verdicts), "seconds": time.monotonic() - t0}
+                     "part_compare_before_mm": compared,
+                     "part_compare_to_hil": compared / first["A"].part.part_error_mm,
+                     "compliance_changes": [[name, after / before] for name, before, after in one.changes[:5]
+                                            if before > 0],
+                     "determined": len(one.determined), "problems": list(one.problems)},
+           "exceeded_share_max": max(verdicts), "seconds": time.monotonic() - t0}
+    if two is not None:
+        out["third_place"] = {**at_c, "ratio_to_exact": at_c["learned from A and B"] / at_c["exact"],
+                              "determined": len(two.determined)}
+        out["diagnose"] = diag
     print(json.dumps(out, indent=2))
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")

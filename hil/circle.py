@@ -211,10 +211,10 @@ def check_robot_section(interface: str | None, section: dict | None) -> dict | N
         s = RobotSettings.model_validate({"interface": interface, interface: section})
     except ValidationError as e:
         raise HilError(format_validation_error("the robot road's section", e, prefix="robot")) from e
-    if interface == "abb_egm" and s.abb_egm.mode == "joint":
-        raise HilError("robot.abb_egm.mode joint is position guidance, which runs no RAPID path (ABB's EGM manual): "
-                       "it holds a pose, it cannot cut the circle; cut in path mode (the shipped config) or through "
-                       "kuka_rsi")
+    why = s.section.follows_no_path()
+    if why:
+        raise HilError(f"{why}: it holds a pose, it cannot cut the circle; cut with the shipped config's robot "
+                       "side, which follows its path")
     return section
 
 

@@ -9,8 +9,8 @@ group delay at the force's low frequencies, plus the PLC's ``plc.extra_delay_ms`
 a delay below it means the run's clocks or its log are wrong. Above it come the sample-and-hold of the
 service's cycle and of the device (the PLC's ``plc.period_ms``, or the robot's interface cycle on the robot
 road), each at most one period, and the transport (CAN over UDP, Modbus or the robot's UDP: well under a
-millisecond on one host); `SLACK_MS` covers that and a scheduler's wake-up. On the shipped scenario: 6.6 to
-13.6 ms, against 7.99 ms in lock step and 8.02 ms in real time.
+millisecond on one host); `SLACK_MS` covers that and a scheduler's wake-up. On the shipped scenario: 6.5 to
+13.5 ms, against 7.99 ms in lock step and 8.02 ms in real time.
 """
 
 from __future__ import annotations

@@ -224,6 +224,17 @@ def test_the_cfg_reader_joins_continued_lines_and_keeps_flags():
     assert cfg_instances(text, "EXT_MOTION_DATA") == [{"name": "a", "flag": "", "level": "2"}, {"name": "b"}]
 
 
+def test_the_virtual_abb_robot_filters_as_the_shipped_joint_profile():
+    """hil.virtual_abb's position guidance (gain and filter bandwidth) is the shipped StiffCompMoc.cfg's
+    StiffCompJoint profile, so the HIL's joint mode is what the shipped robot side does."""
+    from hil import virtual_abb
+
+    joint = {p["name"]: p for p in cfg_instances((ABB / "StiffCompMoc.cfg").read_text(), "EXT_MOTION_DATA")}
+    joint = joint["StiffCompJoint"]
+    assert float(joint["ext_motion_Kp"]) == virtual_abb.KP
+    assert float(joint["ext_motion_filter_bandwidth"]) == virtual_abb.BANDWIDTH_HZ
+
+
 # -- the configs as the service loads them ----------------------------------------------------------------
 @pytest.mark.parametrize("interface", sorted(CONFIGS))
 def test_the_robot_configs_load_and_differ_from_default_only_in_plc_and_robot(interface):
@@ -286,14 +297,13 @@ def test_the_abb_cfg_headers_carry_their_version(name, domain):
 @pytest.mark.parametrize("interface", sorted(CONFIGS))
 def test_the_robot_port_is_exposed_and_documented_where_the_others_are(interface):
     """The shipped robot config's UDP port is in the Dockerfile's EXPOSE, docs/deploy.md's ports table, its
-    bridge -p line and its Kubernetes example (where only RSI's is shown)."""
+    bridge -p line and its Kubernetes example (RSI's as the port, EGM's in the comment beside it)."""
     port = robot_section(CONFIGS[interface]).port
     expose = next(line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("EXPOSE"))
     assert f"{port}/udp" in expose.split()
     deploy = (ROOT / "docs" / "deploy.md").read_text()
     assert re.search(rf"^\| [^|]*\b{port}/udp\b", deploy, re.MULTILINE) and f"-p {port}:{port}/udp" in deploy
-    if interface == "kuka_rsi":
-        assert f"containerPort: {port}, protocol: UDP" in deploy
+    assert f"{{name: robot, containerPort: {port}, protocol: UDP}}" in deploy
 
 
 def test_the_docs_agree_on_the_virtual_robots_timeout_and_rkorrs_frame():

@@ -8,6 +8,9 @@ the PLC would then use against the wrong registers."""
 
 from __future__ import annotations
 
+import ipaddress
+import sys
+
 from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
 from service.config import DEFAULT_CONFIG, load_config
 
@@ -41,4 +44,8 @@ def run(args) -> int:
     for rel, data in files.items():
         write_output(out / rel, lambda p, data=data: p.write_bytes(data))
     print(f"plc-library: {len(files)} files in {out}")
+    if ipaddress.ip_address(host).is_loopback:
+        print(f"plc-library: note: the PLC dials {host} ({key}), which only a PLC on this machine reaches; for a "
+              "PLC on another, give the address it reaches the service at with --modbus-host ADDRESS",
+              file=sys.stderr)
     return 0

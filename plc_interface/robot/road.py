@@ -63,10 +63,10 @@ class RoadSettings:
         """What the road says at start about its settings (each one line)."""
         r = self.robot
         out = [w for w in (r.exposure_warning(), r.defaults_warning()) if w]
-        element = r.kuka_rsi.command_element if r.interface == "kuka_rsi" else None
+        element = r.command_element
         if self.owns_commands and element and self.enable_on_start:
             out.append(f"plc.enable_on_start: true is ignored: the robot's command element <{element}> "
-                       "(robot.kuka_rsi.command_element) switches the correction, its bit 0 the enable")
+                       f"(robot.{r.interface}.command_element) switches the correction, its bit 0 the enable")
         return out
 
 
@@ -114,7 +114,7 @@ class RobotRoad:
         self._step = self.iface.stamp_step
         self._slow_ns = r.cycle_ms * 1_000_000
         self._q_names = [f"q{i}" for i in range(1, 7)]
-        has_element = r.interface == "kuka_rsi" and r.kuka_rsi.command_element is not None
+        has_element = r.command_element is not None
         # the robot's first contact since the start resets what was latched before anyone was there (a sensor
         # that came up late), as a PLC's start-up does; a later session only the fault of the robot's silence
         self._first_reset = RecoveryReset(clears=0 if has_element else 0xFFFF)

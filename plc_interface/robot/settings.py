@@ -72,6 +72,10 @@ class KukaRsiSettings(Strict):
     def served(self) -> str:
         return f"{self.cycle_ms} ms, {'RKorr' if self.cartesian else 'AK'} {self.correction}"
 
+    def follows_no_path(self) -> str | None:
+        """Why the robot, set so, runs no programmed path (None: RSI corrects the path the KRL program runs)."""
+        return None
+
 
 class AbbEgmSettings(Strict):
     """``robot.abb_egm``: how the answer guides the robot.
@@ -106,6 +110,12 @@ class AbbEgmSettings(Strict):
 
     def served(self) -> str:
         return f"{self.cycle_ms} ms, {self.mode} mode"
+
+    def follows_no_path(self) -> str | None:
+        """Why the robot, set so, runs no programmed path (None: path correction corrects the one it runs)."""
+        if self.mode == "joint":
+            return "robot.abb_egm.mode joint is position guidance, which runs no RAPID path (ABB's EGM manual)"
+        return None
 
 
 class RobotSettings(Strict):
@@ -149,6 +159,12 @@ class RobotSettings(Strict):
     def cartesian(self) -> bool:
         """Whether the answer carries the TCP's motion (RKorr, EGM path correction) rather than joints."""
         return self.section.cartesian_answer
+
+    @property
+    def command_element(self) -> str | None:
+        """The element of the robot's packets that carries its own command word (``robot.<interface>.
+        command_element``), None when the robot sends none (EGM's messages have no such field)."""
+        return getattr(self.section, "command_element", None) if self.enabled else None
 
     def takes(self, peer_ip: str) -> bool:
         """Whether a packet from ``peer_ip`` is the robot's (``peer``)."""

@@ -304,6 +304,15 @@ def test_the_plcs_target_is_taken_from_modbus_host_where_plc_host_binds_all(tmp_
             "--modbus-host", "bind address")
 
 
+@pytest.mark.parametrize(("host", "noted"), [("127.0.0.1", True), ("192.168.10.20", False)])
+def test_a_loopback_target_is_written_with_a_note_that_only_this_machine_reaches_it(tmp_path, capsys, host, noted):
+    """127.0.0.1 is right for a PLC on the service's own IPC and wrong for any other: written, and said."""
+    write_config(tmp_path, {"plc": {"host": host}})
+    assert generate(tmp_path / "out", tmp_path / "service.yaml") == 0
+    err = capsys.readouterr().err
+    assert ("only a PLC on this machine reaches" in err and "--modbus-host" in err) == noted, err
+
+
 def test_a_scaled_count_or_bit_word_is_refused(tmp_path, capsys):
     data = yaml.safe_load((ROOT / "config" / "registers.yaml").read_text())
     data["to_plc"]["registers"][0]["scale"] = 10                 # the heartbeat

@@ -48,3 +48,22 @@ def test_a_road_open_beyond_this_machine_to_any_sender_is_warned_about():
     assert RobotSettings(interface="kuka_rsi", host="0.0.0.0", peer="192.168.1.20").exposure_warning() is None
     assert RobotSettings(interface="kuka_rsi", host="127.0.0.1").exposure_warning() is None
     assert RobotSettings(interface="none", host="0.0.0.0").exposure_warning() is None
+
+
+@pytest.mark.parametrize("section, element", [
+    ({"interface": "kuka_rsi", "kuka_rsi": {"command_element": "StiffCmd"}}, "StiffCmd"),
+    ({"interface": "kuka_rsi"}, None),
+    ({"interface": "abb_egm"}, None),                                   # EGM's messages carry no command word
+    ({"interface": "none", "kuka_rsi": {"command_element": "StiffCmd"}}, None),      # no road, no element
+])
+def test_the_robots_own_command_element_is_the_sub_sections_of_the_interface_in_use(section, element):
+    assert RobotSettings.model_validate(section).command_element == element
+
+
+@pytest.mark.parametrize("section, follows", [
+    ({"interface": "kuka_rsi"}, True), ({"interface": "abb_egm"}, True),
+    ({"interface": "abb_egm", "abb_egm": {"mode": "joint"}}, False),
+])
+def test_only_egm_position_guidance_says_it_runs_no_path(section, follows):
+    why = RobotSettings.model_validate(section).section.follows_no_path()
+    assert (why is None) == follows and (follows or "position guidance" in why)

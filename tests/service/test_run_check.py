@@ -83,6 +83,29 @@ def test_a_free_config_passes_and_says_what_it_checked(tmp_path, capsys):
         assert f"{key} 127.0.0.1:{port}/tcp free" in out
 
 
+def test_what_run_would_only_warn_about_and_what_it_cannot_see_are_notes(tmp_path, capsys):
+    """A CPU this process may not use (run leaves the cycle unpinned) and a robot whose packets come after the
+    start: the check passes, saying each as a note. The process is held to its first CPU for the check."""
+    allowed = os.sched_getaffinity(0)
+    if len(allowed) < 2:
+        pytest.skip("needs two CPUs this process may use, to keep it off one")
+    first, cpu = sorted(allowed)[:2]
+    cfg = write_config(tmp_path, {"plc": {"port": free_port()}, "cycle": {"cpu": cpu},
+                                  "robot": {"interface": "kuka_rsi", "host": "127.0.0.1", "port": free_port(),
+                                            "kuka_rsi": {}}})
+    os.sched_setaffinity(0, {first})
+    try:
+        code = check(cfg)
+    finally:
+        os.sched_setaffinity(0, allowed)
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "ok, the service would start" in out
+    notes = [line for line in out.splitlines() if "note" in line]
+    assert any(f"cycle.cpu = {cpu} is not among the CPUs" in n and "unpinned" in n for n in notes), out
+    assert any("robot's packets arrive after the start, not checked here" in n for n in notes), out
+
+
 def test_the_priority_check_leaves_this_process_as_it_was():
     before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
     fifo_problem(10)

@@ -71,11 +71,31 @@ def test_a_frame_far_off_names_the_frame_with_the_fits_shift(cut, truth, tmp_pat
     assert "the tool radius: unlikely alone" in text
 
 
-def test_part_learn_names_the_radius_given_as_the_diameter(cut, truth, tmp_path, capsys):
+@pytest.mark.parametrize("given, words", [(2 * RADIUS_MM, ("tool_radius_mm = 8 mm", "the diameter? a radius of 4 mm")),
+                                          (RADIUS_MM / 25.4, ("tool_radius_mm = 0.15748 mm", "inches? 0.15748 in"))])
+def test_part_learn_names_the_radius_given_as_the_diameter_or_in_inches(cut, truth, tmp_path, capsys, given, words):
     part = read_part(cut.part)
-    path = write_part(tmp_path / "diameter.csv", part.points_mm, 2 * RADIUS_MM, cut.frame)
+    path = write_part(tmp_path / "wrong_radius.csv", part.points_mm, given, cut.frame)
     rc = main(["part", "learn", str(TRUTH), str(cut.trace), str(path), "-o", str(tmp_path / "out.yaml")])
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    assert "(1) the tool radius" in err and "tool_radius_mm = 8 mm" in err and "the diameter? a radius of 4 mm" in err
+    assert "(1) the tool radius" in err and all(w in err for w in words), err
     assert not (tmp_path / "out.yaml").exists()
+
+
+def test_another_cuts_contour_is_named_with_its_size_against_the_paths(cut, truth, tmp_path):
+    """The points of a larger contour (another cut), the radius right: every point some 4 mm further off than
+    the radius says, all round. The points alone cannot tell that from a wrong radius, so both are named, the
+    other cut with the two sizes as its evidence: the contour's span and the path's with the tool."""
+    part = read_part(cut.part)
+    centre = part.points_mm.mean(axis=0)
+    grown = centre + (part.points_mm - centre) * 1.12
+    path = write_part(tmp_path / "another_cut.csv", grown, RADIUS_MM, cut.frame)
+    text = refusal(cut, truth, path)
+    found = causes(text)
+    assert found[0] == "the tool radius" and found[1].startswith("a file of another cut, whose contour lies +"), text
+    off = float(re.search(r"whose contour lies \+([0-9.]+) mm off this one all round", text).group(1))
+    spans = re.search(r"the contour spans ([0-9.]+) mm, the tool's path with the tool ([0-9.]+) mm", text)
+    contour, path_span = float(spans.group(1)), float(spans.group(2))
+    assert contour == pytest.approx(float(np.max(np.ptp(grown, axis=0))), abs=0.05), text
+    assert contour - path_span == pytest.approx(2 * off, rel=0.25), text       # larger all round, both sides

@@ -179,7 +179,8 @@ def test_the_wall_normal_is_the_paths_across_reports_that_came_late(radius_mm, s
     """A circular path traced by reports ``step_mm`` apart, some missing (a robot's report the host took late,
     up to several in a row): the vector from the path to a point ``offset_mm`` off it is the circle's radial
     within half the angle the path turns along the longest chord beside it, and its distance the offset within
-    that chord's sagitta; the nearest report alone tilts it by atan(s / D) (7 deg in CI's failing RSI probe)."""
+    that chord's sagitta; the nearest report alone tilts it by atan(s / D) (10 deg in a loaded run's failing
+    RSI probe)."""
     u = np.arange(0.0, 2 * np.pi * radius_mm, step_mm) / radius_mm
     keep = np.ones(len(u), dtype=bool)
     keep[[k for k in late if k < len(u)]] = False
