@@ -265,7 +265,7 @@ class Service:
         self.task = CyclicTask(self.period, self.work, self.info, self._on_error, self.cfg.cycle.realtime_priority,
                                cpu=self.cfg.cycle.cpu, spin_s=self.cfg.cycle.spin_us * 1e-6,
                                lock_memory=self.cfg.cycle.lock_memory, prepare=self.source.request,
-                               lead_s=self.source.lead_s)
+                               lead_s=self.source.lead_s, cpu_latency_us=self.cfg.cycle.cpu_latency_us)
         self.task.start()
         p = self.cfg.plc
         a = self.cfg.ads

@@ -7,7 +7,7 @@ this machine before its first cycle, asked of the operating system now, with not
   stiffcomp service that answers on ``monitoring.port`` (an edited file checked beside the running service,
   docs/commissioning.md) is a note: it is free once that service stops;
 * what the service asks of the scheduler (``cycle.realtime_priority``, ``robot.realtime_priority``,
-  ``cycle.lock_memory``, ``cycle.cpu``): `run` warns and runs on without it, so these are notes, not refusals;
+  ``cycle.lock_memory``, ``cycle.cpu``, ``cycle.cpu_latency_us``): `run` warns and runs on without it, so these are notes, not refusals;
 * what it cannot check without starting: the PLC a client connects to, the sensor's first frame.
 
 The answers hold for the moment of the check, as the operating system gives them to this process: a port
@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 from plc_interface.endpoints import read_probe
 from plc_interface.listen import bind_error, bind_problem
+from plc_interface.scheduling import hold_cpu_latency
 
 from .errors import ServiceConfigError
 
@@ -128,6 +129,13 @@ def _scheduling(cfg) -> list[str]:
         if why is not None:
             notes.append(f"cycle.lock_memory: mlockall is not permitted here ({why}); run would warn and run with "
                          "its memory unlocked (CAP_IPC_LOCK or a higher RLIMIT_MEMLOCK permits it)")
+    if c.cpu_latency_us is not None:
+        fd, why = hold_cpu_latency(c.cpu_latency_us)
+        if fd is not None:
+            os.close(fd)
+        else:
+            notes.append(f"cycle.cpu_latency_us = {c.cpu_latency_us}: the CPUs' idle wake-up cannot be held ({why}); "
+                         "run would warn and leave it to the kernel (root, or write access by a udev rule)")
     if c.cpu is not None and c.cpu not in os.sched_getaffinity(0):
         notes.append(f"cycle.cpu = {c.cpu} is not among the CPUs this process may use "
                      f"({sorted(os.sched_getaffinity(0))}); run would warn and leave the cycle thread unpinned")

@@ -33,7 +33,7 @@ import numpy as np
 from pydantic import Field
 
 from plc_interface.deadlines import Deadlines
-from plc_interface.scheduling import set_fifo
+from plc_interface.scheduling import hold_cpu_latency, set_fifo
 from stiffness.files.yaml_schema import Strict
 
 log = logging.getLogger("stiffcomp.task")
@@ -78,6 +78,7 @@ class CycleConfig(Strict):
     spin_us: float = Field(0.0, ge=0.0, le=1000.0)
     compiled: bool = True
     lock_memory: bool = True
+    cpu_latency_us: int | None = Field(0, ge=0, le=1_000_000)
 
 
 class TaskInfo:
@@ -147,6 +148,9 @@ class CyclicTask:
         of a core.
     lock_memory : bool
         mlockall before the first cycle (`lock_memory`; one warning where not permitted).
+    cpu_latency_us : int or None
+        While the task runs, hold the CPUs' idle wake-up latency within this many µs
+        (`plc_interface.scheduling.hold_cpu_latency`; one warning where not permitted); None: the kernel's.
     prepare : callable () -> None, optional
         Called ``lead_s`` before each deadline, between two cycles (the sensor's request: its answer is
         then read by the cycle at that deadline); right away when the last cycle ended later than that.
@@ -155,7 +159,8 @@ class CyclicTask:
     def __init__(self, period_s: float, work: Callable[[float, bool], bool | None], info: TaskInfo,
                  on_error: Callable[[BaseException], None], realtime_priority: int = 0,
                  clock: Callable[[], float] = time.perf_counter, cpu: int | None = None, spin_s: float = 0.0,
-                 lock_memory: bool = False, prepare: Callable[[], None] | None = None, lead_s: float = 0.0):
+                 lock_memory: bool = False, prepare: Callable[[], None] | None = None, lead_s: float = 0.0,
+                 cpu_latency_us: int | None = None):
         self.period = float(period_s)
         self.work = work
         self.info = info
@@ -165,6 +170,8 @@ class CyclicTask:
         self.spin = float(spin_s)
         self.lock = lock_memory
         self._locked = False
+        self.cpu_latency_us = cpu_latency_us
+        self._latency_fd: int | None = None
         self.prepare = prepare if lead_s > 0 else None
         self.lead = float(lead_s)
         self.clock = clock
@@ -201,6 +208,12 @@ class CyclicTask:
             if why:
                 log.warning("cannot lock the service's memory (mlockall: %s); pages may be swapped out under "
                             "memory pressure (CAP_IPC_LOCK or a higher RLIMIT_MEMLOCK permits it)", why)
+        if self.cpu_latency_us is not None:
+            self._latency_fd, why = hold_cpu_latency(self.cpu_latency_us)
+            if why:
+                log.warning("cannot hold the CPUs' idle wake-up within %d us (%s); an idle CPU may wake late for a "
+                            "deadline or a packet (root, or write access to the device by a udev rule, permits it)",
+                            self.cpu_latency_us, why)
         if self.cpu is not None:
             try:
                 os.sched_setaffinity(0, {self.cpu})
@@ -246,6 +259,8 @@ class CyclicTask:
         finally:
             if self._locked:
                 unlock_memory()
+            if self._latency_fd is not None:
+                os.close(self._latency_fd)
             if was_enabled:
                 gc.enable()
             gc.unfreeze()

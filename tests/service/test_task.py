@@ -158,3 +158,65 @@ def test_a_task_locks_its_memory_where_permitted_and_unlocks_it_after():
     assert ran.wait(10)
     task.stop()
     assert seen[0] > 0 and locked_kb() == 0
+
+
+def cpu_latency_target() -> int:
+    """The kernel's CPU latency QoS target now (µs): reading the device gives it (pm_qos_interface.rst)."""
+    import os
+    import struct
+
+    fd = os.open("/dev/cpu_dma_latency", os.O_RDONLY)
+    try:
+        return struct.unpack("=i", os.read(fd, 4))[0]
+    finally:
+        os.close(fd)
+
+
+def test_a_task_holds_the_cpus_idle_wakeup_while_it_runs_and_lets_go_after():
+    """cpu_latency_us = 0: while the task runs the kernel's target is 0 (idle CPUs poll); after it, what it was."""
+    from plc_interface.scheduling import hold_cpu_latency
+
+    fd, why = hold_cpu_latency(0)
+    if why is not None:
+        pytest.skip(f"the CPU latency QoS is not permitted here ({why})")
+    import os
+
+    os.close(fd)
+    before = cpu_latency_target()
+    if before == 0:
+        pytest.skip("another process holds the target at 0 already")
+    seen: list[int] = []
+    ran = threading.Event()
+
+    def work(t, exceeded):
+        if not seen:
+            seen.append(cpu_latency_target())
+            ran.set()
+
+    task = CyclicTask(1e-3, work, TaskInfo(1e-3, 1000), on_error=lambda e: None, cpu_latency_us=0)
+    task.start()
+    try:
+        assert ran.wait(10)
+    finally:
+        task.stop()
+    assert seen == [0] and cpu_latency_target() == before
+
+
+def test_an_idle_wakeup_not_permitted_is_one_warning_naming_the_device_and_the_task_runs(monkeypatch, caplog):
+    """Where the device may not be opened (not root, no udev rule; here a device that is not there) the task
+    says so once, naming it, and runs."""
+    import logging
+
+    import service.task
+    from plc_interface.scheduling import hold_cpu_latency
+
+    monkeypatch.setattr(service.task, "hold_cpu_latency", lambda us: hold_cpu_latency(us, "/dev/no_such_qos"))
+    ran = threading.Event()
+    task = CyclicTask(1e-3, lambda t, e: ran.set(), TaskInfo(1e-3, 1000), on_error=lambda e: None,
+                      cpu_latency_us=0)
+    with caplog.at_level(logging.WARNING, "stiffcomp.task"):
+        task.start()
+        assert ran.wait(10)
+        task.stop()
+    lines = [r.getMessage() for r in caplog.records if "idle wake-up" in r.getMessage()]
+    assert len(lines) == 1 and "/dev/no_such_qos" in lines[0], lines
