@@ -118,7 +118,10 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     assert road["dropped"] == {} and road["sessions"] == 2 and road["restarts"] == 1, road
     first = again.answer[0][np.isfinite(again.answer[0])]
     assert again.answered[:3].all() and np.all(first == 0.0), again.answer[:3]     # from zero, at once
-    assert d.late <= 0.005 * len(d.answered), f"{d.late} of {len(d.answered)} answers late"
+    # late answers to packets the robot sent on time (one it sent late, its own host stalled, has less of its
+    # cycle left for the answer; the road is not what made it late)
+    assert d.late_on_time() <= 0.005 * len(d.answered), f"{d.late_on_time()} of {len(d.answered)} answers late " \
+        f"to packets sent on time ({d.late} in all)"
     # (an RSI answer counts as answered only with its own packet's IPOC)
     assert np.all(np.diff(d.stamp) > 0)
     tr = trace(tmp_path)
@@ -161,10 +164,13 @@ def test_the_shipped_kuka_config_obeys_the_robots_enable_and_traces_its_joints(t
         service.stop()
     stats, log_text = service.result()
     assert np.abs(on.answer[-10:]).max() > 1e-3, on.answer[-10:]
-    # the robot's 0: ramped down, never rising, exactly zero from fault_ramp_s after it on
+    # the robot's 0: ramped down, never rising, exactly zero from fault_ramp_s after it on (every answer that
+    # came in its cycle; one the host made late is none: the robot holds what it had)
     a = np.abs(off.answer).max(axis=1)
     t = off.sent_unix - off.sent_unix[0]
-    assert np.all(np.diff(a[off.answered]) <= 1e-6) and np.all(a[t >= RAMP_S + 0.01] == 0.0), a
+    after = off.answered & (t >= RAMP_S + 0.01)
+    assert np.all(np.diff(a[off.answered]) <= 1e-6) and np.all(a[after] == 0.0), a
+    assert after.sum() >= 0.9 * (t >= RAMP_S + 0.01).sum(), f"{off.late} of {len(t)} answers late"
     assert np.abs(back.answer[-10:]).max() > 1e-3
     assert "plc.enable_on_start: true is ignored" in log_text
     assert stats["robot"]["joints_check"]["agrees"] is not False and "joints_include_correction is" not in log_text
