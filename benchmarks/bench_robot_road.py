@@ -7,6 +7,8 @@ symbol every 10 ms. The robot times each answer from its packet's send to the an
 trip, which holds the reply latency and both kernels' UDP paths) and counts the answers that did not arrive
 within its cycle; the service's own count (from a packet's arrival in the I/O loop to its answer's send) comes
 from its --stats-json. ``--busy 1`` adds one busy process (``python3 -c 'while True: pass'``) for the whole run.
+``--cpu-latency held kernel`` times each row twice, the service holding the CPUs' idle wake-up at 0
+(``cycle.cpu_latency_us: 0``, the default) and leaving it to the kernel (null), side by side.
 
 Priorities as a cell would set them: the cycle at SCHED_FIFO 50 (config/default.yaml), the I/O process that
 answers the robot at ``robot.realtime_priority`` (``--io-priority``, 40), and the virtual robot's own loop at
@@ -70,7 +72,8 @@ ROADS = {"kuka_rsi": {"interface": "kuka_rsi"},
          "abb_egm_joint": {"interface": "abb_egm", "abb_egm": {"mode": "joint", "cycle_ms": 4}}}
 
 
-def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_priority: int) -> dict:
+def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_priority: int,
+        cpu_latency_us: int | None = 0) -> dict:
     from hil.robot_drive import drive
     from hil.run import ServiceProcess
     from hil.testing import free_port, write_config
@@ -84,7 +87,7 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
         section = {**ROADS[interface], "port": free_port(socket.SOCK_DGRAM), "realtime_priority": io_priority}
         modbus, ads = free_port(), free_port()
         cfg = write_config(folder, {"plc": {"port": modbus, "enable_on_start": True}, "robot": section,
-                                    "ads": {"port": ads}})
+                                    "ads": {"port": ads}, "cycle": {"cpu_latency_us": cpu_latency_us}})
         service = ServiceProcess(cfg, folder)
         ctx = multiprocessing.get_context("spawn")
         stop = ctx.Event()
@@ -119,7 +122,7 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
     rtt = d.rtt_s[np.isfinite(d.rtt_s)] * 1000.0
     road = stats.get("robot", {})
     return {"interface": interface, "busy": busy, "seconds": seconds, "io_priority": io_priority,
-            "robot_priority": robot_priority, "packets": len(d.answered),
+            "robot_priority": robot_priority, "cpu_latency_us": cpu_latency_us, "packets": len(d.answered),
             "late": d.late, "late_share": d.late / len(d.answered), "late_robot_on_time": d.late_on_time(),
             "robot_sent_late_1ms": int((d.send_lag_s > 0.001).sum()), "steal_s": steal_s,
             "rtt_ms": {"p50": float(np.percentile(rtt, 50)), "p99": float(np.percentile(rtt, 99)),
@@ -166,6 +169,15 @@ def _circle(road: str, s: dict) -> dict:
             "part_error_mm": s["part_error_mm"], "exceeded_share": s["timing"]["exceeded_share"]}
 
 
+def report(r: dict, busy: int, latency: str) -> None:
+    s = r["service_answer_us"] or {}
+    print(f"{r['interface']:13s} {'busy ' if busy else 'quiet'} {latency:6s}: round trip at the robot p50 "
+          f"{r['rtt_ms']['p50']:.3f} p99 {r['rtt_ms']['p99']:.3f} max {r['rtt_ms']['max']:.2f} ms; late {r['late']} of "
+          f"{r['packets']} ({100 * r['late_share']:.3f} %), {r['late_robot_on_time']} to packets the robot sent on time "
+          f"(it sent {r['robot_sent_late_1ms']} over 1 ms late; {r['steal_s']:.2f} s stolen by the VM's host); in the "
+          f"service p50/p99/max {s.get('p50')}/{s.get('p99')}/{s.get('max')} us", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
@@ -174,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--io-priority", type=int, default=40, help="robot.realtime_priority of the service")
     ap.add_argument("--robot-priority", type=int, default=45, help="SCHED_FIFO of the virtual robot's loop")
     ap.add_argument("--circles", action="store_true", help="the HIL circle through each road instead")
+    ap.add_argument("--cpu-latency", nargs="+", default=["held"], choices=("held", "kernel"),
+                    help="cycle.cpu_latency_us 0 (held, the default) and/or null (the kernel's), each row")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))      # a stopped run still stops its services
@@ -183,14 +197,11 @@ def main(argv: list[str] | None = None) -> int:
         res = []
         for busy in args.busy:
             for interface in args.interface:
-                r = one(interface, args.seconds, bool(busy), args.io_priority, args.robot_priority)
-                res.append(r)
-                s = r["service_answer_us"] or {}
-                print(f"{interface:13s} {'busy ' if busy else 'quiet'}: round trip at the robot p50 {r['rtt_ms']['p50']:.3f} "
-                      f"p99 {r['rtt_ms']['p99']:.3f} max {r['rtt_ms']['max']:.2f} ms; late {r['late']} of {r['packets']} "
-                      f"({100 * r['late_share']:.3f} %), {r['late_robot_on_time']} to packets the robot sent on time (it sent "
-                      f"{r['robot_sent_late_1ms']} over 1 ms late; {r['steal_s']:.2f} s stolen by the VM's host); in the service p50/p99/max {s.get('p50')}/{s.get('p99')}/"
-                      f"{s.get('max')} us", flush=True)
+                for latency in args.cpu_latency:
+                    r = one(interface, args.seconds, bool(busy), args.io_priority, args.robot_priority,
+                            0 if latency == "held" else None)
+                    res.append(r)
+                    report(r, busy, latency)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=2) + "\n")
     return 0
