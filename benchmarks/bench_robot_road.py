@@ -7,6 +7,7 @@ symbol every 10 ms. The robot times each answer from its packet's send to the an
 trip, which holds the reply latency and both kernels' UDP paths) and counts the answers that did not arrive
 within its cycle; the service's own count (from a packet's arrival in the I/O loop to its answer's send) comes
 from its --stats-json. ``--busy 1`` adds one busy process (``python3 -c 'while True: pass'``) for the whole run.
+``--plc 0``: the cell without a PLC (``plc.role: none``, the robot's packets the service's only work).
 ``--cpu-latency held kernel`` times each row twice, the service holding the CPUs' idle wake-up at 0
 (``cycle.cpu_latency_us: 0``, the default) and leaving it to the kernel (null), side by side.
 
@@ -73,7 +74,7 @@ ROADS = {"kuka_rsi": {"interface": "kuka_rsi"},
 
 
 def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_priority: int,
-        cpu_latency_us: int | None = 0) -> dict:
+        cpu_latency_us: int | None = 0, plc: bool = True) -> dict:
     from hil.robot_drive import drive
     from hil.run import ServiceProcess
     from hil.testing import free_port, write_config
@@ -86,7 +87,8 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
         folder = Path(tmp)
         section = {**ROADS[interface], "port": free_port(socket.SOCK_DGRAM), "realtime_priority": io_priority}
         modbus, ads = free_port(), free_port()
-        cfg = write_config(folder, {"plc": {"port": modbus, "enable_on_start": True}, "robot": section,
+        plc_section = {"port": modbus, "enable_on_start": True, **({} if plc else {"role": "none"})}
+        cfg = write_config(folder, {"plc": plc_section, "robot": section,
                                     "ads": {"port": ads}, "cycle": {"cpu_latency_us": cpu_latency_us}})
         service = ServiceProcess(cfg, folder)
         ctx = multiprocessing.get_context("spawn")
@@ -95,11 +97,12 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
         hog = None
         try:
             service.wait_running()
-            load.start()
+            if plc:
+                load.start()
             if busy:            # the busy process, as bench_hil_deadlines.py makes it
                 hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
             ads_proc = subprocess.Popen([sys.executable, "-c", ADS_LOAD.format(port=ads, seconds=seconds + 2)],
-                                        cwd=ROOT)
+                                        cwd=ROOT) if plc else None
             settings = RobotSettings.model_validate(section)
             vr = VirtualRobot(controller_for(settings, robot), "127.0.0.1", settings.port,
                               lambda t: [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
@@ -117,12 +120,13 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
                 hog.kill()
                 hog.wait()
             service.stop()
-        ads_proc.wait(30)
+        if ads_proc is not None:
+            ads_proc.wait(30)
         stats, _ = service.result()
     rtt = d.rtt_s[np.isfinite(d.rtt_s)] * 1000.0
     road = stats.get("robot", {})
     return {"interface": interface, "busy": busy, "seconds": seconds, "io_priority": io_priority,
-            "robot_priority": robot_priority, "cpu_latency_us": cpu_latency_us, "packets": len(d.answered),
+            "robot_priority": robot_priority, "cpu_latency_us": cpu_latency_us, "plc": plc, "packets": len(d.answered),
             "late": d.late, "late_share": d.late / len(d.answered), "late_robot_on_time": d.late_on_time(),
             "robot_sent_late_1ms": int((d.send_lag_s > 0.001).sum()), "steal_s": steal_s,
             "rtt_ms": {"p50": float(np.percentile(rtt, 50)), "p99": float(np.percentile(rtt, 99)),
@@ -171,7 +175,7 @@ def _circle(road: str, s: dict) -> dict:
 
 def report(r: dict, busy: int, latency: str) -> None:
     s = r["service_answer_us"] or {}
-    print(f"{r['interface']:13s} {'busy ' if busy else 'quiet'} {latency:6s}: round trip at the robot p50 "
+    print(f"{r['interface']:13s} {'busy ' if busy else 'quiet'} {'PLC' if r['plc'] else 'none'} {latency:6s}: round trip at the robot p50 "
           f"{r['rtt_ms']['p50']:.3f} p99 {r['rtt_ms']['p99']:.3f} max {r['rtt_ms']['max']:.2f} ms; late {r['late']} of "
           f"{r['packets']} ({100 * r['late_share']:.3f} %), {r['late_robot_on_time']} to packets the robot sent on time "
           f"(it sent {r['robot_sent_late_1ms']} over 1 ms late; {r['steal_s']:.2f} s stolen by the VM's host); in the "
@@ -188,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--circles", action="store_true", help="the HIL circle through each road instead")
     ap.add_argument("--cpu-latency", nargs="+", default=["held"], choices=("held", "kernel"),
                     help="cycle.cpu_latency_us 0 (held, the default) and/or null (the kernel's), each row")
+    ap.add_argument("--plc", type=int, nargs="+", default=[1], choices=(0, 1),
+                    help="1: beside a PLC's Modbus and ADS clients (the default); 0: plc.role none, no client")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))      # a stopped run still stops its services
@@ -197,11 +203,12 @@ def main(argv: list[str] | None = None) -> int:
         res = []
         for busy in args.busy:
             for interface in args.interface:
-                for latency in args.cpu_latency:
-                    r = one(interface, args.seconds, bool(busy), args.io_priority, args.robot_priority,
-                            0 if latency == "held" else None)
-                    res.append(r)
-                    report(r, busy, latency)
+                for plc in args.plc:
+                    for latency in args.cpu_latency:
+                        r = one(interface, args.seconds, bool(busy), args.io_priority, args.robot_priority,
+                                0 if latency == "held" else None, bool(plc))
+                        res.append(r)
+                        report(r, busy, latency)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=2) + "\n")
     return 0
