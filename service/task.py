@@ -78,7 +78,7 @@ class CycleConfig(Strict):
     spin_us: float = Field(0.0, ge=0.0, le=1000.0)
     compiled: bool = True
     lock_memory: bool = True
-    cpu_latency_us: int | None = Field(0, ge=0, le=1_000_000)
+    cpu_latency_us: int | None = Field(None, ge=0, le=1_000_000)
 
 
 class TaskInfo:
