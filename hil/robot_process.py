@@ -10,20 +10,23 @@ no packet that cycle), the late answers and when the robot stopped after too man
 from __future__ import annotations
 
 import gc
+import logging
 import time
 
 import numpy as np
 
 from plc_interface.robot.settings import RobotSettings
 
-from .priority import below_the_service
+from .priority import as_a_robot_controller
 from .virtual_robot import VirtualRobot, controller_for, run_cycles
 from .world import World
+
+hil_log = logging.getLogger("stiffcomp.hil")
 
 
 def robot_main(scenario, robot, settings: RobotSettings, port: int, out_file: str, go_value, ready) -> None:
     """Process entry: report ready, wait for the start time in ``go_value``, run the cut, save the log."""
-    below_the_service()
+    as_a_robot_controller(hil_log)
     world = World(scenario, robot)
     controller = controller_for(settings, robot, delay_s=scenario.plc.extra_delay_ms / 1000.0)
     vr = VirtualRobot(controller, "127.0.0.1", port, world.path.q_ref_deg)

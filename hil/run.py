@@ -39,6 +39,7 @@ from stiffness.model.stiffness_model import StiffnessModel
 
 from .multicast import MulticastError, check_multicast
 from .plc_process import plc_main
+from .priority import ROAD_IO_FIFO
 from .scenario import ROOT, Scenario
 from .sensor import sensor_main
 
@@ -159,7 +160,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         section = robot_section if robot_section is not None else shipped_robot_section(robot_interface)
         road = {"plc": {"role": "none", "enable_on_start": compensate},      # uncompensated: never enabled
                 "robot": {"interface": robot_interface, "port": free_udp_port(), "host": "127.0.0.1",
-                          "peer": "127.0.0.1", robot_interface: section}}
+                          "peer": "127.0.0.1", "realtime_priority": ROAD_IO_FIFO, robot_interface: section}}
         service_overrides = deep_update(road, service_overrides or {})
     cfg_path = write_service_config(scenario, model_path, folder, group, can_port, modbus_port, service_overrides)
     cfg = load_config(cfg_path)

@@ -13,6 +13,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from hil.priority import ROAD_IO_FIFO as IO_FIFO
+from hil.priority import ROBOT_FIFO
 from hil.robot_drive import Drive, drive
 from hil.run import ServiceProcess
 from hil.testing import CONFIG, free_port, write_config
@@ -31,7 +33,6 @@ RAMP_S = 0.2                        # limits.fault_ramp_s: the answers ramp in o
 # benchmarks/bench_robot_road.py): a robot controller is a real-time machine, and the suite runs beside busy
 # cores; where the host does not permit SCHED_FIFO both run at normal priority. The service holds the CPUs'
 # idle wake-up at 0 (cycle.cpu_latency_us), as a real-time cell's host is set up, where permitted
-ROBOT_FIFO, IO_FIFO = 45, 40
 
 
 def reference(t: float) -> list[float]:

@@ -7,7 +7,8 @@ this machine before its first cycle, asked of the operating system now, with not
   stiffcomp service that answers on ``monitoring.port`` (an edited file checked beside the running service,
   docs/commissioning.md) is a note: it is free once that service stops;
 * what the service asks of the scheduler (``cycle.realtime_priority``, ``robot.realtime_priority``,
-  ``cycle.lock_memory``, ``cycle.cpu``, ``cycle.cpu_latency_us``): `run` warns and runs on without it, so these are notes, not refusals;
+  ``cycle.lock_memory``, ``cycle.cpu``, ``cycle.cpu_latency_us``): `run` warns and runs on without it, so
+  these are notes, not refusals;
 * what it cannot check without starting: the PLC a client connects to, the sensor's first frame.
 
 The answers hold for the moment of the check, as the operating system gives them to this process: a port
