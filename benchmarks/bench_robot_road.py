@@ -187,8 +187,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--busy", type=int, nargs="+", default=[0, 1], choices=(0, 1))
     ap.add_argument("--interface", nargs="+", default=list(ROADS), choices=tuple(ROADS))
-    ap.add_argument("--io-priority", type=int, default=40, help="robot.realtime_priority of the service")
-    ap.add_argument("--robot-priority", type=int, default=45, help="SCHED_FIFO of the virtual robot's loop")
+    from hil.priority import ROAD_IO_FIFO, ROBOT_FIFO
+
+    ap.add_argument("--io-priority", type=int, default=ROAD_IO_FIFO, help="robot.realtime_priority of the service")
+    ap.add_argument("--robot-priority", type=int, default=ROBOT_FIFO, help="SCHED_FIFO of the virtual robot's loop")
     ap.add_argument("--circles", action="store_true", help="the HIL circle through each road instead")
     ap.add_argument("--cpu-latency", nargs="+", default=["held"], choices=("held", "kernel"),
                     help="cycle.cpu_latency_us 0 (held, the default) and/or null (the kernel's), each row")
