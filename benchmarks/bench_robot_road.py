@@ -9,7 +9,8 @@ within its cycle; the service's own count (from a packet's arrival in the I/O lo
 from its --stats-json. ``--busy 1`` adds one busy process (``python3 -c 'while True: pass'``) for the whole run.
 ``--plc 0``: the cell without a PLC (``plc.role: none``, the robot's packets the service's only work).
 ``--cpu-latency held kernel`` times each row twice, the service holding the CPUs' idle wake-up at 0
-(``cycle.cpu_latency_us: 0``, the default) and leaving it to the kernel (null), side by side.
+(``cycle.cpu_latency_us: 0``; ``held`` is this script's default) and leaving it to the kernel (null, the
+config's default), side by side.
 
 Priorities as a cell would set them: the cycle at SCHED_FIFO 50 (config/default.yaml), the I/O process that
 answers the robot at ``robot.realtime_priority`` (``--io-priority``, 40), and the virtual robot's own loop at

@@ -111,6 +111,11 @@ class AbbEgmSettings(Strict):
     def served(self) -> str:
         return f"{self.cycle_ms} ms, {self.mode} mode"
 
+    @property
+    def command_element(self) -> None:
+        """EGM's messages carry no command word of the robot's own: the road's enable is ``plc.enable_on_start``."""
+        return None
+
     def follows_no_path(self) -> str | None:
         """Why the robot, set so, runs no programmed path (None: path correction corrects the one it runs)."""
         if self.mode == "joint":
@@ -164,7 +169,7 @@ class RobotSettings(Strict):
     def command_element(self) -> str | None:
         """The element of the robot's packets that carries its own command word (``robot.<interface>.
         command_element``), None when the robot sends none (EGM's messages have no such field)."""
-        return getattr(self.section, "command_element", None) if self.enabled else None
+        return self.section.command_element if self.enabled else None
 
     def takes(self, peer_ip: str) -> bool:
         """Whether a packet from ``peer_ip`` is the robot's (``peer``)."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import struct
 import threading
 import time
 
@@ -162,9 +164,6 @@ def test_a_task_locks_its_memory_where_permitted_and_unlocks_it_after():
 
 def cpu_latency_target() -> int:
     """The kernel's CPU latency QoS target now (µs): reading the device gives it (pm_qos_interface.rst)."""
-    import os
-    import struct
-
     fd = os.open("/dev/cpu_dma_latency", os.O_RDONLY)
     try:
         return struct.unpack("=i", os.read(fd, 4))[0]
@@ -179,8 +178,6 @@ def test_a_task_holds_the_cpus_idle_wakeup_while_it_runs_and_lets_go_after():
     fd, why = hold_cpu_latency(0)
     if why is not None:
         pytest.skip(f"the CPU latency QoS is not permitted here ({why})")
-    import os
-
     os.close(fd)
     before = cpu_latency_target()
     if before == 0:
