@@ -40,6 +40,8 @@ COPY service ./service
 COPY plc_interface ./plc_interface
 COPY tools ./tools
 COPY hil ./hil
+COPY cell ./cell
+COPY st_runtime ./st_runtime
 COPY config ./config
 COPY examples ./examples
 

@@ -68,9 +68,14 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--commissioning", choices=("tap", "cut"), default="tap")
     ap.add_argument("--predictor-hz", type=float, default=None, help="dynamics.predictor.bandwidth_hz")
     ap.add_argument("--realtime", action="store_true", help="the passes in real time, not in lock step")
+    ap.add_argument("--plc-period-ms", type=float, default=None,
+                    help="the PLC's task cycle (default: the scenario's; hil_tests/test_hil_dynamics.py runs the "
+                         "library's own 1 ms)")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args(argv)
     sc = load_scenario(args.scenario)
+    if args.plc_period_ms is not None:
+        sc.plc.period_ms = args.plc_period_ms
     truth = StiffnessModel.from_yaml(Path(args.truth))
     variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz)
                 for ff in ([False, True] if args.feedforward else [False])

@@ -18,7 +18,8 @@ SCHED_FIFO 45 (``--robot-priority``; a robot controller is a real-time machine o
 host its loop must not wait behind the busy process, or its own lateness would pass for the service's).
 
     .venv/bin/python benchmarks/bench_robot_road.py [--seconds 60] [--busy 0 1] [--interface kuka_rsi abb_egm abb_egm_joint]
-    .venv/bin/python benchmarks/bench_robot_road.py --circles      # the circle through each road in the HIL, EGM at 48 and 24 ms
+    .venv/bin/python benchmarks/bench_robot_road.py --circles      # the circle through each road in the HIL, RSI at
+                                                                   # 12 and 4 ms, EGM at 48 and 24 ms
 """
 
 from __future__ import annotations
@@ -150,15 +151,18 @@ with pyads.Connection("127.0.0.1.1.1", 851, "127.0.0.1:{port}") as plc:
 
 
 def circles() -> list[dict]:
-    """`stiffcomp hil circle --json` through the PLC and through each robot road (EGM's path corrections every 48 ms,
-    as shipped, and every 24 ms, the fastest ABB's manual allows): path errors and delay."""
+    """`stiffcomp hil circle --json` through the PLC and through each robot road (RSI at 12 ms, #IPO as shipped, and
+    at 4 ms, #IPO_FAST; EGM's path corrections every 48 ms, as shipped, and every 24 ms, the fastest ABB's manual
+    allows): path errors and delay."""
     out = []
     with tempfile.TemporaryDirectory(prefix="bench-robot-") as tmp:
         fast = Path(tmp) / "egm24.yaml"
         fast.write_text("robot:\n  interface: abb_egm\n  abb_egm: {mode: path, cycle_ms: 24}\n")
-        for road, extra in (("plc", []), ("kuka_rsi", []), ("abb_egm", []),
-                            ("abb_egm_24ms", ["--robot-config", str(fast)])):
-            iface = None if road == "plc" else road.removesuffix("_24ms")
+        rsi4 = Path(tmp) / "rsi4.yaml"
+        rsi4.write_text("robot:\n  interface: kuka_rsi\n  kuka_rsi: {cycle_ms: 4}\n")
+        for road, extra in (("plc", []), ("kuka_rsi", []), ("kuka_rsi_4ms", ["--robot-config", str(rsi4)]),
+                            ("abb_egm", []), ("abb_egm_24ms", ["--robot-config", str(fast)])):
+            iface = None if road == "plc" else road.removesuffix("_24ms").removesuffix("_4ms")
             cmd = [sys.executable, "-m", "tools.cli", "hil", "circle", "--json",
                    *(["--robot-interface", iface] if iface else []), *extra]
             out.append(_circle(road, json.loads(subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True,

@@ -1,7 +1,8 @@
 """Hardware-in-the-loop: the service closed around virtual devices that speak the real protocols.
 
 virtual_sensor  a virtual ATI Net F/T sensor on any python-can bus (the real protocol)
-virtual_plc     a virtual PLC: a Modbus TCP client of the service on its own cycle
+virtual_plc     the virtual PLC: the TwinCAT program the cell loads (plc_program), run by st_runtime on its
+                own cycle, its requests over the cell's network (cell_network: Modbus TCP or the image)
 demo_log        the synthetic milling log the replay source ships with
 testing         helpers the tests, HIL tests and benchmarks share (configs, free ports, leaks)
 scenario    the YAML of a run (config/hil/circle.yaml)

@@ -72,7 +72,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                faults: Faults | None = None, service_overrides: dict | None = None,
                trace: Path | None = None, cmm: Path | None = None, lockstep: bool = False,
                dynamic: DynamicOptions | None = None, robot_interface: str | None = None,
-               repeat: int = 1, robot_section: dict | None = None, probe_log: Path | None = None) -> CircleResult:
+               repeat: int = 1, robot_section: dict | None = None, probe_log: Path | None = None,
+               plc_program: Path | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
     ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
@@ -87,7 +88,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     joint mode refused: position guidance runs no RAPID path, ABB's EGM manual). ``repeat``:
     each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
     the first cut of each is the one every other figure, the trace and the part come from. ``probe_log``: after
-    the last pass the robot probes the part it cut (`hil.probe`) and the log is written there.
+    the last pass the robot probes the part it cut (`hil.probe`) and the log is written there. ``plc_program``:
+    the virtual PLC's TwinCAT program (`hil.run.pass_program`); the summary names its files and their sha256.
     """
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
@@ -108,10 +110,11 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
 
         def cut_once(name: str, folder: Path, traced: Path | None) -> PassResult:
             if lockstep:
-                return run_lockstep(scenario, truth, model_path, name != "uncompensated", folder, overrides, traced)
+                return run_lockstep(scenario, truth, model_path, name != "uncompensated", folder, overrides, traced,
+                                    plc_program)
             return run_pass(scenario, truth, model_path, name != "uncompensated", folder,
                             faults if name == "compensated" else None, overrides, traced, robot_interface,
-                            robot_section)
+                            robot_section, plc_program)
         for name in names:
             last = name == names[-1]
             if name == "dynamic":
@@ -127,19 +130,16 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                 again[name].append(ev)
                 if name == "compensated":          # each repeat's timing is checked, not the first cut's alone
                     delays.append(end_to_end_delay(world_k, result.log))
-    evals, parts = {}, {}
-    world = None
+    evals, parts, world = {}, {}, None
     for name, r in passes.items():
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
     band = delay_band_ms(scenario, service_overrides, robot_interface)
     summary = summarise(world, passes, evals, parts, lockstep, again, band, delays)
     summary["robot_interface"] = robot_interface or "none"
+    summary["plc_program"] = passes[names[-1]].extra.get("plc_program")      # None on the robot road
     if found is not None:
-        summary["dynamics"] = {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
-                               "predictor": dynamic.predictor, "feedforward": dynamic.feedforward,
-                               "explained": round(found.explained, 5),
-                               "explained_static": round(found.explained_static, 5)}
+        summary["dynamics"] = dynamics_summary(found, dynamic)
     if cmm is not None:
         parts[names[-1]].write(cmm)
     if probe_log is not None:
@@ -147,6 +147,13 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     if report is not None:
         write_report(Path(report), world, evals, passes, summary)
     return CircleResult(summary, passes, evals, world, parts)
+
+
+def dynamics_summary(found, dynamic: DynamicOptions) -> dict:
+    """The summary's ``dynamics``: the modes the dynamic pass identified and how it was set up."""
+    return {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
+            "predictor": dynamic.predictor, "feedforward": dynamic.feedforward,
+            "explained": round(found.explained, 5), "explained_static": round(found.explained_static, 5)}
 
 
 def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,

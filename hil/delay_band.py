@@ -7,10 +7,11 @@ at least what the causal filters in the loop hold back: the virtual sensor's low
 2nd-order Butterworth at ``sensor.rate_hz``) and the service's (``filter``, at the cycle's rate), each its
 group delay at the force's low frequencies, plus the PLC's ``plc.extra_delay_ms``. No timing can beat that:
 a delay below it means the run's clocks or its log are wrong. Above it come the sample-and-hold of the
-service's cycle and of the device (the PLC's ``plc.period_ms``, or the robot's interface cycle on the robot
-road), each at most one period, and the transport (CAN over UDP, Modbus or the robot's UDP: well under a
-millisecond on one host); `SLACK_MS` covers that and a scheduler's wake-up. On the shipped scenario: 6.5 to
-13.5 ms, against 7.99 ms in lock step and 8.02 ms in real time.
+service's cycle and of the device, each at most one period (the robot's interface cycle on the robot road;
+the PLC's ``plc.period_ms`` twice: its program takes a request's answer at the call after the one that sent it,
+as Beckhoff's request blocks end, then holds it for a cycle), and the transport (CAN over UDP, Modbus or the robot's UDP: well under a
+millisecond on one host); `SLACK_MS` covers that and a scheduler's wake-up. On the shipped scenario (a 2 ms PLC):
+6.5 to 13.5 ms, against 9.94 ms in lock step and 9.03 ms in real time.
 """
 
 from __future__ import annotations
@@ -48,8 +49,8 @@ def delay_band_ms(scenario: Scenario, overrides: dict | None = None,
     sensor = group_delay_ms(signal.butter(2, s.lowpass_hz, fs=s.rate_hz, output="sos"), s.rate_hz) \
         if s.lowpass_hz > 0 else 0.0
     low = sensor + group_delay_ms(service.sos, rate_hz) + scenario.plc.extra_delay_ms
-    if robot_interface is None:
-        device_ms = scenario.plc.period_ms
+    if robot_interface is None:         # the program takes a request's answer at the call after it started it
+        device_ms = 2 * scenario.plc.period_ms
     else:
         device_ms = float(RobotSettings.model_validate({"interface": robot_interface}).cycle_ms)
     return low, low + cycle.period_ms + device_ms + SLACK_MS

@@ -144,7 +144,8 @@ def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, s
         folder.mkdir(parents=True, exist_ok=True)
         write_plan(world, folder / "plan.csv")
         section["feedforward"] = {"source": "file", "file": str(folder / "plan.csv"),
-                                  "output_delay_ms": scenario.plc.period_ms / 2 + scenario.plc.extra_delay_ms}
+                                  # the PLC program takes a read's answer a cycle after it sent it, then holds it
+                                  "output_delay_ms": 1.5 * scenario.plc.period_ms + scenario.plc.extra_delay_ms}
         out["plc"] = {"register_map": str(plan_register_map(SHIPPED_CONFIG / "registers.yaml", folder))}
     return out
 

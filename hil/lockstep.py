@@ -7,8 +7,9 @@ The same parts as the real-time run (`hil.run`), without the protocols' transpor
   contract record and its trace ring (`--trace`) are the real ones; no I/O process and no task thread;
 * the sensor is the HIL's `HilSensor`: its frames (the ATI protocol, noise, its own low-pass and clock) go
   to the service's source decoder one cycle after the request, as ``request_each_cycle`` has them;
-* the PLC is `PlcLogic` on its own period, reading the to_plc block from the image and writing its
-  from_plc words into it as a Modbus client's requests would (the image's Modbus rules apply);
+* the PLC is the TwinCAT program the cell loads (`hil.virtual_plc.VirtualPlc`) on its own period, its Modbus
+  requests served by the image in the same process (`hil.cell_network.ImageNetwork`: the image's Modbus rules
+  apply), each taken at the program's next cycle as in real time;
 * the robot stub evaluates the pass as in real time (`hil.report.evaluate`).
 
 So a pass takes a second or two instead of its real length plus three process start-ups, and gives the
@@ -31,10 +32,11 @@ from service.trace import TraceOptions
 from stiffness.data.trace_file import TraceFile
 from stiffness.model.stiffness_model import StiffnessModel
 
-from .run import PassResult, write_service_config
+from .cell_network import ImageNetwork
+from .run import PassResult, pass_program, write_service_config
 from .scenario import Scenario
 from .sensor import HilSensor
-from .virtual_plc import CycleLog, PlcLogic
+from .virtual_plc import VirtualPlc
 from .world import World
 
 WARM_UP_S = 1.0          # the service runs this long before the PLC's program starts (as it starts first)
@@ -65,8 +67,10 @@ class FramesSource(FtSource):
 
 
 def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
-                 service_overrides: dict | None = None, trace: Path | None = None) -> PassResult:
-    """One pass in lock step; returns what `hil.run.run_pass` returns (the PLC's log, the service's stats)."""
+                 service_overrides: dict | None = None, trace: Path | None = None,
+                 plc_program: Path | None = None) -> PassResult:
+    """One pass in lock step; returns what `hil.run.run_pass` returns (the PLC's log, the service's stats).
+    ``plc_program``: the TwinCAT program's folder (by default the library generated for the pass's config)."""
     folder.mkdir(parents=True, exist_ok=True)
     cfg_path = write_service_config(scenario, model_path, folder, f"239.74.{random.randint(1, 254)}.1", 1, 1,
                                      service_overrides)
@@ -82,8 +86,9 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     service = Service(cfg, TraceOptions(Path(trace)) if trace is not None else None, source=source)
     service.wait_compiled()
     out_file = TraceFile(trace) if trace is not None else None
+    program = pass_program(cfg, plc_program, folder)
     try:
-        log = _loop(scenario, world, service, cfg, compensate, out_file)
+        log = _loop(scenario, world, service, cfg, compensate, out_file, program)
     finally:
         service.stop()
         sensor.bus.shutdown()
@@ -91,7 +96,8 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
             out_file.close()
     stats = service.info.stats()
     stats["status"] = "stopped"
-    return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True})
+    return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True,
+                                                     "plc_program": program.summary()})
 
 
 def _protocol(cfg):
@@ -100,20 +106,19 @@ def _protocol(cfg):
     return AtiProtocol.from_config(cfg.source.ati)
 
 
-def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: bool, out: TraceFile | None) -> dict:
+def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: bool, out: TraceFile | None,
+          program) -> dict:
     """Step the service every cycle and the PLC every PLC period from WARM_UP_S before the lead to the end."""
     rmap = cfg.register_map()
     c = scenario.plc
-    logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s,
-                     delay_s=c.extra_delay_ms / 1000.0, plan=world.plan)
-    out_codec, in_codec = rmap.codecs["to_plc"], rmap.codecs["from_plc"]
-    out_block, in_block = rmap.blocks["to_plc"], rmap.blocks["from_plc"]
-    image = service.image
+    network = ImageNetwork(service.image, rmap, delay_ms=c.extra_delay_ms)
+    plc = VirtualPlc(program, network, rmap, world.path.q_ref_deg, compensate, c.period_ms / 1000.0, world.plan,
+                     {"service_timeout_ms": c.service_timeout_ms, "max_rate_deg_s": c.max_rate_deg_s})
     period = cfg.cycle.period_ms / 1000.0
-    plc_every = max(1, round(c.period_ms / 1000.0 / period))
+    plc_every = max(1, round(plc.period / period))
     t_first = world.t_start - WARM_UP_S
     n = round((world.t_end - t_first) / period) + 1
-    log = CycleLog(n // plc_every + 2, len(out_codec.names))
+    log = plc.new_log(n // plc_every + 2)
     for k in range(n):
         t = t_first + k * period
         service.source.scenario_t = t
@@ -125,14 +130,9 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
             out.write(service.trace.take())
         if k % plc_every or t < world.t_start:
             continue
-        values = out_codec.decode(image.read(out_block.table, out_block.start, out_codec.words))
-        words, q_cmd = logic.step(t, values)
-        image.write(in_block.table, in_block.start, in_codec.encode(words))
-        j = log.k
-        log.t[j], log.t_read[j], log.link[j] = t, t, logic.link_ok
-        log.q_ref[j], log.q_cmd[j], log.applied[j], log.to_plc[j] = logic.reference(t), q_cmd, logic.applied, values
-        log.k += 1
+        plc.cycle(t, t)
+        log.t_read[log.k - 1] = t
     if out is not None:
         out.write(service.trace.take())
-    arrays = log.arrays()
-    return {**arrays, "written": np.array([]), "overruns": 0, "errors": 0, "period": c.period_ms / 1000.0, "t0": 0.0}
+    return {**log.arrays(), "written": np.array(sorted(network.written)), "overruns": 0, "errors": network.errors,
+            "period": plc.period, "t0": 0.0}

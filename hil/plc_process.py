@@ -1,4 +1,5 @@
-"""The virtual PLC of a HIL run, in its own process: the circle program on `VirtualPlc`."""
+"""The virtual PLC of a HIL run, in its own process: the PLC program on `VirtualPlc`, a Modbus TCP client of
+the service (`hil.cell_network.ModbusNetwork`)."""
 
 from __future__ import annotations
 
@@ -7,33 +8,37 @@ import time
 
 import numpy as np
 
-from hil.virtual_plc import PlcFaults, PlcLogic, VirtualPlc
 from plc_interface.register_map import RegisterMap
 
+from .cell_network import ModbusNetwork, PlcFaults
+from .plc_program import PlcProgram
 from .priority import below_the_service
+from .virtual_plc import VirtualPlc
 from .world import World
 
 
 def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, out_file: str, go_value, ready,
-             faults: PlcFaults | None = None, connect_timeout_s: float = 60.0) -> None:
-    """Process entry: connect, report ready, wait for the start time in ``go_value``, run, save the log.
-    ``rmap`` is the service config's register map (`ServiceConfig.register_map`). Runs below the
+             program_folder: str, faults: PlcFaults | None = None, connect_timeout_s: float = 60.0) -> None:
+    """Process entry: load the program, connect, report ready, wait for the start time in ``go_value``, run,
+    save the log. ``rmap`` is the service config's register map (`ServiceConfig.register_map`). Runs below the
     service's priority (`hil.priority`)."""
     below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)
     c = scenario.plc
-    logic = PlcLogic(rmap, world.path.q_ref_deg, compensate, c.service_timeout_ms / 1000.0, c.max_rate_deg_s,
-                     faults, c.extra_delay_ms / 1000.0, world.plan)
-    plc = VirtualPlc(logic, rmap, "127.0.0.1", port, c.period_ms / 1000.0)
+    network = ModbusNetwork("127.0.0.1", port, rmap, faults, c.extra_delay_ms)
+    plc = VirtualPlc(PlcProgram(program_folder), network, rmap, world.path.q_ref_deg, compensate,
+                     c.period_ms / 1000.0, world.plan,
+                     {"service_timeout_ms": c.service_timeout_ms, "max_rate_deg_s": c.max_rate_deg_s})
     try:
-        if not plc.connect(time.monotonic() + connect_timeout_s):
+        if not network.connect(time.monotonic() + connect_timeout_s):
             raise ConnectionError(f"the virtual PLC cannot reach the service at 127.0.0.1:{port}")
         ready.set()
         while go_value.value <= 0:
             time.sleep(0.005)
         log = plc.run(world.t_start, world.t_end, go_value.value)
-        np.savez(out_file, **log.arrays(), written=np.array(sorted(plc.written)), overruns=plc.overruns,
-                 errors=plc.errors, period=plc.period, t0=go_value.value)
+        np.savez(out_file, **log.arrays(), written=np.array(sorted(network.written)), overruns=plc.overruns,
+                 errors=network.errors, period=plc.period, t0=go_value.value,
+                 dialled=np.array(sorted(f"{h}:{p} unit {u}" for h, p, u in network.dialled)))
     finally:
-        plc.close()
+        network.close()

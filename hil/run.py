@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 from pymodbus.client import ModbusTcpClient
 
+from hil.cell_network import PlcFaults
 from hil.testing import free_port, write_config
-from hil.virtual_plc import PlcFaults
 from plc_interface.contract import TaskState
 from plc_interface.endpoints import read_probe
 from plc_interface.register_map import RegisterMap
@@ -37,18 +37,15 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .errors import HilError
 from .multicast import MulticastError, check_multicast
 from .plc_process import plc_main
+from .plc_program import PlcProgram, generate_program
 from .priority import ROAD_IO_FIFO
 from .scenario import ROOT, Scenario
 from .sensor import sensor_main
 
 START_TIMEOUT_S = 90.0
-
-
-class HilError(Exception):
-    """A HIL pass could not run: a device process did not start, died, or the service could not be
-    reached (the CLI reports it in one line with exit code 2)."""
 
 
 @dataclass
@@ -145,12 +142,14 @@ def _wait(event, proc, what: str, timeout: float = START_TIMEOUT_S) -> None:
 def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compensate: bool, folder: Path,
              faults: Faults | None = None, service_overrides: dict | None = None,
              trace: Path | None = None, robot_interface: str | None = None,
-             robot_section: dict | None = None) -> PassResult:
+             robot_section: dict | None = None, plc_program: Path | None = None) -> PassResult:
     """Run the closed loop once in real time; returns the PLC's log and the service's stats. ``trace``: the
     service records every cycle there (`stiffcomp run --trace`). ``robot_interface`` (``kuka_rsi``,
     ``abb_egm``): the robot road instead of the PLC: a virtual robot of that interface (`hil.robot_process`)
     drives the cut, the service has no PLC (``plc.role: none``) and its log stands for the PLC's; the
-    interface's sub-section is ``robot_section``, by default the shipped robot config's (`shipped_robot_section`)."""
+    interface's sub-section is ``robot_section``, by default the shipped robot config's (`shipped_robot_section`).
+    ``plc_program``: the folder of the TwinCAT program the virtual PLC runs (by default the library generated for
+    this pass's config, `hil.plc_program.generate_program`)."""
     faults = faults or Faults()
     folder.mkdir(parents=True, exist_ok=True)
     group = f"239.74.{random.randint(1, 254)}.{random.randint(1, 254)}"
@@ -176,10 +175,12 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     sensor = ctx.Process(target=_sensor_entry, name="hil-sensor", args=(
         scenario, robot_path, bus_kw, ati, go, sensor_ready, stop, faults.sensor,
         truth.input_map()))
+    program = None
     if robot_interface is None:
+        program = pass_program(cfg, plc_program, folder)
         plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
             scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
-            plc_ready, faults.plc))
+            plc_ready, str(program.folder), faults.plc))
     else:
         plc = ctx.Process(target=_robot_entry, name="hil-robot", args=(
             scenario, robot_path, cfg.robot, cfg.robot.port, str(out_file), go, plc_ready))
@@ -212,8 +213,17 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     results = [s.result() for s in services]
     with np.load(out_file) as z:
         log = {k: z[k] for k in z.files}
-    return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate,
-                      {"unmapped_nonzero": unmapped})
+    extra = {"unmapped_nonzero": unmapped}
+    if program is not None:
+        extra["plc_program"] = {**program.summary(), "dialled": [str(d) for d in log.get("dialled", [])]}
+    return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate, extra)
+
+
+def pass_program(cfg, plc_program: Path | None, folder: Path) -> PlcProgram:
+    """The program of a pass: ``plc_program``'s, or the library generated for ``cfg`` into ``folder``/plc."""
+    if plc_program is not None:
+        return PlcProgram(plc_program)
+    return generate_program(cfg.register_map(), cfg.plc.port, cfg.plc.device_id, folder / "plc")
 
 
 def shipped_robot_section(interface: str) -> dict:
@@ -280,5 +290,5 @@ def _robot_entry(scenario, robot_path, settings, port, out_file, go, ready) -> N
     robot_main(scenario, load_robot(robot_path), settings, port, out_file, go, ready)
 
 
-def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, faults) -> None:
-    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, faults)
+def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, program, faults) -> None:
+    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, program, faults)

@@ -53,8 +53,10 @@ class SensorConfig(Strict):
 
 class PlcConfig(Strict):
     period_ms: float = Field(2.0, ge=1.0, le=4.0)
-    service_timeout_ms: float = Field(100.0, gt=0.0)
-    max_rate_deg_s: float = Field(2.0, gt=0.0, le=100.0)
+    # None: the program's own settings; a value is written into the program before its first cycle, as an
+    # online change of GVL_StiffCompSettings.tServiceTimeout and MAIN.fMaxRateDegPerS would be
+    service_timeout_ms: float | None = Field(None, gt=0.0)
+    max_rate_deg_s: float | None = Field(None, gt=0.0, le=100.0)
     extra_delay_ms: float = Field(0.0, ge=0.0, le=100.0)     # the PLC applies each correction this much later
 
 

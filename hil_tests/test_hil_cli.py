@@ -26,7 +26,8 @@ ISO_9283 = {"repeats", *(k + t for k in ("path_accuracy_mm", "path_repeatability
 KEYS = {"mean_error_mm", "max_error_mm", "mean_error_mm_uncompensated", "max_error_mm_uncompensated", "cycles",
         "exceed_count", "timing", "part_error_mm", "part_error_mm_uncompensated", "delay_ms", "delay_band_ms", "delay_ms_repeats",
         *WINDOWS, *(k + "_uncompensated" for k in WINDOWS), *ISO_9283,
-        "robot_interface", "late_answers", "reply_latency_p99_ms"}                     # issue 37: the robot road
+        "robot_interface", "late_answers", "reply_latency_p99_ms",                     # issue 37: the robot road
+        "plc_program"}                                                                  # issue 49: what the PLC ran
 
 
 def stiffcomp(*args: str) -> subprocess.CompletedProcess:
@@ -51,6 +52,9 @@ def test_circle_prints_both_errors_and_writes_the_plot(tmp_path):
     _the_trace_and_the_part_belong_together(s, tmp_path, trace, part, every)
     assert set(s) == KEYS
     assert set(s["timing"]) == {"exceeded_share", "trustworthy", "verdict"}
+    program = s["plc_program"]                        # the library generated for the pass's config, each file named
+    assert {"MAIN.TcPOU", "FB_StiffCompModbus.TcPOU"} <= set(program["files"]) and program["dialled"]
+    assert all(len(digest) == 64 for digest in program["files"].values())
     assert s["mean_error_mm"] <= 0.10 * s["mean_error_mm_uncompensated"], s
     assert s["max_error_mm"] <= s["max_error_mm_uncompensated"]
     assert s["repeats"] == 2 and s["path_repeatability_mm"] > 0.0, s

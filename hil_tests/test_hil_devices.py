@@ -8,14 +8,12 @@ import time
 import can
 import numpy as np
 import pytest
-from hil_lib import EXAMPLES, RMAP, scenario
+from hil_lib import EXAMPLES, scenario
 
 from hil.robot_stub import RobotStub
 from hil.sensor import HilSensor
 from hil.testing import truth_with
-from hil.virtual_plc import PlcFaults, PlcLogic
 from hil.world import World
-from plc_interface.contract import Command
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.errors import CanFrameError, SensorTimeout
@@ -151,85 +149,6 @@ def test_structure_passes_a_steady_load_and_not_the_tooth_passing():
     np.testing.assert_allclose(steady[-1], [100.0, -50.0, 20.0], rtol=1e-3)
     tooth = stub.structural_load(t, np.sin(2 * np.pi * 400 * t)[:, None] * [100.0, 0, 0])
     assert np.abs(tooth[2000:, 0]).max() < 0.5
-
-
-# -- the PLC's program ------------------------------------------------------------------------------
-def plc(**kw) -> PlcLogic:
-    return PlcLogic(RMAP, lambda t: [10.0, -60.0, 90.0, 0.0, 60.0, 0.0], service_timeout_s=0.1,
-                    max_rate_deg_s=2.0, **kw)
-
-
-def service_values(hb: int, corr: list[float]) -> list[float]:
-    names = RMAP.codecs["to_plc"].names
-    v = dict.fromkeys(names, 0.0) | {"heartbeat": hb} | {f"correction_q{i + 1}": c for i, c in enumerate(corr)}
-    return [v[n] for n in names]
-
-
-def step(logic, t, values):
-    out, q = logic.step(t, values)
-    return dict(zip(RMAP.codecs["from_plc"].names, out)), q
-
-
-def test_plc_without_the_service_follows_its_references():
-    logic = plc()
-    for k in range(100):
-        out, q = step(logic, k * 0.004, None)
-        assert q == logic.reference(k * 0.004) and out["command_word"] == Command.ENABLE
-    assert out["plc_heartbeat"] == 100
-
-
-def test_plc_applies_the_correction_rate_limited_and_drops_it_when_the_link_goes_stale():
-    logic, corr, dt = plc(), [0.05, -0.02, 0.01, 0.0, 0.0, 0.0], 0.004
-    seen = []
-    for k in range(100):
-        _, q = step(logic, k * dt, service_values(k, corr))
-        seen.append(list(logic.applied))
-    steps = np.abs(np.diff(np.array(seen), axis=0))
-    assert steps.max() <= 2.0 * dt + 1e-12
-    np.testing.assert_allclose(seen[-1], corr)
-    np.testing.assert_allclose(np.array(q) - logic.reference(0), corr)
-    for k in range(100, 200):                      # the service's heartbeat freezes
-        step(logic, k * dt, service_values(99, corr))
-    assert logic.applied == [0.0] * 6 and not logic.link_ok
-
-
-def test_plc_pulses_reset_on_first_contact_and_after_a_loss_only():
-    logic, dt = plc(), 0.004
-    resets = [step(logic, k * dt, service_values(k, [0.0] * 6) if not 50 <= k < 100 else None)[0]["command_word"]
-              & Command.RESET for k in range(200)]
-    assert [k for k, r in enumerate(resets) if r] == [0, 100]
-
-
-def test_plc_holds_reset_until_the_service_shows_the_faults_cleared():
-    """A service stalled past one PLC cycle must still see the reset edge: the bit stays up while the fault
-    word reads nonzero, at most recovery.hold_s, and drops at the first reading with the faults cleared."""
-    logic, dt = plc(), 0.004
-    names = RMAP.codecs["to_plc"].names
-
-    def values(k, fault_word):
-        v = service_values(k, [0.0] * 6)
-        v[names.index("fault_word")] = fault_word
-        return v
-
-    resets = [step(logic, k * dt, values(k, 0x20 if k < 10 else 0))[0]["command_word"] & Command.RESET
-              for k in range(20)]
-    assert [k for k, r in enumerate(resets) if r] == list(range(10))
-    held = plc()
-    resets = [step(held, k * dt, values(k, 0x20))[0]["command_word"] & Command.RESET for k in range(200)]
-    assert sum(1 for r in resets if r) == int(held.recovery.hold_s / dt) + 1      # a persisting fault: capped
-
-
-def test_plc_uncompensated_neither_enables_nor_applies():
-    logic = plc(compensate=False)
-    for k in range(50):
-        out, q = step(logic, k * 0.004, service_values(k, [0.1] * 6))
-    assert out["command_word"] & Command.ENABLE == 0 and q == logic.reference(0)
-
-
-def test_plc_heartbeat_freezes_when_told():
-    logic = plc(faults=PlcFaults(heartbeat_stop_at=0.1))
-    hb = [step(logic, k * 0.004, None)[0]["plc_heartbeat"] for k in range(60)]
-    assert len(set(hb[25:])) == 1 and len(set(hb[:25])) == 25
 
 
 # -- the virtual sensor, within one process ---------------------------------------------------------

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from stiffcomp_testlib import ROOT
 
-PACKAGES = ("stiffness", "plc_interface", "service", "tools", "hil")
+PACKAGES = ("stiffness", "plc_interface", "service", "tools", "hil", "cell", "st_runtime")
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 

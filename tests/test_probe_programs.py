@@ -3,8 +3,9 @@
 HIL writes (config/robots/kr125.yaml's tcp), and to the probe log format `stiffcomp part` reads.
 
 `krl_mismatches` and `rapid_mismatches` list every value that differs; the shipped files give none, and a plan or
-a file drifted in one value is named. The KRL program's log is rebuilt from its own `krl_fprintf` calls and read
-back by the reader (`stiffness.data.probe_log`).
+a file drifted in one value is named. Each program's log is written as its controller writes it (robot_testlib:
+the KRL's StrClear, SWRITE and krl_fwriteln, the RAPID's Write pieces, no escape processing) and read back by the
+reader (`stiffness.data.probe_log`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import re
 import numpy as np
 import pytest
 import yaml
+from robot_testlib import krl_log, kuka_rotation, rapid_log
 from stiffcomp_testlib import ROOT
 
 from hil.scenario import load_scenario
@@ -77,24 +79,10 @@ def krl_mismatches(want: dict, xyz: list[float], rpy: list[float], src: str, dat
         out.append("PROBE_HIT does not take the latched axes ($AXIS_INT) and RESUME")
     if not re.search(r"\$VEL\.CP\s*=\s*vProbe\s*/\s*1000(\.0)?\s*\n\s*SEARCH\(", code):
         out.append("the search does not run at the probing speed ($VEL.CP = vProbe / 1000 before SEARCH)")
-    return out + log_mismatches(krl_log(src, data, np.zeros(6), 1, 1.0, 0.0), "the KRL's log")
-
-
-def krl_log(src: str, data: dict, q: np.ndarray, k: int, dx: float, dy: float) -> str:
-    """What StiffCompProbe.src writes for one touch: its krl_fprintf calls, in order, each format filled."""
-    values = {n: v for n, v in data.items() if not isinstance(v, dict)}
-    values.update({f"probeFrame.{c}": v for c, v in data.get("probeFrame", {}).items()})
-    values.update({f"hit.A{i + 1}": float(v) for i, v in enumerate(q)})
-    values.update(k=k, dx=dx, dy=dy)
-    text = []
-    for line in krl_code(src).splitlines():
-        call = re.search(r'"krl_fprintf",\s*logHandle,\s*(.*)\)\s*$', line)
-        if call is None:
-            continue
-        fmt, *args = [a.strip() for a in re.findall(r'\s*("(?:[^"\\]|\\.)*"|[^,]+)', call.group(1))]
-        fill = [a.strip('"') if a.startswith('"') else values[a] if a in values else float(a) for a in args]
-        text.append(fmt.strip('"').replace("\\n", "\n") % tuple(fill))
-    return "".join(text)
+    if not re.search(r"toRoot\s*=\s*INV_POS\(\$ROBROOT\)\s*:\s*\$BASE", code) or \
+            not re.search(r"tip\s*=\s*toRoot\s*:\s*tip", code):
+        out.append("the approach is not turned from the base's axes into the robot root's (INV_POS($ROBROOT) : $BASE)")
+    return out + log_mismatches(krl_log(src, data, [(np.zeros(6), 1.0, 0.0)]), "the KRL's log")
 
 
 # -- ABB RAPID ----------------------------------------------------------------------------------------------
@@ -122,13 +110,23 @@ def rapid_mismatches(want: dict, xyz: list[float], rpy: list[float], mod: str) -
         out.append("no SearchL \\Stop to pHit at vSearch")
     if not re.search(r"CalcJointT\s*\(\s*pHit\b", code):
         out.append("the search point is not turned into joints (CalcJointT(pHit, ...))")
-    lines = re.findall(r'Write\s+log\s*,\s*"([^"]*)"', code)
-    written = "\n".join(line + ("0" if line.endswith(": ") else "") for line in lines) + "\n"
-    return out + log_mismatches(written, "the RAPID's log", rows=False)
+    if not re.search(r"wRot\s*:=\s*PoseMult\(\s*wContour\.uframe\s*,\s*wContour\.oframe\s*\)", code) or \
+            not re.search(r"dBase\s*:=\s*PoseVect\(\s*wRot\s*,", code):
+        out.append("the approach is not turned from wContour's axes into the robot base's (PoseVect, PoseMult)")
+    written = rapid_log(mod, rapid_env(consts, pos), [(np.zeros(6), np.array([1.0, 0.0, 0.0]))], [])
+    return out + log_mismatches(written, "the RAPID's log")
 
 
 # -- the log both write -------------------------------------------------------------------------------------
-def log_mismatches(text: str, who: str, rows: bool = True) -> list[str]:
+def rapid_env(consts: dict, pos: dict) -> dict:
+    """The module's num CONSTs and its pos CONSTs' components, by the names its statements use."""
+    env = {name: float(value) for name, value in consts.items()}
+    for name, body in pos.items():
+        env.update({f"{name}.{c}": float(v) for c, v in zip("xyz", body.split(","))})
+    return env
+
+
+def log_mismatches(text: str, who: str) -> list[str]:
     """The '#' keys a program writes are the ones the reader knows, the required ones among them, and its header
     row is the format's."""
     out = []
@@ -152,22 +150,50 @@ def test_the_probe_programs_match_the_plan_the_tool_and_the_log_format():
     assert rapid_mismatches(want, xyz, rpy, mod) == []
 
 
-def test_the_log_the_krl_writes_reads_back(tmp_path):
-    """Three touches as StiffCompProbe.src writes them: the reader takes the log, its joints and directions."""
+Q = np.array([[0.5, -59.6, 89.7, 0.0, 59.9, 0.5], [1.0, -60.0, 90.0, 0.1, 60.0, 0.0],
+              [-0.5, -60.4, 90.3, -0.1, 60.1, -0.5]])
+PHI = np.radians([10.0, 180.0, 350.0])
+
+
+@pytest.mark.parametrize("base_abc", [(0.0, 0.0, 0.0), (30.0, 0.0, 0.0), (-45.0, 10.0, 180.0)])
+def test_the_log_the_krl_writes_reads_back(tmp_path, base_abc):
+    """Three touches as the controller writes StiffCompProbe.src's log (krl_fwriteln ends each line, no escape
+    in any literal): the reader takes the joints and the directions, turned into the root's axes where the base is
+    rotated."""
     _, _, _, src, dat, _ = shipped()
     data = krl_data(dat)
-    q = np.array([[0.5, -59.6, 89.7, 0.0, 59.9, 0.5], [1.0, -60.0, 90.0, 0.1, 60.0, 0.0],
-                  [-0.5, -60.4, 90.3, -0.1, 60.1, -0.5]])
-    phi = np.radians([10.0, 180.0, 350.0])
-    one = [krl_log(src, data, q[i], i + 1, np.cos(phi[i]), np.sin(phi[i])) for i in range(3)]
-    header_end = one[0].index(HEADER) + len(HEADER) + 1
-    text = one[0] + "".join(t[header_end:] for t in one[1:])
-    (tmp_path / "probe.csv").write_text(text)
+    touches = [(Q[i], float(np.cos(PHI[i])), float(np.sin(PHI[i]))) for i in range(3)]
+    (tmp_path / "probe.csv").write_text(krl_log(src, data, touches, base_abc))
     log = read_probe(tmp_path / "probe.csv")
-    assert np.abs(log.q_deg - q).max() <= 1e-6
-    assert np.allclose(log.approach[:, :2], np.column_stack([np.cos(phi), np.sin(phi)]), atol=1e-6)
+    assert np.abs(log.q_deg - Q).max() <= 1e-6
+    want = (kuka_rotation(*base_abc) @ np.vstack([np.cos(PHI), np.sin(PHI), np.zeros(3)])).T
+    assert np.allclose(log.approach, want, atol=1e-6)
     assert log.stylus_radius_mm == data["rStylus"] and log.overtravel_mm == pytest.approx(
         data["vProbe"] * data["latencyMs"] / 1000.0)
+
+
+def test_the_log_the_rapid_writes_reads_back(tmp_path):
+    """Three touches as the controller writes StiffCompProbe.modx's log, in its pieces: the reader takes them."""
+    *_, mod = shipped()
+    code = rapid_code(mod)
+    env = rapid_env(dict(re.findall(r"CONST\s+num\s+(\w+)\s*:=\s*([-+\d.eE]+)\s*;", code)),
+                    dict(re.findall(r"CONST\s+pos\s+(\w+)\s*:=\s*\[([^\]]*)\]", code)))
+    d = np.column_stack([np.cos(PHI), np.sin(PHI), np.zeros(3)])
+    strings = []
+    (tmp_path / "probe.csv").write_text(rapid_log(mod, env, [(Q[i], d[i]) for i in range(3)], strings))
+    log = read_probe(tmp_path / "probe.csv")
+    assert np.abs(log.q_deg - Q).max() <= 1e-6 and np.allclose(log.approach, d, atol=1e-6)
+    assert log.tool_radius_mm == env["rTool"] and max(len(t) for t in strings) <= 80
+
+
+def test_the_old_krl_log_does_not_read_back(tmp_path):
+    """The old program's "\\n" in krl_fprintf formats is a backslash and an n on the controller: its log is one
+    line the reader refuses, as the project's old test could not see (it replaced them before reading)."""
+    old = ROOT / "tests" / "data" / "robot" / "old"
+    src, dat = (old / "StiffCompProbe.src").read_text(), (old / "StiffCompProbe.dat").read_text()
+    text = krl_log(src, krl_data(dat), [(Q[0], 1.0, 0.0)])
+    assert "\n" not in text and "\\n" in text
+    assert log_mismatches(text, "old") != []
 
 
 @pytest.mark.parametrize("name, value", [("nTouches", 36), ("rStylus", 2.0), ("vProbe", 10.0), ("latencyMs", 0.5),

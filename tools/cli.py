@@ -37,6 +37,7 @@ COMMANDS = {
     "part": "tools.part_cmd",
     "modes": "tools.modes_cmd",
     "plc-library": "tools.plc_library_cmd",
+    "robot-programs": "tools.robot_programs_cmd",
 }
 
 EXIT_USER_ERROR = 2

@@ -44,6 +44,10 @@ def register(sub) -> None:
     c.add_argument("--robot-config", default=None, metavar="CONFIG.yaml",
                    help="with --robot-interface: take robot.<interface> from this service config instead of the "
                         "shipped one (e.g. EGM path corrections every 24 ms)")
+    c.add_argument("--plc-program", default=None, metavar="DIR",
+                   help="the TwinCAT program the virtual PLC runs (a folder of .TcPOU/.TcDUT/.TcGVL, or one with "
+                        "twincat/ in it); default: the library `stiffcomp plc-library --main-block modbus` writes for "
+                        "each pass's config")
     c.add_argument("--lockstep", action="store_true",
                    help="step the service, sensor and PLC together in one process, as fast as the host runs "
                         "them (deterministic; no real time, no protocols' transport)")
@@ -207,7 +211,8 @@ def run(args) -> int:
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,
                      lockstep=args.lockstep, dynamic=dynamic, repeat=repeat, robot_interface=args.robot_interface,
-                     robot_section=robot_section, probe_log=Path(args.probe) if args.probe else None)
+                     robot_section=robot_section, probe_log=Path(args.probe) if args.probe else None,
+                     plc_program=Path(args.plc_program) if args.plc_program else None)
     s = res.summary
     if args.json:
         print(json.dumps(s, indent=2))
@@ -230,6 +235,10 @@ def run(args) -> int:
         if args.robot_interface:
             print(f"robot road {args.robot_interface}: {s['late_answers']} late answers, answer round trip p99 "
                   f"{s['reply_latency_p99_ms']} ms at the robot")
+        if s.get("plc_program"):
+            prog = s["plc_program"]
+            print(f"PLC program: {prog['folder']} (" + ", ".join(f"{name} sha256 {digest[:12]}" for name, digest
+                                                         in prog["files"].items()) + ")")
         if args.trace:
             print(f"trace: {args.trace}")
         if args.cmm:

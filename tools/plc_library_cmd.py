@@ -27,6 +27,9 @@ def register(sub) -> None:
     p.add_argument("--modbus-host", metavar="ADDRESS",
                    help="the service's IPv4 address as the PLC dials it (default plc.host, which is refused where it "
                         "is a bind address such as 0.0.0.0 or a host name)")
+    p.add_argument("--main-block", choices=["ads", "modbus"], default="ads",
+                   help="the block the example MAIN calls: FB_StiffComp over ADS (default) or FB_StiffCompModbus over "
+                        "Modbus TCP (TF6250)")
     p.set_defaults(func=run)
 
 
@@ -36,7 +39,7 @@ def run(args) -> int:
     host, key = (args.modbus_host, "--modbus-host") if args.modbus_host else (cfg.plc.host, f"{args.config}: plc.host")
     endpoint = Endpoint(cfg.ads.net_id, cfg.ads.ams_port, host, cfg.plc.port, cfg.plc.device_id, key)
     try:
-        files = generate(cfg.register_map(), endpoint, CHOICES[args.format])
+        files = generate(cfg.register_map(), endpoint, CHOICES[args.format], args.main_block)
     except EndpointError as e:
         if args.modbus_host:
             raise

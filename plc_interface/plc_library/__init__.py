@@ -31,19 +31,21 @@ PLCOPEN_FILE = "StiffComp.xml"
 __all__ = ["FORMATS", "Endpoint", "EndpointError", "build", "generate"]
 
 
-def build(rmap: RegisterMap, endpoint: Endpoint) -> Library:
+def build(rmap: RegisterMap, endpoint: Endpoint, transport: str = "ads") -> Library:
     """The library for ``rmap``; RegisterMapError where a map cannot be served by one request each way (or
-    scales a count or a bit word), EndpointError where the service's Modbus address is not one a PLC dials."""
+    scales a count or a bit word), EndpointError where the service's Modbus address is not one a PLC dials.
+    ``transport`` ("ads" or "modbus"): the block the example MAIN calls."""
     check_map(rmap)
     types = [block_struct(rmap, "to_plc"), block_struct(rmap, "from_plc"), task_info_struct(),
              task_state_enum(), *bit_structs()]
     return Library(types, [contract_gvl(rmap), settings_gvl(endpoint)],
-                   [command_bit_block(), ads_block(rmap), modbus_block(rmap), main_program()], TASK)
+                   [command_bit_block(), ads_block(rmap), modbus_block(rmap), main_program(rmap, transport)], TASK)
 
 
-def generate(rmap: RegisterMap, endpoint: Endpoint, formats: tuple[str, ...] = FORMATS) -> dict[str, bytes]:
+def generate(rmap: RegisterMap, endpoint: Endpoint, formats: tuple[str, ...] = FORMATS,
+             transport: str = "ads") -> dict[str, bytes]:
     """Relative path -> contents of every file of ``formats``."""
-    lib = build(rmap, endpoint)
+    lib = build(rmap, endpoint, transport)
     out: dict[str, bytes] = {}
     if "twincat" in formats:
         out |= {f"twincat/{name}": data for name, data in twincat.files(lib).items()}

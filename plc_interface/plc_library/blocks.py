@@ -9,13 +9,13 @@ Both blocks do the same each call, in this order (docs/plc.md, "The block's stat
    long: `COMMAND_BIT_BODY`), the PLC heartbeat (+1 every call), the joints, the payload index and whatever
    else the map binds, each scaled as its register says;
 2. write it (one request covering the block; a new one starts when the last has ended);
-3. read the to_plc record (likewise), keeping the last good copy;
+3. read the to_plc record, keeping the last good copy; the call that takes an answer starts the next request;
 4. note whether the service's heartbeat *and* cycle count moved since the last good read (the first good
    read counts as a move); the link is alive unless they stood still for ``tServiceTimeout`` or the last
    read failed (the table in docs/plc.md, which the HIL's virtual PLC follows);
 5. decode the status and fault words (as WORD: IEC's AND takes bit strings); ``bValid`` is the link alive,
-   the service running, no fault and not stopped; the correction is the service's (scaled back to degrees)
-   while valid, else zero.
+   the service running, no fault, not stopped and every joint's correction finite (``bCorrectionInvalid``
+   otherwise); the correction is the service's (scaled back to degrees) while valid, else zero.
 
 Each body is one named template (`BLOCK_BODY`, `COMMAND_BIT_BODY`, `MAIN_BODY`); what depends on the map is
 built as statements (`statements`) and rendered into it. Only the requests differ between the two blocks
@@ -26,10 +26,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from ..contract import VALUES, Fault, Status, TaskState
-from ..register_map import INT_RANGE, TYPES, Register, RegisterMap
+from ..contract import Fault, Status, TaskState
+from ..register_map import Register, RegisterMap
 from .declarations import (
     CONTRACT,
     FAULT_BITS,
@@ -40,9 +38,12 @@ from .declarations import (
     TO_PLC,
     bit_type,
     camel,
+    decode,
+    encode,
     iec_type,
+    plc_type,
 )
-from .model import BOOL, JOINTS_REAL, REAL, TIME, UDINT, Derived, Elementary, Pou, Task, Type, Var, VarList
+from .model import BOOL, JOINTS_REAL, REAL, TIME, UDINT, Derived, Elementary, Pou, Task, Var, VarList
 from .statements import Assign, Call, Case, Pin, render
 
 JOINTS = range(1, 7)
@@ -111,58 +112,6 @@ OPTIONAL_INPUTS = (Input("payload_index", "nPayloadIndex", "the payload set to u
                    Input("plan_engagement", "fPlanEngagement", "the engagement (0..1) planned ahead"))
 
 
-def real_literal(x: float) -> str:
-    """``x`` as an IEC REAL literal (a point always; ``1.0E-05``, not ``1e-05``)."""
-    text = repr(float(x))
-    mantissa, _, exponent = text.partition("e")
-    if "." not in mantissa:
-        mantissa += ".0"
-    return f"{mantissa}E{exponent}" if exponent else mantissa
-
-
-def physical(r: Register) -> bool:
-    """Whether the PLC handles register ``r`` as a REAL (the contract's value is a float32): an integer
-    register then carries it scaled."""
-    return VALUES[r.direction][r.name].type == "float32"
-
-
-def plc_type(r: Register) -> Type:
-    """The type of the PLC's variable for register ``r``'s value: REAL for a physical value, else the field's."""
-    return REAL if physical(r) else iec_type(r)
-
-
-def _inside(bound: int) -> float:
-    """The REAL nearest ``bound`` on the side of zero (2147483647 is no REAL; 2147483520.0 is the one below)."""
-    x = np.float32(bound)
-    return float(x if abs(float(x)) <= abs(bound) else np.nextafter(x, np.float32(0)))
-
-
-def real_bounds(code: str) -> tuple[float, float]:
-    """The widest REAL range inside the integer type's range: a REAL outside it would overflow REAL_TO_*."""
-    lo, hi = INT_RANGE[code]
-    return _inside(lo), _inside(hi)
-
-
-def encode(r: Register, value: str) -> str:
-    """The expression that puts ``value`` (the PLC's variable) into register ``r``'s field: a REAL scaled,
-    limited to the type's range and rounded (REAL_TO_*: IEC 61131-3 rounds) into an integer register, as the
-    service decodes it (raw = value * scale, docs/register_map.md)."""
-    if not physical(r) or r.type == "float32":
-        return value
-    lo, hi = real_bounds(TYPES[r.type][0])
-    scaled = value if r.scale == 1.0 else f"{value} * {real_literal(r.scale)}"
-    return f"REAL_TO_{iec_type(r).name}(LIMIT({real_literal(lo)}, {scaled}, {real_literal(hi)}))"
-
-
-def decode(r: Register, field: str) -> str:
-    """The expression that reads register ``r``'s value from its field ``field``: an integer register carrying
-    a REAL as raw / scale."""
-    if not physical(r) or r.type == "float32":
-        return field
-    real = f"{iec_type(r).name}_TO_REAL({field})"
-    return real if r.scale == 1.0 else f"{real} / {real_literal(r.scale)}"
-
-
 def _bits(r: Register, field: str) -> str:
     return f"{iec_type(r).name}_TO_{bit_type(r).name}({field})"
 
@@ -189,7 +138,8 @@ IF bWriteEnded THEN
 END_IF
 {command_bits}
 
-// 3. read the to_plc record, keeping the last good copy
+// 3. read the to_plc record, keeping the last good copy; the call that takes an answer starts the next
+//    request (a falling, then a rising edge of {execute_read}), so that one is under way every cycle
 {read_call}
 bNewData := FALSE;
 IF NOT fbRead.{busy} THEN
@@ -201,6 +151,7 @@ IF NOT fbRead.{busy} THEN
         bNewData := TRUE;
     END_IF
     fbRead({execute_read} := FALSE);
+{read_again}
 END_IF
 bError := bReadError OR bWriteError;
 IF NOT bError THEN nErrorId := 0; END_IF
@@ -217,11 +168,20 @@ END_IF
 tonStale(IN := TRUE, PT := {settings}.tServiceTimeout);
 bAlive := bSeen AND NOT tonStale.Q AND NOT bReadError;
 
-// 5. decode the words; the correction only while valid
+// 5. decode the words; the correction only while valid. A correction that is not finite is refused: a NaN
+//    fails every comparison and an infinity the bound (Beckhoff, Tc2_Utilities RealIsNaN), no call needed
 {decode}
-bValid := bAlive AND stStatus.bRunning AND NOT stStatus.bFaulted AND nFaultWord = 0 AND NOT stStatus.bStopped;
-IF bValid THEN
 {correction}
+bCorrectionInvalid := FALSE;
+FOR i := 1 TO 6 DO
+    IF NOT (aServiceDeg[i] >= -3.4E38 AND aServiceDeg[i] <= 3.4E38) THEN
+        bCorrectionInvalid := TRUE;
+    END_IF
+END_FOR
+bValid := bAlive AND stStatus.bRunning AND NOT stStatus.bFaulted AND nFaultWord = 0 AND NOT stStatus.bStopped
+    AND NOT bCorrectionInvalid;
+IF bValid THEN
+    aCorrectionDeg := aServiceDeg;
 ELSE
 {zero}
 END_IF
@@ -255,7 +215,10 @@ MAIN_BODY = """\
 // back to zero at the same rate when the service stops being valid. The step follows the task's own
 // cycle time (TwinCAT's task info: CycleTime in 100 ns).
 fCycleTimeS := UDINT_TO_REAL(TwinCAT_SystemInfoVarList._TaskInfo[GETCURTASKINDEXEX()].CycleTime) * 1.0E-7;
-fbStiffComp(bEnable := bEnable, bTare := bTare, bReset := bReset, aJointsDeg := aJointsDeg);
+// With bResetOnRecovery the link's coming back (bAlive rising, the first contact too) asks for one reset:
+// the faults the loss caused in the service are cleared, and one whose cause persists trips again.
+rtAlive(CLK := fbStiffComp.bAlive);
+{call}
 fStep := fMaxRateDegPerS * fCycleTimeS;
 FOR i := 1 TO 6 DO
     IF fbStiffComp.bValid THEN
@@ -267,6 +230,8 @@ FOR i := 1 TO 6 DO
     aCommandDeg[i] := aReferenceDeg[i] + aAppliedDeg[i];
 END_FOR
 """
+
+MAIN_BLOCKS = {"ads": "FB_StiffComp", "modbus": "FB_StiffCompModbus"}
 
 
 def _from_plc(rmap: RegisterMap) -> list:
@@ -309,6 +274,8 @@ def _interface(rmap: RegisterMap, req: Requests) -> tuple[VarList, ...]:
                    "its heartbeat and cycle count advance"),
                Var("aCorrectionDeg", JOINTS_REAL, comment="joint corrections to add to the references "
                    "while bValid, else 0, deg"),
+               Var("bCorrectionInvalid", BOOL, comment="the service's correction is not finite (NaN or an "
+                   "infinity): refused, bValid is FALSE"),
                Var("bAlive", BOOL, comment="the service's heartbeat and cycle count moved within tServiceTimeout, "
                    "and the last read did not fail"),
                Var("stStatus", STATUS_BITS, comment="status_word, decoded"),
@@ -326,7 +293,9 @@ def _interface(rmap: RegisterMap, req: Requests) -> tuple[VarList, ...]:
              Var("nLastHeartbeat", iec_type(by["heartbeat"])), Var("nLastCycleCount", iec_type(by["cycle_count"])),
              Var("bSeen", BOOL), Var("bNewData", BOOL), Var("bReadError", BOOL), Var("bWriteError", BOOL),
              Var("bWriteStarted", BOOL, comment="a write request starts this cycle"),
-             Var("bWriteEnded", BOOL, comment="the write request ended this cycle"))
+             Var("bWriteEnded", BOOL, comment="the write request ended this cycle"),
+             Var("aServiceDeg", JOINTS_REAL, comment="the service's correction, deg (scaled back)"),
+             Var("i", Elementary("INT")))
     return (VarList("VAR_INPUT", inputs), VarList("VAR_OUTPUT", outputs), VarList("VAR", local))
 
 
@@ -338,9 +307,10 @@ def function_block(rmap: RegisterMap, name: str, req: Requests) -> Pou:
         from_plc=render(_from_plc(rmap)), command_bits=render(_command_bits()),
         write_call=render([Call("fbWrite", (*req.write_pins, Pin(req.execute_write, "TRUE")))]),
         read_call=render([Call("fbRead", (*req.read_pins, Pin(req.execute_read, "TRUE")))]),
+        read_again=render([Call("fbRead", (*req.read_pins, Pin(req.execute_read, "TRUE")))], 1),
         decode=render(_decode(rmap)),
-        correction=render([Assign(f"aCorrectionDeg[{i}]", decode(by[f"correction_q{i}"], f"stToPlc.correction_q{i}"))
-                           for i in JOINTS], 1),
+        correction=render([Assign(f"aServiceDeg[{i}]", decode(by[f"correction_q{i}"], f"stToPlc.correction_q{i}"))
+                           for i in JOINTS]),
         zero=render([Assign(f"aCorrectionDeg[{i}]", "0.0") for i in JOINTS], 1))
     return Pou(name, "FUNCTION_BLOCK", _interface(rmap, req), body,
                f"The PLC's side of the stiffcomp contract over {req.how}; call it every cycle of a fast task "
@@ -371,16 +341,26 @@ def command_bit_block() -> Pou:
                "(docs/plc.md). Generated by `stiffcomp plc-library`, do not edit.")
 
 
-def main_program() -> Pou:
-    local = (Var("fbStiffComp", Derived("FB_StiffComp")), Var("bEnable", BOOL), Var("bTare", BOOL),
-             Var("bReset", BOOL), Var("aJointsDeg", JOINTS_REAL, comment="from the axes, deg"),
+def main_program(rmap: RegisterMap, transport: str = "ads") -> Pou:
+    """The example task's program: the block of ``transport`` (`MAIN_BLOCKS`) and the inputs the map binds."""
+    by = rmap.by_name
+    optional = [i for i in OPTIONAL_INPUTS if i.register in by]
+    local = (Var("fbStiffComp", Derived(MAIN_BLOCKS[transport])), Var("bEnable", BOOL), Var("bTare", BOOL),
+             Var("bReset", BOOL),
+             Var("bResetOnRecovery", BOOL, "TRUE", "reset the service's faults once each time the link comes back"),
+             Var("rtAlive", Derived("R_TRIG")),
+             Var("aJointsDeg", JOINTS_REAL, comment="from the axes, deg"),
+             *(Var(i.var, plc_type(by[i.register]), comment=i.comment) for i in optional),
              Var("aReferenceDeg", JOINTS_REAL, comment="the axes' references before correction, deg"),
              Var("aCommandDeg", JOINTS_REAL, comment="the references with the correction, deg"),
              Var("aAppliedDeg", JOINTS_REAL, comment="the correction applied, after the rate limit"),
              Var("fMaxRateDegPerS", REAL, "2.0", "how fast the applied correction may change, deg/s"),
              Var("fCycleTimeS", REAL, comment="this task's cycle time, s (from the task info)"),
              Var("fStep", REAL), Var("fTarget", REAL), Var("i", Elementary("INT")))
-    return Pou(TASK.program, "PROGRAM", (VarList("VAR", local),), MAIN_BODY,
-               "Example: FB_StiffComp in a cyclic task, its correction rate-limited onto the axes' references")
-
-
+    pins = (Pin("bEnable", "bEnable"), Pin("bTare", "bTare"),
+            Pin("bReset", "bReset OR (bResetOnRecovery AND rtAlive.Q)"), Pin("aJointsDeg", "aJointsDeg"),
+            *(Pin(i.var, i.var) for i in optional))
+    body = MAIN_BODY.format(call=render([Call("fbStiffComp", pins)]))
+    return Pou(TASK.program, "PROGRAM", (VarList("VAR", local),), body,
+               f"Example: {MAIN_BLOCKS[transport]} in a cyclic task, its correction rate-limited onto the axes' "
+               "references")

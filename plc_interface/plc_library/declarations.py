@@ -10,6 +10,9 @@
   where each block lies (ADS index group and offset, byte count; Modbus address and word count).
 * ``GVL_StiffCompSettings``: what an integrator edits (the service's AMS Net ID and port, its Modbus
   address, the timeouts).
+
+And how a register's value meets the PLC's variable (`plc_type`, `encode`, `decode`): a REAL, scaled into and
+out of an integer register where the map says so.
 """
 
 from __future__ import annotations
@@ -19,15 +22,18 @@ import itertools
 import struct
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..ads.area import MB_GROUP, TASKINFO, TASKINFO_FIELDS, TASKINFO_GROUP, Layout
 from ..ads.symbols import IEC_TYPES
 from ..contract import VALUES, Command, Fault, Status, TaskState
 from ..errors import PlcError, RegisterMapError
-from ..register_map import Register, RegisterMap, struct_fields
+from ..register_map import INT_RANGE, TYPES, Register, RegisterMap, struct_fields
 from .model import (
     BOOL,
     BYTE,
     DWORD,
+    REAL,
     TIME,
     UDINT,
     UINT,
@@ -39,6 +45,7 @@ from .model import (
     Gvl,
     StringType,
     Struct,
+    Type,
     Var,
     VarList,
 )
@@ -104,6 +111,61 @@ def bit_type(r: Register) -> Elementary:
     """The bit string a bit word is handled as: WORD for one register, DWORD for two (IEC 61131-3 takes AND,
     OR on BOOL and bit strings only, not on UINT)."""
     return WORD if r.count == 1 else DWORD
+
+
+# -- a register's value in the PLC's variables (the blocks' statements) ------------------------------------
+def real_literal(x: float) -> str:
+    """``x`` as an IEC REAL literal (a point always; ``1.0E-05``, not ``1e-05``)."""
+    text = repr(float(x))
+    mantissa, _, exponent = text.partition("e")
+    if "." not in mantissa:
+        mantissa += ".0"
+    return f"{mantissa}E{exponent}" if exponent else mantissa
+
+
+def physical(r: Register) -> bool:
+    """Whether the PLC handles register ``r`` as a REAL (the contract's value is a float32): an integer
+    register then carries it scaled."""
+    return VALUES[r.direction][r.name].type == "float32"
+
+
+def plc_type(r: Register) -> Type:
+    """The type of the PLC's variable for register ``r``'s value: REAL for a physical value, else the field's."""
+    return REAL if physical(r) else iec_type(r)
+
+
+def _inside(bound: int) -> float:
+    """The REAL nearest ``bound`` on the side of zero (2147483647 is no REAL; 2147483520.0 is the one below)."""
+    x = np.float32(bound)
+    return float(x if abs(float(x)) <= abs(bound) else np.nextafter(x, np.float32(0)))
+
+
+def real_bounds(code: str) -> tuple[float, float]:
+    """The widest REAL range inside the integer type's range: a REAL outside it would overflow REAL_TO_*."""
+    lo, hi = INT_RANGE[code]
+    return _inside(lo), _inside(hi)
+
+
+def encode(r: Register, value: str) -> str:
+    """The expression that puts ``value`` (the PLC's variable) into register ``r``'s field: a REAL scaled,
+    limited to the type's range and rounded (REAL_TO_*: IEC 61131-3 rounds) into an integer register, as the
+    service decodes it (raw = value * scale, docs/register_map.md). A NaN ``value`` fails LIMIT's comparisons
+    and leaves as the type's lower bound (docs/plc.md, "The ST runtime"), far outside every joint's limits,
+    which the service refuses (``value_invalid``)."""
+    if not physical(r) or r.type == "float32":
+        return value
+    lo, hi = real_bounds(TYPES[r.type][0])
+    scaled = value if r.scale == 1.0 else f"{value} * {real_literal(r.scale)}"
+    return f"REAL_TO_{iec_type(r).name}(LIMIT({real_literal(lo)}, {scaled}, {real_literal(hi)}))"
+
+
+def decode(r: Register, field: str) -> str:
+    """The expression that reads register ``r``'s value from its field ``field``: an integer register carrying
+    a REAL as raw / scale."""
+    if not physical(r) or r.type == "float32":
+        return field
+    real = f"{iec_type(r).name}_TO_REAL({field})"
+    return real if r.scale == 1.0 else f"{real} / {real_literal(r.scale)}"
 
 
 def _field(r: Register) -> Var:

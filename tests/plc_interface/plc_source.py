@@ -8,13 +8,13 @@ types, global constants and their values, enum values; byte offsets are summed f
 from __future__ import annotations
 
 import functools
-import hashlib
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from blark.parse import parse
 from blark.summary import CodeSummary
+
+from st_runtime.source import parse_file
 
 SIZES = {"BOOL": 1, "BYTE": 1, "WORD": 2, "UINT": 2, "INT": 2, "UDINT": 4, "DINT": 4, "REAL": 4, "DWORD": 4}
 _ARRAY = re.compile(r"^ARRAY \[(\d+)\.\.(\d+)\] OF (\w+)$")
@@ -26,22 +26,6 @@ class Field:
     type: str
     offset: int
     size: int
-
-
-def parse_file(path: Path):
-    """The blark parse results of one TwinCAT file; AssertionError naming the file when any part fails. Parsed
-    once per content for the session (blark takes a second or two for a block; the run tests parse the same
-    files)."""
-    return list(_parsed(str(path), hashlib.sha256(Path(path).read_bytes()).hexdigest()))
-
-
-@functools.cache
-def _parsed(path: str, digest: str) -> tuple:
-    results = list(parse(path))
-    assert results, f"{path}: blark found nothing to parse"
-    for r in results:
-        assert r.exception is None, f"{path}: blark: {r.exception}"
-    return tuple(results)
 
 
 @functools.cache

@@ -23,7 +23,7 @@ from plc_source import constant, constants, enum_values, packed, struct_fields, 
 from hil.testing import write_config
 from plc_interface.ads.symbols import IEC_TYPES, symbols_from_map
 from plc_interface.contract import Command, Fault, Status, TaskState
-from plc_interface.plc_library.blocks import real_bounds, real_literal
+from plc_interface.plc_library.declarations import real_bounds, real_literal
 from plc_interface.register_map import INT_RANGE, RegisterMap
 from tools.cli import main
 

@@ -1,4 +1,4 @@
-"""The generated PLC library, run: its blocks execute (`st_machine`, on blark's parse of the files
+"""The generated PLC library, run: its blocks execute (`st_runtime`, on blark's parse of the files
 `stiffcomp plc-library` writes) against the service's side of the contract, in simulated time.
 
 The service's side is the process image the Modbus server and the ADS server serve (`ProcessImage.read`,
@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import itertools
 import math
+import struct
 from pathlib import Path
 
 import pytest
 import yaml
-from st_machine import Runtime, load
 
 from plc_interface.ads import ams
 from plc_interface.ads.area import MB_GROUP, AreaView, Layout
@@ -23,6 +23,8 @@ from plc_interface.contract import Command, Fault, Status, to_plc
 from plc_interface.image import ProcessImage
 from plc_interface.plc_library import Endpoint, generate
 from plc_interface.register_map import RegisterMap
+from st_runtime import Ended, Runtime, load
+from st_runtime.requests import MB_ADDRESS
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_MAP = ROOT / "config" / "registers.yaml"
@@ -81,29 +83,59 @@ class Service:
                                   **{f"correction_q{i + 1}": c for i, c in enumerate(self.correction)}))
 
 
+class SimTransfer:
+    """One request on the test's network: it ends ``took`` ms after it started, and the service handles it then
+    (``serve``: what the request does to the service, and the data it brings back); cancelled before, it never
+    reaches the service."""
+
+    def __init__(self, serve, now_ms: int, took: int):
+        self.serve, self.due, self.result = serve, now_ms + took, None
+
+    def ended(self, now_ms: int) -> Ended | None:
+        if self.result is None and self.serve is not None and now_ms >= self.due:
+            error, data = self.serve()
+            self.result = Ended(error, data, self.due)
+        return self.result
+
+    def cancel(self) -> None:
+        self.serve = None
+
+
 class Network:
     """How long each request takes (``durations(kind, now_ms) -> ms``), and what the service answers: Modbus
-    through the image's rules, ADS through its %MB area."""
+    through the image's rules (a refused access is TF6250's 16#8002), ADS through its %MB area."""
 
     def __init__(self, service: Service, durations):
         self.service, self.durations = service, durations
+        self.dialled: set[tuple] = set()
 
-    def duration(self, kind: str, now_ms: int) -> int:
-        return self.durations(kind, now_ms)
+    def _transfer(self, kind: str, now_ms: int, serve) -> SimTransfer:
+        return SimTransfer(serve, now_ms, self.durations(kind, now_ms))
 
-    def modbus_read(self, table: str, address: int, count: int):
-        return self.service.image.read(table, address, count)
+    def modbus_read(self, host, port, unit, table, address, count, now_ms):
+        self.dialled.add((host, port, unit))
 
-    def modbus_write(self, table: str, address: int, words: list[int]) -> bool:
-        return self.service.image.write(table, address, words)
+        def serve():
+            words = self.service.image.read(table, address, count)
+            return (MB_ADDRESS, b"") if words is None else (0, struct.pack(f"<{count}H", *words))
+        return self._transfer("read", now_ms, serve)
 
-    def ads_read(self, group: int, offset: int, length: int):
-        return AreaView(self.service.layout, self.service.image.snapshot()).read(group, offset, length)
+    def modbus_write(self, host, port, unit, address, words, now_ms):
+        self.dialled.add((host, port, unit))
+        return self._transfer("write", now_ms, lambda: (0 if self.service.image.write("holding_registers", address,
+                                                                                       words) else MB_ADDRESS, b""))
 
-    def ads_write(self, group: int, offset: int, data: bytes) -> int:
-        if group != MB_GROUP:
-            return ams.ADSERR_INVALID_GROUP
-        return self.service.layout.write(self.service.image, offset, data)
+    def ads_read(self, net_id, port, group, offset, length, now_ms):
+        def serve():
+            return AreaView(self.service.layout, self.service.image.snapshot()).read(group, offset, length)
+        return self._transfer("read", now_ms, serve)
+
+    def ads_write(self, net_id, port, group, offset, data, now_ms):
+        def serve():
+            if group != MB_GROUP:
+                return ams.ADSERR_INVALID_GROUP, b""
+            return self.service.layout.write(self.service.image, offset, data), b""
+        return self._transfer("write", now_ms, serve)
 
 
 @pytest.fixture(scope="module")

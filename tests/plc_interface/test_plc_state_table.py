@@ -1,23 +1,31 @@
-"""The link supervision's state table, written once in docs/plc.md ("The block's state table"), and the HIL's
-virtual PLC (`hil.virtual_plc.PlcLogic`) held to it row by row: its `link_ok` is the table's ``bAlive``.
+"""The link supervision's state table, written once in docs/plc.md ("The block's state table"), played row by
+row on the program the cell loads: the generated library's MAIN run by the HIL's virtual PLC (`st_runtime`,
+`hil.virtual_plc`) over the cell's network, against a process image whose records the test publishes.
 
-Each row's event is played on a PlcLogic brought into the row's state, then the state it is in is checked.
+Each row's event is played on a program brought into the row's state, then the state it is in is checked.
 Events are named by their text in the table, so a row added or reworded there fails here until it is played.
-The service moves its heartbeat and cycle count together, as the rows' "moved" does.
+A read here is one request, sent in one PLC cycle and taken in the next (the blocks end a request at the call
+after the one that started it). The service moves its heartbeat and cycle count together, as the rows' "moved"
+does.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
 
-from hil.virtual_plc import PlcLogic
+from hil.cell_network import ImageNetwork, PlcFaults
+from hil.plc_program import generate_program
+from hil.virtual_plc import VirtualPlc
+from plc_interface.contract import to_plc
+from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 
 ROOT = Path(__file__).resolve().parents[2]
 RMAP = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
-TIMEOUT, DT = 0.05, 0.004
+TIMEOUT, DT = 0.15, 0.004                # GVL_StiffCompSettings.tServiceTimeout; the PLC's cycle
 STATES = {"waiting (after start)": "waiting", "waiting": "waiting", "alive": "alive", "lost": "lost"}
 
 
@@ -30,39 +38,49 @@ def table() -> list[dict[str, str]]:
     return [dict(zip(cells[0], row)) for row in cells[2:]]
 
 
-class Link:
-    """A PlcLogic and the service's values it reads, moved by the table's events."""
+@pytest.fixture(scope="module")
+def program(tmp_path_factory):
+    return generate_program(RMAP, 502, 1, tmp_path_factory.mktemp("plc"))
 
-    def __init__(self):
-        self.logic = PlcLogic(RMAP, lambda t: [0.0] * 6, service_timeout_s=TIMEOUT)
-        self.names = RMAP.codecs["to_plc"].names
-        self.t, self.hb, self.count = 0.0, 7, 7000
+
+class Link:
+    """The program and the service's values it reads, moved by the table's events."""
+
+    def __init__(self, program):
+        self.image = ProcessImage(RMAP)
+        self.network = ImageNetwork(self.image, RMAP)
+        self.plc = VirtualPlc(program, self.network, RMAP, lambda t: [0.0] * 6, True, DT)
+        self.t, self.hb, self.count, self.seen = 0.0, 7, 7000, False
 
     def read(self, good: bool = True) -> bool:
-        self.t += DT
-        v = dict.fromkeys(self.names, 0.0) | {"heartbeat": self.hb, "cycle_count": self.count, "status_word": 1}
-        self.logic.step(self.t, [v[n] for n in self.names] if good else None)
-        return self.logic.link_ok
+        """One request under these conditions, sent and taken: bAlive after it."""
+        self.image.publish(to_plc(heartbeat=self.hb, cycle_count=self.count, status_word=1))
+        self.network.faults = PlcFaults() if good else PlcFaults(drop_at=0.0, drop_for_s=math.inf)
+        for _ in range(2):
+            self.plc.cycle(self.t, self.t)
+            self.t += DT
+        self.seen = self.seen or good
+        return self.plc.fb.bAlive
 
     def move(self) -> bool:
         self.hb, self.count = self.hb + 1, self.count + 1
         return self.read()
 
     def wait(self, seconds: float, good: bool = True) -> list[bool]:
-        return [self.read(good) for _ in range(round(seconds / DT))]
+        return [self.read(good) for _ in range(round(seconds / (2 * DT)))]
 
     def state(self) -> str:
         """waiting: no good read yet; alive or lost: what one more good read without a move finds."""
-        if self.logic.hb_change_t is None:
+        if not self.seen:
             return "waiting"
         return "alive" if self.read() else "lost"
 
 
-def into(state: str) -> Link:
-    link = Link()
+def into(program, state: str) -> Link:
+    link = Link(program)
     if state != "waiting":
         link.move()
-        link.wait(2 * TIMEOUT if state == "lost" else DT)
+        link.wait(2 * TIMEOUT if state == "lost" else 2 * DT)
     return link
 
 
@@ -71,8 +89,8 @@ EVENTS = {      # the table's event -> bAlive after each read it takes
     "good read, moved": lambda link: [link.move()],
     "good read, not moved": lambda link: [link.read()],
     "good read, not moved, before tServiceTimeout": lambda link: link.wait(TIMEOUT / 2),
-    "a read fails": lambda link: link.wait(3 * DT, good=False),
-    "a read fails, before tServiceTimeout": lambda link: link.wait(3 * DT, good=False),
+    "a read fails": lambda link: link.wait(6 * DT, good=False),
+    "a read fails, before tServiceTimeout": lambda link: link.wait(6 * DT, good=False),
     "tServiceTimeout without a move": lambda link: link.wait(1.5 * TIMEOUT)[-1:],
 }
 
@@ -84,13 +102,13 @@ def test_the_table_names_every_state_and_only_events_the_test_plays():
 
 
 @pytest.mark.parametrize("row", table(), ids=lambda r: f"{r['state']}: {r['event']}")
-def test_the_virtual_plc_follows_the_row(row):
-    link = into(STATES[row["state"]])
+def test_the_program_follows_the_row(program, row):
+    link = into(program, STATES[row["state"]])
     alive = EVENTS[row["event"]](link)
     assert alive == [row["bAlive"] == "TRUE"] * len(alive), (row, alive)
     assert link.state() == STATES[row["next state"]]
 
 
-def test_the_timeout_is_where_the_table_puts_it():
-    link = into("alive")
-    assert all(link.wait(TIMEOUT - 2 * DT)) and not link.wait(3 * DT)[-1]
+def test_the_timeout_is_where_the_table_puts_it(program):
+    link = into(program, "alive")
+    assert all(link.wait(TIMEOUT - 4 * DT)) and not link.wait(6 * DT)[-1]

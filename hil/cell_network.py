@@ -1,0 +1,219 @@
+"""The cell's network between the virtual PLC's program and the service: the `st_runtime.Network` the program's
+request blocks (TF6250's FB_MBReadInputRegs, FB_MBReadRegs, FB_MBWriteRegs) send their requests over, with the
+HIL's transport faults on it.
+
+* `ModbusNetwork`, in real time: a pymodbus TCP client of the service's Modbus server. Each request is sent when
+  the block starts it and its answer awaited there (well under a millisecond on one host); the block takes it at
+  its next call, as a real block ends at a later cycle than the one that started it. A request whose answer
+  took longer than the block's timeout ends as timed out (`st_runtime.requests`).
+* `ImageNetwork`, in lock step: the same requests served by the service's process image (`ProcessImage.read`,
+  `ProcessImage.write`: the Modbus server's rules) in the same process.
+
+The program dials the address its settings name (``GVL_StiffCompSettings.sModbusHost`` and ``nModbusPort``):
+the HIL's network routes it to the HIL's service, as a cell's network routes it to the IPC the service runs on,
+and records what was dialled (`dialled`) for the run's summary.
+
+Faults (`PlcFaults`) act on the transport, not on the program: the connection drops for a while (every request
+fails as a refused connection does, Win32 WSAECONNREFUSED 10061 in TF6250's 0x8007xxxx range); the PLC's
+heartbeat word freezes in the writes that carry it (a gateway that stops updating it); and ``delay_ms``, a
+slower fieldbus, hands each read the service's answer as it was that long before.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+from collections import deque
+from dataclasses import dataclass
+
+from pymodbus.client import ModbusTcpClient
+from pymodbus.exceptions import ModbusException
+
+from plc_interface.image import ProcessImage
+from plc_interface.register_map import RegisterMap
+from st_runtime import Ended
+from st_runtime.requests import MB_ADDRESS, WIN32, modbus_error
+
+REFUSED = WIN32 + 10061              # WSAECONNREFUSED
+RECONNECT_MS = 50                    # at most one connection attempt this often
+
+
+@dataclass
+class PlcFaults:
+    """Faults to inject (times in s of the PLC's program time; None = never)."""
+
+    heartbeat_stop_at: float | None = None
+    drop_at: float | None = None
+    drop_for_s: float = 0.0
+
+
+class Done:
+    """A request that ended when it was served (``at_ms``); the block takes it at its next call."""
+
+    def __init__(self, error: int, data: bytes, at_ms: int):
+        self.result = Ended(error, data, at_ms)
+
+    def ended(self, now_ms: int) -> Ended:
+        return self.result
+
+    def cancel(self) -> None:
+        pass
+
+
+class DelayedRead:
+    """A read through a slower fieldbus: it brings the answer the service gave ``delay_ms`` before the request
+    was sent (before the line has filled, the oldest), so its data are that much older than a direct read's."""
+
+    def __init__(self, net: CellNetwork, sent_ms: int, at_ms: int):
+        self.net, self.sent_ms, self.at_ms = net, sent_ms, at_ms
+
+    def ended(self, now_ms: int) -> Ended:
+        answers = self.net.answers
+        old = [data for t, data in answers if t <= self.sent_ms - self.net.delay_ms]
+        return Ended(0, old[-1] if old else answers[0][1], self.at_ms)
+
+    def cancel(self) -> None:
+        pass
+
+
+class CellNetwork:
+    """The transport and its faults; `_read` and `_write` are the server's side (`ModbusNetwork`, `ImageNetwork`).
+
+    Parameters
+    ----------
+    rmap : the service's register map (where the PLC's heartbeat word is)
+    faults : PlcFaults
+    delay_ms : the slower fieldbus's delay (the scenario's ``plc.extra_delay_ms``)
+    """
+
+    def __init__(self, rmap: RegisterMap, faults: PlcFaults | None = None, delay_ms: float = 0.0):
+        self.faults = faults or PlcFaults()
+        self.delay_ms = float(delay_ms)
+        self.heartbeat_address = rmap.by_name["plc_heartbeat"].address
+        self.frozen: int | None = None
+        self.answers: deque[tuple[int, bytes]] = deque(maxlen=256)
+        self.dialled: set[tuple[str, int, int]] = set()
+        self.written: set[int] = set()            # every address the program wrote
+        self.errors = 0
+
+    def dropped(self, now_ms: int) -> bool:
+        f = self.faults
+        return f.drop_at is not None and f.drop_at <= now_ms / 1000.0 < f.drop_at + f.drop_for_s
+
+    def modbus_read(self, host, port, unit, table, address, count, now_ms):
+        self.dialled.add((str(host), int(port), int(unit)))
+        error, words, at = self._request(now_ms, lambda: self._read(table, address, count))
+        if error:
+            return Done(error, b"", at)
+        data = struct.pack(f"<{count}H", *words)
+        if self.delay_ms <= 0:
+            return Done(0, data, at)
+        self.answers.append((now_ms, data))
+        return DelayedRead(self, now_ms, at)
+
+    def modbus_write(self, host, port, unit, address, words, now_ms):
+        self.dialled.add((str(host), int(port), int(unit)))
+        words = list(words)
+        k = self.heartbeat_address - address
+        if 0 <= k < len(words):
+            stop = self.faults.heartbeat_stop_at
+            if stop is not None and now_ms / 1000.0 >= stop:
+                self.frozen = words[k] if self.frozen is None else self.frozen
+                words[k] = self.frozen
+        error, _, at = self._request(now_ms, lambda: self._write(address, words))
+        if not error:
+            self.written.update(range(address, address + len(words)))
+        return Done(error, b"", at)
+
+    def ads_read(self, net_id, port, group, offset, length, now_ms):
+        raise NotImplementedError("the HIL's cell network serves Modbus TCP; the program's MAIN calls "
+                                  "FB_StiffComp (ADS): generate it with `stiffcomp plc-library --main-block modbus`")
+
+    ads_write = ads_read
+
+    def _request(self, now_ms: int, call) -> tuple[int, list[int] | None, int]:
+        """(error id, the words, when it ended in ms) of one request."""
+        if self.dropped(now_ms):
+            self.close()
+            self.errors += 1
+            return REFUSED, None, now_ms
+        error, words, took_ms = call()
+        self.errors += bool(error)
+        return error, words, now_ms + took_ms
+
+    def _read(self, table: str, address: int, count: int) -> tuple[int, list[int] | None, int]:
+        raise NotImplementedError
+
+    def _write(self, address: int, words: list[int]) -> tuple[int, None, int]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Drop the connection (a fault); the next request after the fault reconnects."""
+
+
+class ImageNetwork(CellNetwork):
+    """Lock step: the service's process image answers in the same process, at once."""
+
+    def __init__(self, image: ProcessImage, rmap: RegisterMap, faults: PlcFaults | None = None,
+                 delay_ms: float = 0.0):
+        super().__init__(rmap, faults, delay_ms)
+        self.image = image
+
+    def _read(self, table, address, count):
+        words = self.image.read(table, address, count)
+        return (MB_ADDRESS, None, 0) if words is None else (0, list(words), 0)
+
+    def _write(self, address, words):
+        return (0 if self.image.write("holding_registers", address, words) else MB_ADDRESS), None, 0
+
+
+class ModbusNetwork(CellNetwork):
+    """Real time: a Modbus TCP client of the service at ``host``:``port`` (pymodbus); ``timeout_s`` bounds one
+    request's wait (the program's own timeout decides whether it was late)."""
+
+    def __init__(self, host: str, port: int, rmap: RegisterMap, faults: PlcFaults | None = None,
+                 delay_ms: float = 0.0, timeout_s: float = 0.1, clock=time.monotonic):
+        super().__init__(rmap, faults, delay_ms)
+        self.client = ModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
+        self.clock = clock
+        self.connected = False
+        self.next_attempt = -math.inf
+
+    def connect(self, deadline: float) -> bool:
+        """Try to connect until ``deadline`` (clock time); True when connected."""
+        while self.clock() < deadline:
+            if self.client.connect():
+                self.connected = True
+                return True
+            time.sleep(0.05)
+        return False
+
+    def close(self) -> None:
+        self.client.close()
+        self.connected = False
+
+    def _call(self, send) -> tuple[int, list[int] | None, int]:
+        start = self.clock()
+        if not self.connected and start >= self.next_attempt:
+            self.next_attempt = start + RECONNECT_MS / 1000.0
+            self.connected = bool(self.client.connect())
+        if not self.connected:
+            return REFUSED, None, 0
+        try:
+            r = send()
+        except (ModbusException, OSError):
+            self.close()
+            return REFUSED, None, math.ceil((self.clock() - start) * 1000.0)
+        took = math.ceil((self.clock() - start) * 1000.0)
+        if r.isError():
+            return modbus_error(int(getattr(r, "exception_code", 4))), None, took
+        return 0, list(getattr(r, "registers", [])), took
+
+    def _read(self, table, address, count):
+        fn = self.client.read_input_registers if table == "input_registers" else self.client.read_holding_registers
+        return self._call(lambda: fn(address, count=count))
+
+    def _write(self, address, words):
+        error, _, took = self._call(lambda: self.client.write_registers(address, words))
+        return error, None, took
