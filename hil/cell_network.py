@@ -1,17 +1,18 @@
 """The cell's network between the virtual PLC's program and the service: the `st_runtime.Network` the program's
-request blocks (TF6250's FB_MBReadInputRegs, FB_MBReadRegs, FB_MBWriteRegs) send their requests over, with the
-HIL's transport faults on it.
+request blocks send their requests over (TF6250's FB_MBReadInputRegs, FB_MBReadRegs and FB_MBWriteRegs; Tc2_System's
+ADSREAD and ADSWRITE), with the HIL's transport faults on it.
 
-* `ModbusNetwork`, in real time: a pymodbus TCP client of the service's Modbus server. Each request is sent when
-  the block starts it and its answer awaited there (well under a millisecond on one host); the block takes it at
-  its next call, as a real block ends at a later cycle than the one that started it. A request whose answer
-  took longer than the block's timeout ends as timed out (`st_runtime.requests`).
-* `ImageNetwork`, in lock step: the same requests served by the service's process image (`ProcessImage.read`,
-  `ProcessImage.write`: the Modbus server's rules) in the same process.
+* `TcpNetwork`, in real time: a pymodbus TCP client of the service's Modbus server and an AMS/TCP client of its
+  ADS server (`hil.ads_client`). Each request is sent when the block starts it and its answer awaited there
+  (well under a millisecond on one host); the block takes it at its next call, as a real block ends at a later
+  cycle than the one that started it. A request whose answer took longer than the block's timeout ends as timed
+  out (`st_runtime.requests`).
+* `ImageNetwork`, in lock step: the same requests served by the service's process image in the same process
+  (`ProcessImage.read`, `ProcessImage.write`: the Modbus server's rules; `ads.area`: the ADS server's %MB area).
 
-The program dials the address its settings name (``GVL_StiffCompSettings.sModbusHost`` and ``nModbusPort``):
-the HIL's network routes it to the HIL's service, as a cell's network routes it to the IPC the service runs on,
-and records what was dialled (`dialled`) for the run's summary.
+The program dials the address its settings name (``GVL_StiffCompSettings.sModbusHost`` and ``nModbusPort``, or
+``sAmsNetId`` and ``nAmsPort``): the HIL's network routes it to the HIL's service, as a cell's network (or its
+ADS routes) takes it to the IPC the service runs on, and records what was dialled (`dialled`) for the summary.
 
 Faults (`PlcFaults`) act on the transport, not on the program: the connection drops for a while (every request
 fails as a refused connection does, Win32 WSAECONNREFUSED 10061 in TF6250's 0x8007xxxx range); the PLC's
@@ -30,10 +31,14 @@ from dataclasses import dataclass
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
+from plc_interface.ads import ams
+from plc_interface.ads.area import MB_GROUP, AreaView, Layout
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
 from st_runtime import Ended
 from st_runtime.requests import MB_ADDRESS, WIN32, modbus_error
+
+from .ads_client import AdsClient
 
 REFUSED = WIN32 + 10061              # WSAECONNREFUSED
 RECONNECT_MS = 50                    # at most one connection attempt this often
@@ -78,7 +83,7 @@ class DelayedRead:
 
 
 class CellNetwork:
-    """The transport and its faults; `_read` and `_write` are the server's side (`ModbusNetwork`, `ImageNetwork`).
+    """The transport and its faults; `_read` and `_write` are the server's side (`TcpNetwork`, `ImageNetwork`).
 
     Parameters
     ----------
@@ -93,7 +98,7 @@ class CellNetwork:
         self.heartbeat_address = rmap.by_name["plc_heartbeat"].address
         self.frozen: int | None = None
         self.answers: deque[tuple[int, bytes]] = deque(maxlen=256)
-        self.dialled: set[tuple[str, int, int]] = set()
+        self.dialled: set[str] = set()             # "Modbus host:port unit n", "ADS net-id port n"
         self.written: set[int] = set()            # every address the program wrote
         self.errors = 0
 
@@ -102,7 +107,7 @@ class CellNetwork:
         return f.drop_at is not None and f.drop_at <= now_ms / 1000.0 < f.drop_at + f.drop_for_s
 
     def modbus_read(self, host, port, unit, table, address, count, now_ms):
-        self.dialled.add((str(host), int(port), int(unit)))
+        self.dialled.add(f"Modbus {host}:{port} unit {unit}")
         error, words, at = self._request(now_ms, lambda: self._read(table, address, count))
         if error:
             return Done(error, b"", at)
@@ -113,7 +118,7 @@ class CellNetwork:
         return DelayedRead(self, now_ms, at)
 
     def modbus_write(self, host, port, unit, address, words, now_ms):
-        self.dialled.add((str(host), int(port), int(unit)))
+        self.dialled.add(f"Modbus {host}:{port} unit {unit}")
         words = list(words)
         k = self.heartbeat_address - address
         if 0 <= k < len(words):
@@ -127,10 +132,17 @@ class CellNetwork:
         return Done(error, b"", at)
 
     def ads_read(self, net_id, port, group, offset, length, now_ms):
-        raise NotImplementedError("the HIL's cell network serves Modbus TCP; the program's MAIN calls "
-                                  "FB_StiffComp (ADS): generate it with `stiffcomp plc-library --main-block modbus`")
+        self.dialled.add(f"ADS {net_id} port {port}")
+        error, data, at = self._request(now_ms, lambda: self._ads_read(str(net_id), int(port), group, offset, length))
+        if error or self.delay_ms <= 0:
+            return Done(error, data or b"", at)
+        self.answers.append((now_ms, data))
+        return DelayedRead(self, now_ms, at)
 
-    ads_write = ads_read
+    def ads_write(self, net_id, port, group, offset, data, now_ms):
+        self.dialled.add(f"ADS {net_id} port {port}")
+        error, _, at = self._request(now_ms, lambda: self._ads_write(str(net_id), int(port), group, offset, data))
+        return Done(error, b"", at)
 
     def _request(self, now_ms: int, call) -> tuple[int, list[int] | None, int]:
         """(error id, the words, when it ended in ms) of one request."""
@@ -148,6 +160,12 @@ class CellNetwork:
     def _write(self, address: int, words: list[int]) -> tuple[int, None, int]:
         raise NotImplementedError
 
+    def _ads_read(self, net_id: str, port: int, group: int, offset: int, length: int) -> tuple[int, bytes, int]:
+        raise NotImplementedError
+
+    def _ads_write(self, net_id: str, port: int, group: int, offset: int, data: bytes) -> tuple[int, None, int]:
+        raise NotImplementedError
+
     def close(self) -> None:
         """Drop the connection (a fault); the next request after the fault reconnects."""
 
@@ -159,6 +177,7 @@ class ImageNetwork(CellNetwork):
                  delay_ms: float = 0.0):
         super().__init__(rmap, faults, delay_ms)
         self.image = image
+        self.layout = Layout(rmap)
 
     def _read(self, table, address, count):
         words = self.image.read(table, address, count)
@@ -167,15 +186,25 @@ class ImageNetwork(CellNetwork):
     def _write(self, address, words):
         return (0 if self.image.write("holding_registers", address, words) else MB_ADDRESS), None, 0
 
+    def _ads_read(self, net_id, port, group, offset, length):
+        error, data = AreaView(self.layout, self.image.snapshot()).read(group, offset, length)
+        return error, data, 0
 
-class ModbusNetwork(CellNetwork):
-    """Real time: a Modbus TCP client of the service at ``host``:``port`` (pymodbus); ``timeout_s`` bounds one
-    request's wait (the program's own timeout decides whether it was late)."""
+    def _ads_write(self, net_id, port, group, offset, data):
+        error = self.layout.write(self.image, offset, data) if group == MB_GROUP else ams.ADSERR_INVALID_GROUP
+        return error, None, 0
+
+
+class TcpNetwork(CellNetwork):
+    """Real time: a Modbus TCP client of the service at ``host``:``port`` (pymodbus) and an ADS client of it at
+    ``host``:``ads_port``; ``timeout_s`` bounds one request's wait (the program's own timeout decides whether it
+    was late)."""
 
     def __init__(self, host: str, port: int, rmap: RegisterMap, faults: PlcFaults | None = None,
-                 delay_ms: float = 0.0, timeout_s: float = 0.1, clock=time.monotonic):
+                 delay_ms: float = 0.0, timeout_s: float = 0.1, clock=time.monotonic, ads_port: int | None = None):
         super().__init__(rmap, faults, delay_ms)
         self.client = ModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
+        self.ads = AdsClient(host, ads_port, timeout_s=timeout_s) if ads_port else None
         self.clock = clock
         self.connected = False
         self.next_attempt = -math.inf
@@ -191,13 +220,15 @@ class ModbusNetwork(CellNetwork):
 
     def close(self) -> None:
         self.client.close()
+        if self.ads is not None:
+            self.ads.close()
         self.connected = False
 
-    def _call(self, send) -> tuple[int, list[int] | None, int]:
+    def _call(self, send) -> tuple[int, list[int] | bytes | None, int]:
         start = self.clock()
         if not self.connected and start >= self.next_attempt:
             self.next_attempt = start + RECONNECT_MS / 1000.0
-            self.connected = bool(self.client.connect())
+            self.connected = bool(self.client.connect()) and (self.ads is None or self.ads.connect())
         if not self.connected:
             return REFUSED, None, 0
         try:
@@ -206,6 +237,8 @@ class ModbusNetwork(CellNetwork):
             self.close()
             return REFUSED, None, math.ceil((self.clock() - start) * 1000.0)
         took = math.ceil((self.clock() - start) * 1000.0)
+        if isinstance(r, tuple):                    # an ADS answer: (result, data)
+            return r[0], r[1], took
         if r.isError():
             return modbus_error(int(getattr(r, "exception_code", 4))), None, took
         return 0, list(getattr(r, "registers", [])), took
@@ -216,4 +249,15 @@ class ModbusNetwork(CellNetwork):
 
     def _write(self, address, words):
         error, _, took = self._call(lambda: self.client.write_registers(address, words))
+        return error, None, took
+
+    def _ads_read(self, net_id, port, group, offset, length):
+        if self.ads is None:
+            return ams.ERR_TARGET_MACHINE_NOT_FOUND, None, 0
+        return self._call(lambda: self.ads.read(net_id, port, group, offset, length))
+
+    def _ads_write(self, net_id, port, group, offset, data):
+        if self.ads is None:
+            return ams.ERR_TARGET_MACHINE_NOT_FOUND, None, 0
+        error, _, took = self._call(lambda: (self.ads.write(net_id, port, group, offset, data), None))
         return error, None, took

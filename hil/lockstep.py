@@ -97,7 +97,8 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     stats = service.info.stats()
     stats["status"] = "stopped"
     return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True,
-                                                     "plc_program": program.summary()})
+                                                     "plc_program": {**program.summary(),
+                                                                     "dialled": [str(d) for d in log["dialled"]]}})
 
 
 def _protocol(cfg):
@@ -135,4 +136,4 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
     if out is not None:
         out.write(service.trace.take())
     return {**log.arrays(), "written": np.array(sorted(network.written)), "overruns": 0, "errors": network.errors,
-            "period": plc.period, "t0": 0.0}
+            "period": plc.period, "t0": 0.0, "dialled": np.array(sorted(network.dialled))}

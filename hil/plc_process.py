@@ -1,5 +1,5 @@
 """The virtual PLC of a HIL run, in its own process: the PLC program on `VirtualPlc`, a Modbus TCP client of
-the service (`hil.cell_network.ModbusNetwork`)."""
+the service (`hil.cell_network.TcpNetwork`: Modbus TCP and ADS)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 
 from plc_interface.register_map import RegisterMap
 
-from .cell_network import ModbusNetwork, PlcFaults
+from .cell_network import PlcFaults, TcpNetwork
 from .plc_program import PlcProgram
 from .priority import below_the_service
 from .virtual_plc import VirtualPlc
@@ -18,15 +18,16 @@ from .world import World
 
 
 def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, out_file: str, go_value, ready,
-             program_folder: str, faults: PlcFaults | None = None, connect_timeout_s: float = 60.0) -> None:
+             program_folder: str, faults: PlcFaults | None = None, connect_timeout_s: float = 60.0,
+             ads_port: int | None = None) -> None:
     """Process entry: load the program, connect, report ready, wait for the start time in ``go_value``, run,
-    save the log. ``rmap`` is the service config's register map (`ServiceConfig.register_map`). Runs below the
-    service's priority (`hil.priority`)."""
+    save the log. ``rmap`` is the service config's register map (`ServiceConfig.register_map`); ``ads_port`` the
+    service's ADS server (None: not served). Runs below the service's priority (`hil.priority`)."""
     below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)
     c = scenario.plc
-    network = ModbusNetwork("127.0.0.1", port, rmap, faults, c.extra_delay_ms)
+    network = TcpNetwork("127.0.0.1", port, rmap, faults, c.extra_delay_ms, ads_port=ads_port)
     plc = VirtualPlc(PlcProgram(program_folder), network, rmap, world.path.q_ref_deg, compensate,
                      c.period_ms / 1000.0, world.plan,
                      {"service_timeout_ms": c.service_timeout_ms, "max_rate_deg_s": c.max_rate_deg_s})
@@ -39,6 +40,6 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
         log = plc.run(world.t_start, world.t_end, go_value.value)
         np.savez(out_file, **log.arrays(), written=np.array(sorted(network.written)), overruns=plc.overruns,
                  errors=network.errors, period=plc.period, t0=go_value.value,
-                 dialled=np.array(sorted(f"{h}:{p} unit {u}" for h, p, u in network.dialled)))
+                 dialled=np.array(sorted(network.dialled)))
     finally:
         network.close()

@@ -6,7 +6,7 @@
 
 The three processes share nothing but the protocols and the start time of the cut (a
 multiprocessing Value holding a CLOCK_MONOTONIC time, which is system-wide on Linux). Every run
-picks its own multicast group, UDP port and Modbus port, so parallel runs never collide. Every
+picks its own multicast group, UDP port, Modbus port and ADS port, so parallel runs never collide. Every
 process is stopped and joined on every path (try/finally).
 """
 
@@ -75,8 +75,9 @@ def free_udp_port() -> int:
 
 def write_service_config(scenario: Scenario, model_path: Path, folder: Path, group: str, can_port: int,
                          modbus_port: int, overrides: dict | None = None) -> Path:
-    """The scenario's service config with this run's model, bus and ports, and ``overrides``."""
-    run = {"model": {"file": str(Path(model_path).resolve())}, "plc": {"port": modbus_port},
+    """The scenario's service config with this run's model, bus and ports (its ADS server's too), and
+    ``overrides``."""
+    run = {"model": {"file": str(Path(model_path).resolve())}, "plc": {"port": modbus_port}, "ads": {"port": free_port()},
            "source": {"can": {"channel": group, "options": {"port": can_port}}}}
     return write_config(folder, deep_update(run, overrides or {}), source=scenario.resolve(scenario.service))
 
@@ -180,7 +181,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         program = pass_program(cfg, plc_program, folder)
         plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
             scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
-            plc_ready, str(program.folder), faults.plc))
+            plc_ready, str(program.folder), faults.plc, cfg.ads.port if cfg.ads.enabled else None))
     else:
         plc = ctx.Process(target=_robot_entry, name="hil-robot", args=(
             scenario, robot_path, cfg.robot, cfg.robot.port, str(out_file), go, plc_ready))
@@ -290,5 +291,6 @@ def _robot_entry(scenario, robot_path, settings, port, out_file, go, ready) -> N
     robot_main(scenario, load_robot(robot_path), settings, port, out_file, go, ready)
 
 
-def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, program, faults) -> None:
-    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, program, faults)
+def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, program, faults, ads_port) -> None:
+    plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, program, faults,
+             ads_port=ads_port)

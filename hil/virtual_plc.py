@@ -56,7 +56,7 @@ class VirtualPlc:
     Parameters
     ----------
     program : PlcProgram
-    network : CellNetwork (`ModbusNetwork` in real time, `ImageNetwork` in lock step)
+    network : CellNetwork (`TcpNetwork` in real time, `ImageNetwork` in lock step)
     rmap : the service's register map (to log the service's record as the program read it)
     reference : callable t -> six joint references (deg)
     compensate : MAIN's ``bEnable`` (False: the uncompensated pass)

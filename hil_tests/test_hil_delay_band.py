@@ -12,12 +12,16 @@ import numpy as np
 import pytest
 from hil_lib import ROOT, scenario
 
+from hil import report
 from hil.cell_network import ImageNetwork
 from hil.delay_band import delay_band_ms, delay_verdict, timing_with_delays
 from hil.plc_program import generate_program
+from hil.report import end_to_end_delay
 from hil.virtual_plc import VirtualPlc
+from hil.world import World
 from plc_interface.image import ProcessImage
 from plc_interface.register_map import RegisterMap
+from stiffness.model.stiffness_model import StiffnessModel
 
 PERIOD = 0.004
 
@@ -96,3 +100,23 @@ def test_a_repeat_whose_delay_is_off_makes_the_run_untrustworthy_and_is_named():
     assert t["trustworthy"] is False and t["verdict"].startswith("cut 3 of 3: the end-to-end delay 3.95 ms")
     assert t["exceeded_share"] == 0.0 and calm["trustworthy"] is True                 # the input left alone
     assert timing_with_delays(calm, [4.0], band)["verdict"].startswith("the end-to-end delay 4.00 ms")
+
+
+RSI_12MS = ROOT / "tests" / "data" / "hil" / "rsi_12ms_cut.npz"   # the compensated cut through RSI at 12 ms,
+                                                                   # one real-time run of the shipped scenario
+
+
+def test_a_sparse_log_reads_the_delay_it_has_whatever_its_sampling(monkeypatch):
+    """A robot that reports every 12 ms: the fit on its packets reads the chain's delay (the 4 ms road's 8.0 ms),
+    and the same cut sampled every 24 or 48 ms, from either phase, reads it within the band too. Fitted on the raw force, the tooth-passing content
+    aliases: it read 5.5 ms, below what the filters alone hold back."""
+    sc = scenario()
+    world = World(sc, StiffnessModel.from_yaml(sc.resolve(sc.truth)).robot)
+    with np.load(RSI_12MS) as z:
+        log = {k: z[k] for k in z.files}
+    low, _ = delay_band_ms(sc, robot_interface="kuka_rsi")
+    every = [end_to_end_delay(world, {k: v[start::n] for k, v in log.items()}) for n in (1, 2, 4)
+             for start in {0, n // 2}]
+    assert all(low <= d * 1000.0 <= 9.0 for d in every), every          # measured 6.8-8.3 ms
+    monkeypatch.setattr(report, "ALIAS_MS", 1e9)                # the raw force: the reading of the issue
+    assert end_to_end_delay(world, log) * 1000.0 < low

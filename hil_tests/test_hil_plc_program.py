@@ -211,4 +211,20 @@ def test_in_real_time_an_edited_main_cuts_uncompensated_and_the_summary_names_it
     s = run_circle(scenario(60.0), workdir=tmp_path / "rt", plc_program=edited).summary
     assert s["mean_error_mm"] == pytest.approx(s["mean_error_mm_uncompensated"], rel=0.02)
     assert s["plc_program"]["files"]["MAIN.TcPOU"] != program.summary()["files"]["MAIN.TcPOU"]
-    assert s["plc_program"]["dialled"] == ["127.0.0.1:502 unit 1"]
+    assert s["plc_program"]["dialled"] == ["Modbus 127.0.0.1:502 unit 1"]
+
+
+def test_the_committed_library_with_its_ads_main_cuts_compensated_in_lock_step(tmp_path):
+    """plc/ as the cell loads it (MAIN calls FB_StiffComp: ADSREAD and ADSWRITE against the service's %MB area)."""
+    s = run_circle(scenario(60.0), lockstep=True, workdir=tmp_path, plc_program=ROOT / "plc").summary
+    assert s["mean_error_mm"] < 0.1 * s["mean_error_mm_uncompensated"], s
+    assert s["plc_program"]["folder"] == str(ROOT / "plc" / "twincat")
+    assert s["plc_program"]["dialled"] == ["ADS 127.0.0.1.1.1 port 851"], s["plc_program"]
+
+
+@pytest.mark.realtime
+def test_in_real_time_the_committed_library_reaches_the_service_over_ads(tmp_path):
+    """The same through the processes: the program's ADS requests go to the service's ADS server over AMS/TCP."""
+    s = run_circle(scenario(60.0), workdir=tmp_path, plc_program=ROOT / "plc").summary
+    assert s["mean_error_mm"] < 0.1 * s["mean_error_mm_uncompensated"], s
+    assert s["plc_program"]["dialled"] == ["ADS 127.0.0.1.1.1 port 851"], s["plc_program"]
