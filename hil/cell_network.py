@@ -212,7 +212,7 @@ class TcpNetwork(CellNetwork):
     def connect(self, deadline: float) -> bool:
         """Try to connect until ``deadline`` (clock time); True when connected."""
         while self.clock() < deadline:
-            if self.client.connect():
+            if self.client.connect() and (self.ads is None or self.ads.connect()):
                 self.connected = True
                 return True
             time.sleep(0.05)

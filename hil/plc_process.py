@@ -1,5 +1,5 @@
-"""The virtual PLC of a HIL run, in its own process: the PLC program on `VirtualPlc`, a Modbus TCP client of
-the service (`hil.cell_network.TcpNetwork`: Modbus TCP and ADS)."""
+"""The virtual PLC of a HIL run, in its own process: the PLC program on `VirtualPlc`, a Modbus TCP and ADS client
+of the service (`hil.cell_network.TcpNetwork`)."""
 
 from __future__ import annotations
 
