@@ -16,8 +16,9 @@ ADS routes) takes it to the IPC the service runs on, and records what was dialle
 
 Faults (`PlcFaults`) act on the transport, not on the program: the connection drops for a while (every request
 fails as a refused connection does, Win32 WSAECONNREFUSED 10061 in TF6250's 0x8007xxxx range); the PLC's
-heartbeat word freezes in the writes that carry it (a gateway that stops updating it); and ``delay_ms``, a
-slower fieldbus, hands each read the service's answer as it was that long before.
+heartbeat word freezes in the Modbus writes that carry it (a gateway that stops updating it; an ADS program's
+heartbeat is not frozen); and ``delay_ms``, a slower fieldbus, hands each read the service's answer as it was
+that long before.
 """
 
 from __future__ import annotations
