@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
                 image.publish(to_plc(heartbeat=k & 0xFFFF, cycle_count=k, status_word=RUNNING,
                                      correction_q1=0.01, correction_q2=-0.02))
                 t = time.perf_counter()
-                plc.cycle(k * plc.period, 0.0)
+                plc.cycle(k * plc.period)
                 cost[k] = time.perf_counter() - t
         finally:
             image.close()

@@ -110,13 +110,7 @@ class CellNetwork:
     def modbus_read(self, host, port, unit, table, address, count, now_ms):
         self.dialled.add(f"Modbus {host}:{port} unit {unit}")
         error, words, at = self._request(now_ms, lambda: self._read(table, address, count))
-        if error:
-            return Done(error, b"", at)
-        data = struct.pack(f"<{count}H", *words)
-        if self.delay_ms <= 0:
-            return Done(0, data, at)
-        self.answers.append((now_ms, data))
-        return DelayedRead(self, now_ms, at)
+        return self._answer(error, b"" if error else struct.pack(f"<{count}H", *words), now_ms, at)
 
     def modbus_write(self, host, port, unit, address, words, now_ms):
         self.dialled.add(f"Modbus {host}:{port} unit {unit}")
@@ -135,15 +129,19 @@ class CellNetwork:
     def ads_read(self, net_id, port, group, offset, length, now_ms):
         self.dialled.add(f"ADS {net_id} port {port}")
         error, data, at = self._request(now_ms, lambda: self._ads_read(str(net_id), int(port), group, offset, length))
-        if error or self.delay_ms <= 0:
-            return Done(error, data or b"", at)
-        self.answers.append((now_ms, data))
-        return DelayedRead(self, now_ms, at)
+        return self._answer(error, data or b"", now_ms, at)
 
     def ads_write(self, net_id, port, group, offset, data, now_ms):
         self.dialled.add(f"ADS {net_id} port {port}")
         error, _, at = self._request(now_ms, lambda: self._ads_write(str(net_id), int(port), group, offset, data))
         return Done(error, b"", at)
+
+    def _answer(self, error: int, data: bytes, sent_ms: int, at_ms: int):
+        """A read's transfer: its answer as it came, or through the slower fieldbus (`DelayedRead`)."""
+        if error or self.delay_ms <= 0:
+            return Done(error, data, at_ms)
+        self.answers.append((sent_ms, data))
+        return DelayedRead(self, sent_ms, at_ms)
 
     def _request(self, now_ms: int, call) -> tuple[int, list[int] | None, int]:
         """(error id, the words, when it ended in ms) of one request."""
@@ -226,6 +224,7 @@ class TcpNetwork(CellNetwork):
         self.connected = False
 
     def _call(self, send) -> tuple[int, list[int] | bytes | None, int]:
+        """(error id, what ``send`` brought, ms it took): ``send`` returns (error id, payload)."""
         start = self.clock()
         if not self.connected and start >= self.next_attempt:
             self.next_attempt = start + RECONNECT_MS / 1000.0
@@ -233,23 +232,25 @@ class TcpNetwork(CellNetwork):
         if not self.connected:
             return REFUSED, None, 0
         try:
-            r = send()
+            error, payload = send()
         except (ModbusException, OSError):
             self.close()
-            return REFUSED, None, math.ceil((self.clock() - start) * 1000.0)
-        took = math.ceil((self.clock() - start) * 1000.0)
-        if isinstance(r, tuple):                    # an ADS answer: (result, data)
-            return r[0], r[1], took
+            error, payload = REFUSED, None
+        return error, payload, math.ceil((self.clock() - start) * 1000.0)
+
+    @staticmethod
+    def _modbus(r) -> tuple[int, list[int] | None]:
+        """(TF6250's error id, the registers) of a pymodbus response."""
         if r.isError():
-            return modbus_error(int(getattr(r, "exception_code", 4))), None, took
-        return 0, list(getattr(r, "registers", [])), took
+            return modbus_error(int(getattr(r, "exception_code", 4))), None
+        return 0, list(getattr(r, "registers", []))
 
     def _read(self, table, address, count):
         fn = self.client.read_input_registers if table == "input_registers" else self.client.read_holding_registers
-        return self._call(lambda: fn(address, count=count))
+        return self._call(lambda: self._modbus(fn(address, count=count)))
 
     def _write(self, address, words):
-        error, _, took = self._call(lambda: self.client.write_registers(address, words))
+        error, _, took = self._call(lambda: self._modbus(self.client.write_registers(address, words)))
         return error, None, took
 
     def _ads_read(self, net_id, port, group, offset, length):

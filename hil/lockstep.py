@@ -97,8 +97,7 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     stats = service.info.stats()
     stats["status"] = "stopped"
     return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True,
-                                                     "plc_program": {**program.summary(),
-                                                                     "dialled": [str(d) for d in log["dialled"]]}})
+                                                     "plc_program": program.summary(log["dialled"])})
 
 
 def _protocol(cfg):
@@ -131,8 +130,7 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
             out.write(service.trace.take())
         if k % plc_every or t < world.t_start:
             continue
-        plc.cycle(t, t)
-        log.t_read[log.k - 1] = t
+        plc.cycle(t, lambda t=t: t)
     if out is not None:
         out.write(service.trace.take())
     return {**log.arrays(), "written": np.array(sorted(network.written)), "overruns": 0, "errors": network.errors,

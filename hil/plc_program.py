@@ -52,9 +52,11 @@ class PlcProgram:
         self.folder = src
         self.files = [ProgramFile(p, hashlib.sha256(p.read_bytes()).hexdigest()) for p in paths]
 
-    def summary(self) -> dict:
-        """What the run's summary says of the program: its folder, and each file with its sha256."""
-        return {"folder": str(self.folder), "files": {f.path.name: f.sha256 for f in self.files}}
+    def summary(self, dialled=()) -> dict:
+        """What the run's summary says of the program: its folder, each file with its sha256, and the addresses
+        it ``dialled`` (`hil.cell_network.CellNetwork.dialled`, as a pass's log keeps them)."""
+        return {"folder": str(self.folder), "files": {f.path.name: f.sha256 for f in self.files},
+                "dialled": sorted(str(d) for d in dialled)}
 
     def start(self, network, cycle_ms: int, service_timeout_ms: float | None = None,
               max_rate_deg_s: float | None = None):

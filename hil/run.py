@@ -216,7 +216,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         log = {k: z[k] for k in z.files}
     extra = {"unmapped_nonzero": unmapped}
     if program is not None:
-        extra["plc_program"] = {**program.summary(), "dialled": [str(d) for d in log.get("dialled", [])]}
+        extra["plc_program"] = program.summary(log["dialled"])
     return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate, extra)
 
 

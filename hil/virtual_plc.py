@@ -86,8 +86,9 @@ class VirtualPlc:
         self.log = CycleLog(n, len(self.out_codec.names))
         return self.log
 
-    def cycle(self, t: float, now: float) -> list[float]:
-        """One PLC cycle at program time ``t`` (s; ``now`` the monotonic clock): the robot's command (deg)."""
+    def cycle(self, t: float, done: Callable[[], float] = time.monotonic) -> list[float]:
+        """One PLC cycle at program time ``t`` (s): the robot's command (deg). ``done`` stamps the log's
+        ``t_read``, when the cycle's requests were done (the monotonic clock; lock step: the program time)."""
         m = self.main
         self.runtime.now_ms = round(t * 1000.0)
         m.aReferenceDeg[:] = [f32(x) for x in self.reference(t)]
@@ -97,7 +98,7 @@ class VirtualPlc:
             m.fPlanTimeS, m.fPlanEngagement = f32(program_t), f32(engagement)
         m.body()
         self.q_cmd = list(m.aCommandDeg)
-        self._record(t, time.monotonic())
+        self._record(t, done())
         return self.q_cmd
 
     def _record(self, t: float, t_read: float) -> None:
@@ -126,7 +127,7 @@ class VirtualPlc:
         while deadlines.due - t0 <= t_end:
             deadlines.sleep_until()
             now = clock()
-            self.cycle(now - t0, now)
+            self.cycle(now - t0)
             deadlines.advance(clock())
             self.overruns = deadlines.exceeded
         return self.log

@@ -53,7 +53,7 @@ def test_a_late_plc_cycle_is_stamped_when_it_ran_not_at_its_deadline(program, st
     image = ProcessImage(rmap)                                  # no service publishes: the stamps are tested
     plc = VirtualPlc(program, ImageNetwork(image, rmap), rmap, lambda t: [0.0] * 6, False, PERIOD)
     cycle = plc.cycle
-    plc.cycle = lambda t, now: (seen.append(t), cycle(t, now))[1]
+    plc.cycle = lambda t: (seen.append(t), cycle(t))[1]
     t0 = 100.0
     clock = LateClock(t0, step)
     try:

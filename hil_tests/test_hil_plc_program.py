@@ -61,7 +61,7 @@ class Cell:
             else:
                 self.network.faults = PlcFaults()
                 self.publish(**service)
-            q = self.plc.cycle(self.k * DT, self.k * DT)
+            q = self.plc.cycle(self.k * DT)
             self.k += 1
         return q
 
@@ -143,7 +143,7 @@ def test_a_frozen_heartbeat_is_the_transports_and_the_service_sees_it_stand_stil
     for k in range(120):
         c.network.faults = PlcFaults(heartbeat_stop_at=0.2)
         c.publish()
-        c.plc.cycle(c.k * DT, c.k * DT)
+        c.plc.cycle(c.k * DT)
         c.k += 1
         seen.append(int(c.image.inputs().plc_heartbeat))
     before, after = seen[:45], seen[60:]

@@ -57,7 +57,7 @@ class Link:
         self.image.publish(to_plc(heartbeat=self.hb, cycle_count=self.count, status_word=1))
         self.network.faults = PlcFaults() if good else PlcFaults(drop_at=0.0, drop_for_s=math.inf)
         for _ in range(2):
-            self.plc.cycle(self.t, self.t)
+            self.plc.cycle(self.t)
             self.t += DT
         self.seen = self.seen or good
         return self.plc.fb.bAlive
