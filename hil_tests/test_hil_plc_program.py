@@ -208,8 +208,11 @@ def test_in_real_time_an_edited_main_cuts_uncompensated_and_the_summary_names_it
     """The same through the processes: the virtual PLC's process loads the edited program and the service
     compensates in vain (its correction reaches no axis)."""
     edited = uncorrected(program.folder, tmp_path / "edited")
-    s = run_circle(scenario(60.0), workdir=tmp_path / "rt", plc_program=edited).summary
-    assert s["mean_error_mm"] == pytest.approx(s["mean_error_mm_uncompensated"], rel=0.02)
+    res = run_circle(scenario(60.0), workdir=tmp_path / "rt", plc_program=edited)
+    s, log = res.summary, res.passes["compensated"].log
+    assert np.abs(log["q_cmd"] - log["q_ref"]).max() == 0.0          # no correction reached an axis, any cycle
+    # the path error is the uncompensated pass's but for real time's jitter (2.5 % apart with both cores busy)
+    assert s["mean_error_mm"] == pytest.approx(s["mean_error_mm_uncompensated"], rel=0.05)
     assert s["plc_program"]["files"]["MAIN.TcPOU"] != program.summary()["files"]["MAIN.TcPOU"]
     assert s["plc_program"]["dialled"] == ["Modbus 127.0.0.1:502 unit 1"]
 
