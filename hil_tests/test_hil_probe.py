@@ -104,9 +104,10 @@ def test_through_rsi_the_robots_own_probe_teaches_the_model_within_1_2_x(tmp_pat
     """The same through the robot road: the first cut, its trace and the robot's probe through RSI, the next cut
     through RSI with the model learned from that probe, against the exact model's cut through RSI."""
     first = _rsi_cut(START, tmp_path / "cut1", tmp_path / "cut1.csv", tmp_path / "probe1.csv")
-    assert main(["part", "learn", str(START), str(tmp_path / "cut1.csv"), str(tmp_path / "probe1.csv"), "-o",
-                 str(tmp_path / "from_probe.yaml")]) == 0
-    capsys.readouterr()
+    code = main(["part", "learn", str(START), str(tmp_path / "cut1.csv"), str(tmp_path / "probe1.csv"), "-o",
+                 str(tmp_path / "from_probe.yaml")])
+    out, err = capsys.readouterr()
+    assert code == 0, (first, out, err)        # the refusal and the first pass's figures, if it is refused
     learned = _rsi_cut(tmp_path / "from_probe.yaml", tmp_path / "cut2")
     exact = _rsi_cut(EXACT_SPRINGS, tmp_path / "exact")
     passes = {"first": first, "learned": learned, "exact": exact}

@@ -301,6 +301,27 @@ def test_the_abb_cfg_headers_carry_their_version(name, domain):
     assert re.fullmatch(rf"{domain}:CFG_1\.0:\d+:\d+::", first), first
 
 
+# The attributes controllers save, in their order: a UDPUC unit in SIO.cfg's COM_TRP (SYSPAR/SIO.cfg of
+# panin-anan/abb_SAMXL_Grinding_RAPID and joseballester/abb-rapidserver) and an EGM profile in MOC.cfg's
+# EXT_MOTION_DATA (rpiRobotics/abb_motion_program_exec, robot/config_params_egm/MOC.cfg).
+SAVED_UDPUC = ["Name", "Type", "PhyChannel", "RemoteAdress", "RemotePortNumber"]
+SAVED_PROFILE = {"name", "ext_motion_level", "do_not_restart_after_motors_off", "ramp_time", "ext_motion_Kp",
+                 "ext_motion_filter_bandwidth"}
+
+
+def test_the_abb_cfg_fragments_spell_their_attributes_as_controllers_save_them():
+    """No attribute a saved file does not have (a misspelt one is dropped by the controller's loader without a
+    word): the UDP unit with exactly the saved attributes in the saved order, each profile a subset of a saved
+    profile's, with an integer level."""
+    (unit,) = cfg_instances((ABB / "StiffCompUdpuc.cfg").read_text(), "COM_TRP")
+    assert list(unit) == SAVED_UDPUC and unit["Type"] == "UDPUC" and unit["PhyChannel"] == ""
+    profiles = cfg_instances((ABB / "StiffCompMoc.cfg").read_text(), "EXT_MOTION_DATA")
+    assert len(profiles) == 2
+    for profile in profiles:
+        assert set(profile) <= SAVED_PROFILE, set(profile) - SAVED_PROFILE
+        assert profile["ext_motion_level"] in {"0", "1", "2"}
+
+
 @pytest.mark.parametrize("interface", sorted(CONFIGS))
 def test_the_robot_port_is_exposed_and_documented_where_the_others_are(interface):
     """The shipped robot config's UDP port is in the Dockerfile's EXPOSE, docs/deploy.md's ports table, its

@@ -5,18 +5,20 @@ The settings and whose word they rest on (docs/robot.md, "ABB EGM", gives the sa
 
 * ``\\MaxPosDeviation`` of EGMActJoint: the largest deviation from the starting point EGM accepts; for a joint
   instruction in degrees (ABB, *Application manual - Externally Guided Motion*, 3HAC073318-001 (RobotWare 7),
-  EGMActJoint; its default is 1000). Third-party programs (e.g. those using abb_libegm) leave it at 1000, i.e.
-  no limit in practice; the shipped 1 degree is a deliberate guard twice above the service's
+  EGMActJoint, as rpiRobotics/abb_motion_program_exec documents the argument; ABB's text was not reachable here).
+  Public programs pass 1000, i.e. no limit in practice; the shipped 1 degree is a deliberate guard twice above the service's
   ``limits.max_correction_deg`` (0.5), and the writer refuses one at or below that limit.
-* External Motion Interface Data (MOC.cfg, type EXT_MOTION_DATA): the attribute names are RobotStudio's save
-  format of the parameters the EGM manual lists (Name, Level, Do Not Restart After Motors Off, Default Ramp Time,
-  Default Proportional Position Gain, Default Low Pass Filter Bandwidth Time). Their spelling and the Level codes
-  (1 filtering, 2 path) were not confirmed against ABB's text in this change: save the profile from RobotStudio's
-  configuration editor once and compare (docs/robot.md says so).
-* the UDP unit (SIO.cfg, COM_TRP, RobotWare 6's Transmission Protocol): Name, Type UDPUC, RemoteAdress,
-  RemotePortNumber, as ABB's EGM manual's example and ros-industrial's abb_robot_driver README ("Configuration >
-  Communication > Transmission Protocol ... the UDPUC instances") give it; no PhyChannel (an empty one names no
-  channel; the third-party UDPUC instances give none).
+* External Motion Interface Data (MOC.cfg, type EXT_MOTION_DATA): the parameters the EGM manual lists (Name,
+  Level, Do Not Restart After Motors Off, Ramp Time, Proportional Position Gain, Low Pass Filter Bandwidth), spelt
+  as controllers save them: ``-name``, ``-ext_motion_level``, ``-do_not_restart_after_motors_off``, ``-ramp_time``,
+  ``-ext_motion_Kp``, ``-ext_motion_filter_bandwidth`` under ``EXT_MOTION_DATA:`` (saved MOC.cfg files in
+  rpiRobotics/abb_motion_program_exec, robot/config_params_egm/MOC.cfg, and panin-anan/abb_SAMXL_Grinding_RAPID,
+  SYSPAR/MOC.cfg). Levels: 0 raw, 1 filtering (ros-industrial/abb_librws issue 72), 2 path correction (the
+  ``path_corr`` profile of the same saved MOC.cfg). ABB's own text for the codes was not reachable here.
+* the UDP unit (SIO.cfg, COM_TRP, RobotWare 6's Transmission Protocol): ``-Name``, ``-Type "UDPUC"``,
+  ``-PhyChannel ""``, ``-RemoteAdress`` (RobotWare's spelling), ``-RemotePortNumber``, as controllers save a UDPUC
+  unit (SYSPAR/SIO.cfg of panin-anan/abb_SAMXL_Grinding_RAPID and joseballester/abb-rapidserver: the empty
+  PhyChannel included).
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ def _consts(robot: RobotSettings, max_correction_deg: float, timeout_ms: float) 
     ! seconds without an answer before EGM raises ERR_UDPUC_COMM (faults.plc_heartbeat_timeout_ms)
     CONST num COMM_TIMEOUT_S := {timeout_s};
     ! joint mode: the largest deviation from the starting fine point EGM accepts, degrees for a joint
-    ! (EGM manual, EGMActJoint \\MaxPosDeviation; default 1000): a guard above limits.max_correction_deg
+    ! (EGM manual, EGMActJoint \\MaxPosDeviation; programs often pass 1000): a guard above limits.max_correction_deg
     CONST num MAX_DEV_DEG := {rapid_num(MAX_DEV_DEG)};
     ! joint mode: each joint has converged within this band (deg)
     CONST egm_minmax JOINT_BAND := [-0.1, 0.1];
@@ -166,8 +168,8 @@ def moc_cfg() -> str:
 #   needs a low-pass of its own against vibration). ADAPT ramp time, gain and bandwidth to the robot.
 # StiffCompPath: path mode (EGMActMove, EGMMoveL/EGMMoveC). Level 2 is the path level; without a
 #   profile at that level the path correction stops with event 50452.
-# The attribute names and level codes follow RobotStudio's save format; check them once against a profile
-# made in RobotStudio's configuration editor and saved (docs/robot.md, "ABB EGM").
+# The attribute names and level codes are those of MOC.cfg files saved by controllers (docs/robot.md, "ABB EGM",
+# names them); compare once with a profile saved from RobotStudio's configuration editor of your RobotWare.
 #
 EXT_MOTION_DATA:
 
@@ -192,12 +194,13 @@ def udpuc_cfg(robot: RobotSettings) -> str:
 # RemoteAdress (RobotWare spells it so): ADAPT to the address of the PC running stiffcomp (robot.host),
 #   on the network of the controller's port that carries EGM.
 # RemotePortNumber: the UDP port stiffcomp listens on (robot.port).
-# No local port: stiffcomp answers to the port each packet comes from. No PhyChannel: a UDP unit has none.
+# No local port: stiffcomp answers to the port each packet comes from. PhyChannel stays empty, as a
+#   controller saves a UDP unit.
 # This file is in RobotWare 6's format (topic Communication, type Transmission Protocol). On RobotWare 7
 # enter the same four values under Communication, UDP Unicast Device.
 #
 COM_TRP:
 
-      -Name "StiffComp" -Type "UDPUC" -RemoteAdress "{robot.host}"\\
+      -Name "StiffComp" -Type "UDPUC" -PhyChannel "" -RemoteAdress "{robot.host}"\\
       -RemotePortNumber {robot.port}
 """

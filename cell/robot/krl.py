@@ -27,6 +27,8 @@ Software 8.2, 8.3*, CREAD/CWRITE manual):
                 ``#IPO_FAST`` (4 ms, the default when RSI_ON has one argument) the correction acts only in sensor-guided
                 motion, ``RSI_MOVECORR()``; a correction laid over programmed LIN/CIRC/PTP motions (path correction)
                 needs ``#IPO`` (12 ms). A programmed motion between ``RSI_ON(.., #IPO_FAST)`` and ``RSI_OFF`` is refused.
+                The modes' cycles are KST RSI 3.3's section 7.1.4 as a setup guide quotes it; the sentence that
+                keeps #IPO_FAST for RSI_MOVECORR was not readable here (docs/robot.md, "Which sensor mode").
 """
 
 from __future__ import annotations

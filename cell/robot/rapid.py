@@ -5,7 +5,7 @@ The rules, with the maker's word (ABB, *Technical reference manual - RAPID Instr
 3HAC050917-001, "RAPID reference"; *Technical reference manual - RAPID kernel*, 3HAC050946-001, "RAPID kernel"):
 
 ``string``      a ``string`` holds at most 80 characters (RAPID reference, data type string: "a string can have
-                0 to 80 characters"); a concatenation that would be longer raises ERR_STRTOOLONG and stops the
+                0 to 80 characters"); a concatenation that would be longer raises ERR_STRTOOLNG and stops the
                 program. Every ``+`` chain of literals, string CONSTs and ``NumToStr(value, dec)`` is measured at its
                 longest: NumToStr writes the value rounded to ``dec`` decimals (RAPID reference, NumToStr), so its
                 widest text is a sign, the integer digits of the largest value the expression can take (``bounds``;
@@ -17,7 +17,7 @@ The rules, with the maker's word (ABB, *Technical reference manual - RAPID Instr
                 of ERRNO, and ends the program there (``EXIT``): an error the handler does not take goes up to the
                 caller and the program stops with the file open (RAPID kernel, "Error recovery"). SearchL raises
                 ERR_WHLSEARCH (no hit) and ERR_SIGSUPSEARCH (the signal already high at the start) (RAPID reference,
-                SearchL), the string and file instructions their own (ERR_STRTOOLONG, ERR_FILEACC, ...): one handler
+                SearchL), the string and file instructions their own (ERR_STRTOOLNG, ERR_FILEACC, ...): one handler
                 takes them all.
 """
 
@@ -38,7 +38,7 @@ _TERM = re.compile(rf"({_LITERAL}|{_NUMTOSTR}|[A-Za-z_][\w.]*)")
 _KEYWORDS = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP", "CONST", "PERS", "VAR"}
 
 WHY = {
-    "string": f"a RAPID string holds at most {MAX_STRING} characters; a longer concatenation raises ERR_STRTOOLONG "
+    "string": f"a RAPID string holds at most {MAX_STRING} characters; a longer concatenation raises ERR_STRTOOLNG "
               "(RAPID reference, string; NumToStr)",
     "identifier": f"a RAPID identifier has at most {MAX_IDENTIFIER} characters (RAPID kernel, Identifiers)",
     "handler": "a routine that opens a file must close it in its ERROR handler on every error, before testing "

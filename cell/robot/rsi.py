@@ -8,7 +8,8 @@ alone: ros-industrial's kuka_rsi_hw_interface and every third-party RSI driver r
 which the correction is laid over programmed LIN, CIRC and PTP motions (path correction). stiffcomp corrects a
 programmed cut, so the cut runs under ``RSI_ON(#ABSOLUTE, #IPO)`` at 12 ms, and the KRL writer refuses a programmed
 motion under #IPO_FAST. The service must then be told the robot's 12 ms cycle (``robot.kuka_rsi.cycle_ms: 12``):
-``config_notes`` says so when the config says otherwise.
+``config_notes`` says so when the config says otherwise. KUKA's sentence on the modes was not readable from this
+project's machines; #IPO corrects programmed motion in any reading (docs/robot.md, "Which sensor mode").
 """
 
 from __future__ import annotations

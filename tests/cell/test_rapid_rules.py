@@ -32,7 +32,7 @@ def test_the_old_probe_module_builds_strings_over_80_and_leaves_the_log_open():
 
 
 def test_the_old_touch_line_is_over_80_at_the_first_touch():
-    """What the controller builds for the old touch line at an ordinary pose: ERR_STRTOOLONG at touch 1."""
+    """What the controller builds for the old touch line at an ordinary pose: ERR_STRTOOLNG at touch 1."""
     text = (OLD / "StiffCompProbe.modx").read_text()
     start = text.index("Write log, NumToStr(k, 0)")
     expr = text[start + len("Write log, "):text.index(";", start)]
