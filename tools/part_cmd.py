@@ -238,7 +238,7 @@ def run_diagnose(args) -> int:
     from stiffness.part.left_out import GROSS, fit_account, left_out_lines
 
     progress, prior, start, parts, features_left_out = _setup(args, "part diagnose")
-    pd = diagnose_parts(start, parts, prior, progress)
+    pd = diagnose_parts(start, parts, prior, progress, args.best_fit)
     progress.done()
     d = pd.diagnosis
     left_out, rms_kept, rms_all = fit_account(pd.parts, pd.data, d.fit)

@@ -28,12 +28,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pydantic import Field
 
 from ..errors import DataError, Problems
 from ..files.csv_table import read_table
-from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
+from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig
 
 POINT_COLS = ("x_mm", "y_mm", "z_mm")
@@ -58,6 +57,12 @@ class PartMeasurement:
     tool_radius_mm: float
     frame: np.ndarray | None       # (4, 4) base <- part (m), or None: no datum
     title: str = ""
+    stylus_radius_mm: float | None = None   # touched by the robot's own probe (`probe_log`): placed by this
+                                            # radius and probe_frame, not by a part_frame; None: a CMM's points
+
+    @property
+    def probed(self) -> bool:
+        return self.stylus_radius_mm is not None
 
     def __len__(self) -> int:
         return len(self.points_mm)
@@ -82,7 +87,7 @@ def read_part(path: str | Path) -> PartMeasurement:
         raise DataError(f"{path}: part file not found")
     problems = Problems()
     table = read_table(path, problems, "point,x_mm,y_mm,z_mm")
-    header = _header(path, table.head)
+    header = _header(path, table)
     cols = table.cols
     missing = [c for c in POINT_COLS if c not in cols]
     if missing:
@@ -105,18 +110,9 @@ def read_part(path: str | Path) -> PartMeasurement:
                            header.stiffcomp_part or "")
 
 
-def _header(path: Path, head: list[str]) -> PartHeader:
-    """The '#' lines as YAML (errors at the file's line)."""
-    try:
-        data = yaml.load("\n".join(head), Loader=NoAliasLoader) or {}
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise DataError(f"{path}:{where}: the '# key: value' lines are not valid YAML: "
-                        f"{getattr(e, 'problem', e)}") from None
-    if not isinstance(data, dict):
-        raise DataError(f"{path}: the '#' lines must be 'key: value' lines (tool_radius_mm, part_frame)")
-    data = {k.replace(" ", "_"): v for k, v in data.items()}
+def _header(path: Path, table) -> PartHeader:
+    """The '#' lines (`Table.header`: errors at the file's line), validated."""
+    data = table.header(path, "tool_radius_mm, part_frame")
     if "tool_radius_mm" not in data:
         raise DataError(f"{path}: '# tool_radius_mm: R' is missing: the surface lies the cutter's radius from "
                         "the tool's axis (docs/part_format.md)")

@@ -38,12 +38,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pydantic import Field, ValidationError
 
 from ..errors import DataError, Problems
 from ..files.csv_table import read_table
-from ..files.yaml_schema import NoAliasLoader, Strict, format_validation_error
+from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig, Robot
 from .part_points import PartMeasurement
 
@@ -105,7 +104,8 @@ class ProbeLog:
     def as_part(self, robot: Robot) -> PartMeasurement:
         """The touched points as a part measured in the robot's base (its frame the identity)."""
         return PartMeasurement(self.source, self.points(robot) * 1000.0, self.labels, self.lines,
-                               self.tool_radius_mm, np.eye(4), self.title)
+                               self.tool_radius_mm, np.eye(4), self.title,
+                               stylus_radius_mm=self.stylus_radius_mm)
 
     def where(self, k: int) -> str:
         return f"{self.source}: line {self.lines[k]}"
@@ -131,7 +131,7 @@ def read_probe(path: str | Path) -> ProbeLog:
         raise DataError(f"{path}: probe log not found")
     problems = Problems()
     table = read_table(path, problems, HEADER)
-    header = _header(path, table.head)
+    header = _header(path, table)
     cols = table.cols
     missing = [c for c in JOINT_COLS + APPROACH_COLS if c not in cols]
     if missing:
@@ -159,18 +159,9 @@ def read_probe(path: str | Path) -> ProbeLog:
                     header.trigger_latency_ms, header.stiffcomp_probe or "")
 
 
-def _header(path: Path, head: list[str]) -> ProbeHeader:
-    try:
-        data = yaml.load("\n".join(head), Loader=NoAliasLoader) or {}
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise DataError(f"{path}:{where}: the '# key: value' lines are not valid YAML: "
-                        f"{getattr(e, 'problem', e)}") from None
-    if not isinstance(data, dict):
-        raise DataError(f"{path}: the '#' lines must be 'key: value' lines (tool_radius_mm, stylus_radius_mm, "
-                        "probe_frame)")
-    data = {str(k).replace(" ", "_"): v for k, v in data.items()}
+def _header(path: Path, table) -> ProbeHeader:
+    """The '#' lines (`Table.header`: errors at the file's line), validated."""
+    data = table.header(path, "tool_radius_mm, stylus_radius_mm, probe_frame")
     if "part_frame" in data:
         raise DataError(f"{path}: part_frame: {PART_FRAME_MEANINGLESS}; remove the key")
     if (data.get("probing_speed_mm_s") is None) != (data.get("trigger_latency_ms") is None):

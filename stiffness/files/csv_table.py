@@ -11,8 +11,32 @@ import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 from ..errors import DataError, Problems, quote
+from .yaml_syntax import NoAliasLoader
+
+
+class _HeaderLoader(NoAliasLoader):
+    """The '# key: value' lines' loader: a key given twice is refused at its second line (PyYAML keeps the last
+    in silence, and a header's second radius would pass for the first)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = str(self.construct_object(key_node, deep=True)).replace(" ", "_")   # as `Table.header` reads it
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise _GivenTwice(f"line {line}: {key} is given twice (line {seen[key]} and line {line}); keep "
+                                  "the one that is right")
+            seen[key] = line
+        return super().construct_mapping(node, deep)
+
+
+class _GivenTwice(Exception):
+    pass
 
 
 @dataclass
@@ -24,6 +48,23 @@ class Table:
     header_line: int
     cols: list[str]
     rows: list[tuple[int, list[str]]]
+
+    def header(self, path, keys: str) -> dict[str, Any]:
+        """The '#' lines as a mapping of 'key: value' lines, spaces in keys read as '_'; DataError at the file's
+        line when they are not valid YAML, not a mapping (``keys``: the keys expected, for the message) or give
+        a key twice."""
+        try:
+            data = yaml.load("\n".join(self.head), Loader=_HeaderLoader) or {}
+        except _GivenTwice as e:
+            raise DataError(f"{path}: {e}") from None
+        except yaml.YAMLError as e:
+            mark = getattr(e, "problem_mark", None)
+            where = f" line {mark.line + 1}" if mark is not None else ""
+            raise DataError(f"{path}:{where}: the '# key: value' lines are not valid YAML: "
+                            f"{getattr(e, 'problem', e)}") from None
+        if not isinstance(data, dict):
+            raise DataError(f"{path}: the '#' lines must be 'key: value' lines ({keys})")
+        return {str(k).replace(" ", "_"): v for k, v in data.items()}
 
     def numbers(self, path, names: list[str], problems: Problems, what: str, noun: str):
         """(line, fields, values) of each row whose columns ``names`` hold finite numbers; a row that does not

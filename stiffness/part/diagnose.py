@@ -28,8 +28,9 @@ from ..errors import DataError
 from ..model.prior import Prior
 from ..model.stiffness_model import StiffnessModel
 from .compare import at_points
-from .learn import _concat
+from .learn import _concat, learn
 from .rows import PartRows
+from .sanity import misread
 from .timing import when_made
 
 PART_COMPONENTS = ("normal", "along the contour", "along the tool axis", "about the normal",
@@ -52,14 +53,28 @@ class PartDiagnosis:
         return self.diagnosis.message + (f" Along the contour it shows as {self.where}." if self.where else "")
 
 
-def diagnose_parts(model: StiffnessModel, parts: list[PartRows], prior: Prior, progress=None) -> PartDiagnosis:
-    """Run the diagnosis on the parts' points with ``prior``; name where the best candidate shows."""
+def diagnose_parts(model: StiffnessModel, parts: list[PartRows], prior: Prior, progress=None,
+                   best_fit: bool = False) -> PartDiagnosis:
+    """Run the diagnosis on the parts' points with ``prior``; name where the best candidate shows.
+
+    First the parts go through every check `part learn` runs (`sanity`): parts that say they were read wrong
+    (a radius or a frame that explains the residual, a pull beyond the prior, nothing determined) are refused,
+    naming the likeliest cause, before any effect is named; the residual that no reading explains is the one
+    the diagnosis is for. ``best_fit``: the parts were placed by a best fit (`part learn --best-fit`)."""
+    read = parts
     parts = [when_made(p, model) for p in parts]
     data = _concat([p.dataset(model.robot, model.input_map()) for p in parts])
     need = 2 * (len(model.theta) + 6)
     if int(data.measured.sum()) < need:
         raise DataError(f"{data.source}: {int(data.measured.sum())} points; the diagnosis of a model of "
                         f"{len(model.theta)} parameters and its candidates needs at least {need}")
+    (progress or (lambda msg: None))("checking the parts as part learn does")
+    learned = learn(model, read, prior, best_fit)
+    wrong = misread(learned, model, learned.data)
+    if wrong:
+        more = f" ({len(wrong) - 1} more: `stiffcomp part learn` lists them)" if len(wrong) > 1 else ""
+        raise DataError(f"{', '.join(dict.fromkeys(p.part.source for p in parts))}: not diagnosed, the parts read "
+                        f"wrong and `part learn` refuses them too: {wrong[0]}{more}")
     d = diagnose(model, data, progress, prior=prior)
     d.worst = in_part_axes(d.worst)
     out = PartDiagnosis(d, parts, data)

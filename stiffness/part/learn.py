@@ -124,6 +124,7 @@ class Learned:
     missed_before: np.ndarray | None = None   # (rows,) mm, what the model missed along the normal before learning;
                                               # after: fit.residual[:, 0]; the text's RMS and the report's plot
                                               # both read these two
+    best_fit: bool = False                    # the parts were placed by a best fit, not by their frames
 
     @property
     def points_kept(self) -> int:
@@ -198,7 +199,7 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
     out = Learned(learned, result, prior, parts, combos, len(model.theta), before, after, ch, notes,
                   before_all_mm=before_all, after_all_mm=after_all, data=data,
                   missed_before=data.deflection[:, 0] - pred_before[:, 0],
-                  left_out=left_out)
+                  left_out=left_out, best_fit=best_fit)
     out.problems = problems(out, model, data)
     return out
 

@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2, norm
 
+from .suspects import placing_keys
+
 P_FAR = float(norm.sf(5.0))
 HINT_SHARE = 0.5     # a shift of the part is named as the likely cause when it explains this share of the residual
 
@@ -37,24 +39,40 @@ def problems(learned, start, data) -> list[str]:
     """What keeps ``learned`` (`learn.Learned`) from being written, in words with the likely cause;
     empty when nothing does. ``start``: the model it was learned from; ``data``: the parts' rows it was fitted
     to (`PartRows.dataset`, its rows those of ``learned.fit``)."""
+    return [text for _, text in checks(learned, start, data)]
+
+
+def misread(learned, start, data) -> list[str]:
+    """The problems that say the parts were read wrong, not that the model lacks something: all but a residual
+    that no radius or shift of the points explains, which is what `stiffcomp part diagnose` is for. A diagnosis
+    from parts with one of these would name an effect for a misread file."""
+    return [text for kind, text in checks(learned, start, data) if kind != RESIDUAL]
+
+
+RESIDUAL, PLACEMENT, MOVED, NOTHING, INPUT = "residual", "placement", "moved", "nothing learned", "input model"
+
+
+def checks(learned, start, data) -> list[tuple[str, str]]:
+    """Each failed check as (kind, words): the kinds above."""
     out = []
     residual = _residual(learned, start, data)
     if residual:
         out.append(residual)
     moved = _moved(learned)
     if moved:
-        out.append(moved)
+        out.append((MOVED, moved))
     if not learned.determined:
-        out.append(f"the parts determine no combination of the model's {learned.n_params} parameters better "
-                   f"than its prior ({learned.prior.source}): nothing was learned, and whatever moved, moved "
-                   "within the prior. Likely the prior already holds what these parts tell (a campaign's "
-                   "covariance), or the parts are too few or too lightly loaded to show the compliances")
+        out.append((NOTHING, (f"the parts determine no combination of the model's {learned.n_params} parameters "
+                              f"better than its prior ({learned.prior.source}): nothing was learned, and whatever "
+                              "moved, moved within the prior. Likely the prior already holds what these parts tell "
+                              "(a campaign's covariance), or the parts are too few or too lightly loaded to show "
+                              "the compliances")))
     negative = [lab for lab, p, v in zip(start.param_labels(), _params(start), start.theta) if p.compliance and v < 0]
     if negative:
-        out.append(f"the input model {start.source} holds {len(negative)} negative compliance(s) "
-                   f"({', '.join(negative[:4])}{' ...' if len(negative) > 4 else ''}): not physical (the service "
-                   "refuses such a model), and the non-negative bound set them to 0, a change no part made; fit "
-                   "the model with `stiffcomp fit --nonnegative` first")
+        out.append((INPUT, (f"the input model {start.source} holds {len(negative)} negative compliance(s) "
+                            f"({', '.join(negative[:4])}{' ...' if len(negative) > 4 else ''}): not physical (the "
+                            "service refuses such a model), and the non-negative bound set them to 0, a change no "
+                            "part made; fit the model with `stiffcomp fit --nonnegative` first")))
     return out
 
 
@@ -62,46 +80,91 @@ def _params(model):
     return [p for e in model.effects for p in e.params]
 
 
-def _residual(learned, start, data) -> str:
-    """The parts' residual after learning against the stated noise (the module's docstring), with the shift
-    of the part that explains it when one does."""
+def _keys(learned) -> tuple[str, str, bool]:
+    """The radius and frame keys of the parts (`suspects.placing_keys`), and whether they are probe logs."""
+    keys = {placing_keys(p.part) for p in learned.parts}
+    radius, frame = (" or ".join(dict.fromkeys(k[i] for k in keys)) for i in (0, 1))
+    return radius, frame, all(p.part.probed for p in learned.parts)
+
+
+def _residual(learned, start, data) -> tuple[str, str] | None:
+    """The parts' residual after learning against the stated noise (the module's docstring), with the radius or
+    the shift of the points that explains it when one does (kind PLACEMENT; RESIDUAL when none does)."""
     fit = learned.fit
     rows = fit.inlier & np.isfinite(fit.residual[:, 0])
     r = fit.residual[rows, 0]
     n, k = len(r), len(learned.determined)
     sigma = float(start.noise["position_mm"])
     if n <= k:
-        return ""
+        return None
     limit = sigma * float(np.sqrt(chi2.isf(P_FAR, n - k) / (n - k)))
     rms = float(np.sqrt(np.mean(r ** 2)))
     if rms <= limit:
-        return ""
-    hint = _shift_hint(data, rows, r)
-    return (f"the parts leave RMS {rms:.4f} mm after learning, where the model's stated noise (noise.position_mm "
-            f"{sigma:g} mm) explains at most {limit:.4f} mm over {n} points: the parts do not fit this model. "
-            f"Likely a part not where its part_frame says{hint}, or place it by --best-fit; else a wrong "
-            "tool_radius_mm, a trace that is not the part's, a probe noisier than noise.position_mm, or an effect "
-            "the model lacks (`stiffcomp part diagnose`)")
+        return None
+    radius, frame, probed = _keys(learned)
+    hint = _placement_hint(learned, data, rows, r)
+    head = (f"the parts leave RMS {rms:.4f} mm after learning, where the model's stated noise (noise.position_mm "
+            f"{sigma:g} mm) explains at most {limit:.4f} mm over {n} points: the parts do not fit this model. ")
+    if hint:
+        return PLACEMENT, head + hint
+    placed = "" if probed or learned.best_fit else f"a part not where its {frame} says (or place it by --best-fit), "
+    return RESIDUAL, head + (f"Likely {placed}a wrong {radius}, a trace that is not the part's, a probe noisier "
+                             "than noise.position_mm, or an effect the model lacks (`stiffcomp part diagnose`)")
 
 
-def _shift_hint(data, rows: np.ndarray, r: np.ndarray) -> str:
-    """' (a shift of its points ... explains N % ...)' when one rigid shift d of each part's points (n . d along
-    each normal, and a constant) explains at least HINT_SHARE of the residual ``r`` of ``rows``; '' otherwise."""
+def _placement_hint(learned, data, rows: np.ndarray, r: np.ndarray) -> str:
+    """'Likely ...' when one distance along every normal (a radius off) or one rigid shift of each part's points
+    (n . d along each normal, with the distance) explains at least HINT_SHARE of the residual ``r`` of ``rows``;
+    '' otherwise. The radius is named when it alone explains as much as the two together less HINT_SHARE's
+    complement of what they leave."""
     normal = data.axes[rows, 0]
     config = np.asarray(data.config)[rows]
-    shifts, left = [], r.copy()
+    by_label = {p.label: p.part for p in learned.parts}
+    total = max(float(np.sum(r ** 2)), 1e-300)
+    both_left, const_left, fixes, shifts = r.copy(), r.copy(), [], []
     for lab in dict.fromkeys(config):
         m = config == lab
         A = np.column_stack([normal[m], np.ones(int(m.sum()))])
         x = np.linalg.lstsq(A, r[m], rcond=None)[0]
-        left[m] = r[m] - A @ x
-        shifts.append((lab, x[:3]))
-    share = 1.0 - float(np.sum(left ** 2) / max(float(np.sum(r ** 2)), 1e-300))
-    if share < HINT_SHARE:
+        both_left[m] = r[m] - A @ x
+        c = float(np.mean(r[m]))
+        const_left[m] = r[m] - c
+        part = by_label.get(lab)
+        if part is not None:
+            fixes.append(_radius_fix(part, lab, c))
+        shifts.append(f"{lab} ({', '.join(f'{v:+.2f}' for v in x[:3])}) mm")
+    both = 1.0 - float(np.sum(both_left ** 2)) / total
+    const = 1.0 - float(np.sum(const_left ** 2)) / total
+    radius, frame, probed = _keys(learned)
+    if const >= HINT_SHARE and const >= both - (1.0 - HINT_SHARE) * (1.0 - const):
+        return (f"Likely a wrong {radius}: one distance along every normal explains {100 * const:.0f} % of what is "
+                f"left ({'; '.join(fixes)}); else a wrong {frame}, or an effect the model lacks")
+    if both < HINT_SHARE:
         return ""
-    where = "; ".join(f"{lab} ({', '.join(f'{v:+.2f}' for v in d)}) mm" for lab, d in shifts)
-    return (f" (one shift of its points in the robot's base explains {100 * share:.0f} % of what is left, "
-            f"{where}: correct part_frame's xyz_mm by minus that)")
+    if learned.best_fit:
+        return (f"Likely a wrong {radius}: after the best fit placed each part, one shift of its points still "
+                f"explains {100 * both:.0f} % of what is left ({'; '.join(shifts)}), as a radius that is off leaves "
+                "a part best fitted to an arc; else a trace that is not the part's, or an effect the model lacks")
+    if probed:
+        return (f"Likely a wrong probe_frame (the stylus centre in the flange frame) or stylus_radius_mm: one "
+                f"shift of the touches in the robot's base explains {100 * both:.0f} % of what is left "
+                f"({'; '.join(shifts)}); else a trace that is not the probe's cut, or an effect the model lacks")
+    return (f"Likely a part not where its part_frame says: one shift of its points in the robot's base explains "
+            f"{100 * both:.0f} % of what is left ({'; '.join(shifts)}: correct part_frame's xyz_mm by minus that), "
+            f"or place it by --best-fit; else a wrong {radius}, a trace that is not the part's, or an effect the "
+            "model lacks")
+
+
+def _radius_fix(part, label: str, c: float) -> str:
+    """'part 1: every point +0.48 mm off; stylus_radius_mm 2 would be 1.52' for a constant residual ``c`` (mm).
+    A probe's point lies (r_s - v tau) along the approach, so a stylus radius too large by D moves every point D
+    toward the wall (the residual +D); the wall is the tool radius off the tool centre's path, so a tool radius
+    too large by D leaves every point D short of it (the residual -D)."""
+    tool = f"tool_radius_mm {part.tool_radius_mm:g} would be {part.tool_radius_mm + c:.3g}"
+    if part.probed:
+        return (f"{label}: every point {c:+.3f} mm off; stylus_radius_mm {part.stylus_radius_mm:g} would be "
+                f"{part.stylus_radius_mm - c:.3g}, or {tool}")
+    return f"{label}: every point {c:+.3f} mm off; {tool}"
 
 
 def _moved(learned) -> str:
@@ -113,9 +176,11 @@ def _moved(learned) -> str:
     allowed = float(np.sqrt(chi2.isf(P_FAR, k)))
     if pulled <= allowed:
         return ""
+    radius, frame, probed = _keys(learned)
     changes = ", ".join(f"{lab} {100 * (b1 / b0 - 1):+.0f} %" for lab, b0, b1 in learned.changes[:2])
+    where = (f"a {frame} that is off" if probed else "a trace that is not the part's" if learned.best_fit else
+             f"a part not where its {frame} says")
     return (f"the parts pull the model {pulled:.1f} prior sigma from its values along the {k} combination(s) "
             f"they determine, where its prior allows {allowed:.1f} ({changes}): the parts' deviations are not "
-            "deflections this robot makes. Likely a wrong tool_radius_mm (a radius off by d puts every point d "
-            "off along its normal, which the compliances then absorb), a part not where its part_frame says, or "
-            "a prior that is too tight")
+            f"deflections this robot makes. Likely a wrong {radius} (a radius off by d puts every point d "
+            f"off along its normal, which the compliances then absorb), {where}, or a prior that is too tight")

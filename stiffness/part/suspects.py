@@ -31,6 +31,16 @@ def radius_key(part: PartMeasurement) -> str:
     return "--tool-radius-mm" if str(part.source).lower().endswith(".qif") else "tool_radius_mm"
 
 
+def placing_keys(part: PartMeasurement) -> tuple[str, str]:
+    """The two keys that place ``part``'s points on the wall: the radius that puts each point off along its normal
+    and the frame that puts them all in the robot's base. A probe log's touches are placed by the stylus ball
+    (``stylus_radius_mm``, ``probe_frame``: `stiffness.data.probe_log`), a CMM's points by the tool and the
+    part's frame."""
+    if part.probed:
+        return "stylus_radius_mm or tool_radius_mm", "probe_frame"
+    return radius_key(part), "part_frame"
+
+
 def explain(part: PartMeasurement, trace_source, near_m: np.ndarray, path_span_mm: float,
             fit: Callable[[], tuple[float, float, float]] | None, near_mm: float) -> str:
     """The refusal of a part whose points mostly lie off the path the trace's tool centre took.

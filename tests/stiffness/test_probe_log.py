@@ -95,6 +95,16 @@ def test_the_stated_overtravel_is_taken_back_along_the_approach(probed, tmp_path
     assert np.allclose(moved, -0.02e-3 * log.approach, atol=1e-12)
 
 
+def test_a_log_that_states_no_speed_and_latency_is_read_with_a_warning_naming_both(probed, tmp_path):
+    cut, q, n, _ = probed
+    plain = read_probe_against(read_probe(_log(tmp_path, q, n)), read_trace(cut.trace), NOMINAL.robot)
+    stated = read_probe_against(read_probe(_log(tmp_path, q, n, name="stated.csv", probing_speed_mm_s=5.0,
+                                                trigger_latency_ms=1.0)), read_trace(cut.trace), NOMINAL.robot)
+    warned = [x for x in plain.notes if "warning" in x]
+    assert len(warned) == 1 and "probing_speed_mm_s and trigger_latency_ms" in warned[0], plain.notes
+    assert not [x for x in stated.notes if "warning" in x], stated.notes
+
+
 def _refusal(probed, tmp_path, **change) -> str:
     cut, q, n, _ = probed
     q, n = q.copy(), n.copy()
@@ -160,6 +170,18 @@ def test_a_bad_header_is_named(probed, tmp_path, header, message):
         text = text.replace(header, "# stylus_radius_mm: -1")
     path.write_text(text)
     with pytest.raises(DataError, match=message):
+        read_probe(path)
+
+
+def test_a_key_given_twice_is_refused_at_its_second_line(probed, tmp_path):
+    """PyYAML keeps the last of two keys in silence: a second stylus radius would pass for the first."""
+    _, q, n, _ = probed
+    path = _log(tmp_path, q, n)
+    lines = path.read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("# stylus_radius_mm"))
+    lines.insert(k + 1, "# stylus_radius_mm: 2")
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=rf"probe\.csv: line {k + 2}: stylus_radius_mm is given twice \(line {k + 1}"):
         read_probe(path)
 
 

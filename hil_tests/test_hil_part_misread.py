@@ -1,0 +1,114 @@
+"""`part diagnose` never names an effect from a misread part (issue 50, item 1): a probe log or a CMM part whose
+header or joints are wrong is refused, naming the file's suspect, before any physical effect is named; the same
+files read right give no missing effect. The cut: the HIL in lock step, the robot with geometric errors cut with
+the too-stiff model (as test_hil_probe.py's), its own probe and a virtual CMM of the same wall."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from hil_lib import ROOT
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hil.circle import cut
+from hil.scenario import load_scenario
+from tools.cli import main
+
+BUILT = ROOT / "examples" / "truth_geometric_errors.yaml"
+START = ROOT / "examples" / "too_stiff_reference.yaml"
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory):
+    w = tmp_path_factory.mktemp("misread")
+    cut(load_scenario(), BUILT, START, w / "cut", w / "cut.csv", w / "part.csv", probe_log=w / "probe.csv")
+    return w
+
+
+def _edit(src, dst, header=lambda line: line, joints=lambda q: q):
+    """``src`` with each '#' line through ``header`` (a list back: the lines to write) and each touch's six
+    joints (deg) through ``joints``."""
+    out, cols = [], None
+    for line in src.read_text().splitlines():
+        if line.startswith("#"):
+            got = header(line)
+            out += got if isinstance(got, list) else [got]
+        elif cols is None:
+            cols = line.split(",")
+            out.append(line)
+        else:
+            v = line.split(",")
+            if "q1_deg" in cols:
+                v[1:7] = [f"{x:.6f}" for x in joints([float(x) for x in v[1:7]])]
+            out.append(",".join(v))
+    dst.write_text("\n".join(out) + "\n")
+    return dst
+
+
+def _diagnose(capsys, w, part) -> tuple[int, str]:
+    """`part diagnose`'s exit code and what it said (the JSON's verdict and message, or the refusal)."""
+    try:
+        code = main(["part", "diagnose", str(START), str(w / "cut.csv"), str(part), "--json"])
+    except SystemExit as e:
+        code = e.code
+    out, err = capsys.readouterr()
+    if code == 0:
+        d = json.loads(out)
+        return code, f"{d['verdict']}: {d['message']}"
+    return code, err
+
+
+def _swap(key, value):
+    return lambda line: f"# {key}: {value}" if line.startswith(f"# {key}:") else line
+
+
+WRONG = {
+    "stylus radius 2 for 1.5": {"header": _swap("stylus_radius_mm", 2.0)},
+    "tool radius 4.5 for 4": {"header": _swap("tool_radius_mm", 4.5)},
+    "the tool radius given twice": {"header": lambda l: [l, "# tool_radius_mm: 5"] if l.startswith("# tool_r") else l},
+    "the flange frame for the stylus's": {"header": _swap("probe_frame", "{xyz_mm: [250, 0, 0], rpy_deg: [0, 0, 0]}")},
+    "joints in radians": {"joints": lambda q: [math.radians(x) for x in q]},
+    "q1's sign flipped": {"joints": lambda q: [-q[0]] + q[1:]},
+    "q3 offset by 90 deg": {"joints": lambda q: q[:2] + [q[2] + 90.0] + q[3:]},
+}
+
+
+def test_the_probe_read_right_names_no_effect(cell, capsys):
+    code, said = _diagnose(capsys, cell, cell / "probe.csv")
+    assert code == 0 and said.startswith("no_missing_effect"), said
+
+
+@pytest.mark.parametrize("case", sorted(WRONG))
+def test_a_misread_probe_log_names_no_effect_and_never_advises_a_part_frame(cell, capsys, tmp_path, case):
+    code, said = _diagnose(capsys, cell, _edit(cell / "probe.csv", tmp_path / "probe.csv", **WRONG[case]))
+    assert code != 0 and "missing_effect" not in said, said
+    assert "probe.csv" in said
+    assert "--best-fit" not in said and "part_frame" not in said, said     # both refused for a probe log
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(off=st.floats(0.3, 3.0), which=st.sampled_from(["stylus_radius_mm", "tool_radius_mm"]),
+       sign=st.sampled_from([-1.0, 1.0]))
+def test_a_radius_off_by_any_amount_is_refused_before_an_effect_is_named(cell, capsys, tmp_path, off, which, sign):
+    given_mm = {"stylus_radius_mm": 1.5, "tool_radius_mm": 4.0}[which] + sign * off
+    if given_mm <= 0.05:
+        given_mm = given_mm + 2 * off
+    part = _edit(cell / "probe.csv", tmp_path / f"probe_{which}.csv", header=_swap(which, f"{given_mm:.4f}"))
+    code, said = _diagnose(capsys, cell, part)
+    assert code != 0 and "missing_effect" not in said, said
+
+
+def test_a_cmm_part_with_a_wrong_radius_names_no_effect_and_the_radius(cell, capsys, tmp_path):
+    """The CMM's points of the same wall placed by --best-fit (the robot's geometric errors move its frame),
+    with the tool radius 0.5 mm too large."""
+    part = _edit(cell / "part.csv", tmp_path / "part.csv", header=_swap("tool_radius_mm", 4.5))
+    try:
+        code = main(["part", "diagnose", str(START), str(cell / "cut.csv"), str(part), "--best-fit", "--json"])
+    except SystemExit as e:
+        code = e.code
+    out, err = capsys.readouterr()
+    assert code != 0 and "missing_effect" not in out, out
+    assert "tool_radius_mm" in err, err
