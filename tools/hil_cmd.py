@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 from hil.scenario import DEFAULT_SCENARIO, load_scenario
+from stiffness.errors import OutputError
 
 from .common import check_count, check_number, check_output_file
 
@@ -138,6 +139,10 @@ def _check_outputs_and_reach(args, scenario) -> None:
     for option, path in (("--cmm", args.cmm), ("--probe", args.probe), ("--modes-data", args.modes_data)):
         if path is not None:
             check_output_file(option, path)
+    for option, path, formats in (("--cmm", args.cmm, (".csv", ".qif")), ("--probe", args.probe, (".csv",))):
+        if path is not None and Path(path).suffix.lower() not in formats:
+            raise OutputError(f"{option} {path}: the suffix must be {' or '.join(formats)} (the file's format: "
+                              "docs/part_format.md)")
     robot = StiffnessModel.from_yaml(args.truth or scenario.resolve(scenario.truth)).robot
     try:
         CirclePath(robot, scenario.circle)

@@ -40,9 +40,12 @@ from tools.cli import main
     (["--repeat", "0"], r"--repeat 0: must be a whole number, at least 1"),
     (["--repeat", "2.5"], r"--repeat 2\.5: must be a whole number, at least 1"),
     (["--repeat", "three"], r"--repeat three: must be a whole number, at least 1"),
+    (["--probe", "{tmp}/probe.qif"], r"--probe {tmp}/probe\.qif: the suffix must be \.csv"),
+    (["--cmm", "{tmp}/part.parquet"], r"--cmm {tmp}/part\.parquet: the suffix must be \.csv or \.qif"),
 ], ids=["delay<0", "delay>100", "center-nan", "service-delay<0", "delay-alone", "dynamic-options-alone",
         "dynamic-without-static", "center-out-of-reach", "cmm-folder", "probe-folder", "modes-data-folder", "added-damping<0",
-        "added-damping>2", "mode-error=-1", "mode-error=nan", "repeat=0", "repeat=2.5", "repeat=three"])
+        "added-damping>2", "mode-error=-1", "mode-error=nan", "repeat=0", "repeat=2.5", "repeat=three", "probe-suffix",
+        "cmm-suffix"])
 def test_a_bad_option_exits_2_naming_it_before_any_pass(args, message, capsys, tmp_path):
     refused(args, message, capsys, tmp_path)
 
