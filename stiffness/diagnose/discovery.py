@@ -42,13 +42,14 @@ from ..fit.result import FitResult, rms
 from ..model.preload_term import PreloadTerm, held_preload, start_from_centres
 from ..model.prior import Prior
 from ..model.stiffness_model import StiffnessModel
-from .explain import describe
+from .explain import describe, nanmax, verdict_of
 
 CV_MIN = 0.005
 BIC_MIN = 10.0
 ALPHA = 0.01
 LACK_OF_FIT = 1.15     # residual RMS above this multiple of the repeat noise: structure is left
 EXCESS_MIN = 0.2       # with structure left, the share of the excess a named effect must explain
+NEGATIVE_SIGMA = 5.0   # a compliance this many standard errors below zero is not physical (cf. sanity.P_FAR)
 LACK_OF_FIT_STATED = 1.5   # the same, against the model's stated noise when the data hold no repeats
 MAX_FOLDS = 10
 
@@ -72,6 +73,14 @@ class Candidate:
     excess_explained: float = float("nan")   # share of the residual's excess over the noise
 
     named: bool = False              # significant, and explains enough of any structure left
+
+    @property
+    def physical(self) -> bool:
+        """No compliance of its estimate below zero by more than NEGATIVE_SIGMA standard errors: an effect that
+        deflects against the load is a misreading's (a radius, a frame), never named; a component near zero
+        may fall a little below it by the noise alone."""
+        return all(v >= -NEGATIVE_SIGMA * se for p, v, se in zip(self.effect.params, self.estimate, self.std_error)
+                   if p.compliance)
 
     @property
     def significant(self) -> bool:
@@ -326,10 +335,10 @@ def diagnose(model: StiffnessModel, data: Dataset, progress=None, robust: bool =
     structure_left = lof["worst_body"] > lof["threshold"]
     for c in candidates:
         c.excess_explained = _excess_explained(result, c, lof)
-        c.named = c.significant and (not structure_left or c.excess_explained >= EXCESS_MIN)
+        c.named = c.significant and c.physical and (not structure_left or c.excess_explained >= EXCESS_MIN)
         c.explanation = describe(c, fitted, ctx, result)
     candidates.sort(key=lambda c: (-c.named, -c.significant, -c.cv_improvement, c.delta_bic))
-    verdict, message = _verdict(candidates, lof, result)
+    verdict, message = verdict_of(candidates, lof, result)
     # "where the model fails" in units of the noise its label names (repeats, else the stated noise)
     ref = np.array([lof["position_mm"]] * 3 + [lof["rotation_deg"]] * 3)
     return Diagnosis(result, ctx, worst(ctx, np.where(use[:, None], resid, np.nan), ref), noise, candidates,
@@ -340,20 +349,14 @@ def _lack_of_fit(result: FitResult, noise: dict | None, model: StiffnessModel, c
     """Residual RMS over the noise, overall and for the worst body (position and rotation)."""
     ref = noise or {"position_mm": model.noise["position_mm"], "rotation_deg": model.noise["rotation_deg"]}
     r = np.where(result.inlier[:, None], result.residual, np.nan)
-    per_body = [_nanmax(rms(r[ctx.body == b, :3]) / ref["position_mm"], rms(r[ctx.body == b, 3:]) / ref["rotation_deg"])
+    per_body = [nanmax(rms(r[ctx.body == b, :3]) / ref["position_mm"], rms(r[ctx.body == b, 3:]) / ref["rotation_deg"])
                 for b in np.unique(ctx.body)]
     return {"reference": "repeated readings" if noise else "the model's stated noise",
             "threshold": LACK_OF_FIT if noise else LACK_OF_FIT_STATED,
             "position_mm": ref["position_mm"], "rotation_deg": ref["rotation_deg"],
             "position": result.rms_position_mm / ref["position_mm"],
             "rotation": result.rms_rotation_deg / ref["rotation_deg"],
-            "worst_body": _nanmax(*per_body)}
-
-
-def _nanmax(*values: float) -> float:
-    """The largest of the values that are not NaN (a kind not measured gives NaN); NaN if none."""
-    v = [x for x in values if not np.isnan(x)]
-    return float(max(v)) if v else float("nan")
+            "worst_body": nanmax(*per_body)}
 
 
 def _excess_explained(result: FitResult, c: Candidate, lof: dict) -> float:
@@ -366,30 +369,3 @@ def _excess_explained(result: FitResult, c: Candidate, lof: dict) -> float:
         ex += max(before**2 - ref**2, 0.0) / ref**2
         expl += (before**2 - after**2) / ref**2
     return float(np.clip(expl / ex, 0.0, 1.0)) if ex > 0 else 1.0
-
-
-def _verdict(candidates: list[Candidate], lof: dict, result: FitResult) -> tuple[str, str]:
-    structure_left = lof["worst_body"] > lof["threshold"]
-    best = candidates[0] if candidates and candidates[0].named else None
-    if best is not None:
-        ref = lof["position"] / max(result.rms_position_mm, 1e-300)   # 1 / noise, per mm
-        left = best.rms_position_mm_after * ref
-        left_rot = best.rms_rotation_deg_after * lof["rotation"] / max(result.rms_rotation_deg, 1e-300)
-        if _nanmax(left, left_rot) > lof["threshold"]:
-            left_text = " / ".join(f"{x:.2f}x" for x in (left, left_rot) if not np.isnan(x))
-            return "missing_effect", (best.explanation + f" Structure remains after it ({left_text} the noise): "
-                                      "add it, fit, and diagnose again.")
-        return "missing_effect", best.explanation
-    if structure_left:
-        nibblers = [c for c in candidates if c.significant]
-        also = (f" ({nibblers[0].name} passes the tests but removes only {100 * nibblers[0].excess_explained:.0f} %"
-                " of the excess)") if nibblers else ""
-        return "unexplained", (
-            f"The residual ({result.rms_text()}; worst body "
-            f"{lof['worst_body']:.2f}x the noise of {lof['reference']}) holds structure that no effect in the "
-            f"library explains{also}. See the residual patterns; the diagnosis does not guess.")
-    return "no_missing_effect", (
-        f"The residual ({result.rms_text()}) is at the noise of {lof['reference']} ("
-        + ", ".join(f"{lof[k]:.2f}x" for k in ("position", "rotation") if not np.isnan(lof[k]))
-        + ") and no library effect "
-        "improves the model by more than one criterion: nothing is missing.")
