@@ -28,9 +28,9 @@ def cell(tmp_path_factory):
     return w
 
 
-def _edit(src, dst, header=lambda line: line, joints=lambda q: q):
+def _edit(src, dst, header=lambda line: line, joints=lambda q: q, approach=lambda d: d):
     """``src`` with each '#' line through ``header`` (a list back: the lines to write) and each touch's six
-    joints (deg) through ``joints``."""
+    joints (deg) through ``joints`` and its approach through ``approach``."""
     out, cols = [], None
     for line in src.read_text().splitlines():
         if line.startswith("#"):
@@ -43,6 +43,7 @@ def _edit(src, dst, header=lambda line: line, joints=lambda q: q):
             v = line.split(",")
             if "q1_deg" in cols:
                 v[1:7] = [f"{x:.6f}" for x in joints([float(x) for x in v[1:7]])]
+                v[7:10] = [f"{x:.6f}" for x in approach([float(x) for x in v[7:10]])]
             out.append(",".join(v))
     dst.write_text("\n".join(out) + "\n")
     return dst
@@ -74,6 +75,36 @@ WRONG = {
     "q1's sign flipped": {"joints": lambda q: [-q[0]] + q[1:]},
     "q3 offset by 90 deg": {"joints": lambda q: q[:2] + [q[2] + 90.0] + q[3:]},
 }
+
+
+NAMED = {   # the misreading, and the cause the refusal names first (`stiffness.part.probe_suspects`)
+    "joints in radians": ({"joints": lambda q: [math.radians(x) for x in q]}, "(1) the joints are in radians"),
+    "q1's sign flipped": ({"joints": lambda q: [-q[0], *q[1:]]}, "(1) q1_deg has the wrong sign"),
+    "q3 offset by 90 deg": ({"joints": lambda q: [*q[:2], q[2] + 90.0, *q[3:]]},
+                            "(1) q3_deg is +90.0 deg off the cut's joint 3"),
+    "q1 at 400 deg": ({"joints": lambda q: [q[0] + 400.0, *q[1:]]}, "(1) q1_deg is +400.0 deg off the cut's joint 1"),
+    "probe_frame in metres": ({"header": _swap("probe_frame", "{xyz_mm: [0, 0, 0.25], rpy_deg: [0, 0, 0]}")},
+                              "(1) probe_frame's xyz_mm [0, 0, 0.25] is in metres"),
+    "the flange frame for the stylus's": ({"header": _swap("probe_frame", "{xyz_mm: [250, 0, 0], rpy_deg: [0, 0, 0]}")},
+                                          "(1) probe_frame's xyz_mm [250, 0, 0] puts the stylus off the flange's z axis"),
+    "every approach reversed": ({"approach": lambda d: [-x for x in d]}, "(1) every approach is reversed"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(NAMED))
+def test_a_misread_probe_log_is_refused_naming_the_misreading_first(cell, tmp_path, case):
+    """Each once read as a stylus radius that does not fit, touches that do not belong, or (metres) learned."""
+    from stiffness.data.probe_log import read_probe
+    from stiffness.data.trace_file import read_trace
+    from stiffness.errors import DataError
+    from stiffness.model.stiffness_model import StiffnessModel
+    from stiffness.part.probe import read_probe_against
+
+    edit, cause = NAMED[case]
+    log = _edit(cell / "probe.csv", tmp_path / "probe.csv", **edit)
+    with pytest.raises(DataError) as e:
+        read_probe_against(read_probe(log), read_trace(cell / "cut.csv"), StiffnessModel.from_yaml(START).robot)
+    assert cause in str(e.value) and "stylus_radius_mm = " not in str(e.value), str(e.value)
 
 
 def test_the_probe_read_right_names_no_effect(cell, capsys):

@@ -22,6 +22,8 @@ touch that cannot be a touch of this contour is refused by line, nothing used:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -35,6 +37,8 @@ from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, 
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
 CHORD_STEPS = 20            # a chord between two traced samples up to this many typical steps long is the path
+WALL_HEIGHT_MM = 50.0       # a touched wall lies within this of the tool centre's path along the tool axis: an
+                            # end mill's flutes reach a few diameters; 250 mm is a frame in metres
 
 
 def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",
@@ -57,37 +61,30 @@ def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str =
 
 def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = NEAR_MM) -> np.ndarray:
     """Each touch's deviation from the traced path, e = |P (p - c)| - r (mm), after the checks of the module's
-    docstring; DataError naming the file and every touch's line that fails one."""
-    run = trace.column("task_state") == TASK_RUN
-    if not run.any():
-        raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
-    F = robot.frames(np.radians(trace.commanded_q_deg))    # as `read_against` reads them
-    c_all = F[:, 7, :3, 3]
-    moving = at_feed(trace.time_s, c_all) & run
-    if moving.sum() < 3:
-        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {probe.source}")
-    a = np.median(F[moving, 7, :3, 2], axis=0)
-    a /= np.linalg.norm(a)
-    e1, e2 = plane_basis(a)
-    c = c_all[moving]
-    c2 = np.column_stack([c @ e1, c @ e2])
-    x = probe.centres(robot)
-    dist, n = _across(c2, np.column_stack([x @ e1, x @ e2]))    # across the path, toward the stylus centre
-    p = probe.points(robot)
-    dist_p, n_p = _across(c2, np.column_stack([p @ e1, p @ e2]))
-    near_path = dist < CENTRE_ON_PATH_MM / 1000.0                # a stylus about the cutter's size: its centre
-    n[near_path] = n_p[near_path]                                # tells no side
-    d2 = np.column_stack([probe.approach @ e1, probe.approach @ e2])
-    toward = np.einsum("nk,nk->n", n, d2)
-    side = 1.0 if np.median(toward) >= 0 else -1.0                # the wall beyond the centre (r_s < r) or not
-    r = probe.tool_radius_mm / 1000.0
-    rs = probe.stylus_radius_mm / 1000.0 - probe.overtravel_mm / 1000.0
-    e_mm = (np.where(near_path, dist_p - r, side * dist - (r - rs))) * 1000.0
+    docstring; DataError naming the file and every touch's line that fails one, the likeliest cause first
+    (`probe_suspects`) where the touches as a whole are not on the wall."""
+    from .probe_suspects import explain, outside_limits
+
+    cut = traced_cut(trace, robot, probe.source)
+    outside_limits(probe, robot, lambda: explain(probe, cut, robot, near_mm))
+    e_mm, toward, side, axial_mm = wall_offsets(probe, cut, robot)
+    mid = float(np.median(e_mm))
+    if (np.abs(e_mm) > near_mm).mean() > 0.5:
+        likely = explain(probe, cut, robot, near_mm)
+        if likely:
+            raise DataError(f"{probe.source}: the touches lie a median {mid:+.2f} mm off the wall the trace "
+                            f"{trace.source} cut (tolerance {near_mm:g} mm). {likely}")
     _stylus_fits(probe, e_mm, near_mm)
     if (np.abs(e_mm) > near_mm).mean() > 0.5:
         raise DataError(f"{probe.source}: the trace {trace.source} never passes the probed contour: the touches lie "
                         f"a median {np.median(np.abs(e_mm)):.1f} mm off the wall it cut (tolerance {near_mm:g} mm), "
                         "and not by one common distance; they do not belong together")
+    height = float(np.median(axial_mm))
+    if abs(height) > WALL_HEIGHT_MM:
+        likely = explain(probe, cut, robot, near_mm)
+        raise DataError(f"{probe.source}: the touches lie {height:+.1f} mm along the tool axis from the tool centre's "
+                        f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it. "
+                        + (likely or "Likely probe_frame's xyz_mm: the stylus centre in the flange frame, in mm"))
     problems = Problems()
     angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
     for k in range(len(probe)):
@@ -104,6 +101,60 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
         raise DataError(f"{probe.source}: {problems.count} touch(es) are not touches of the contour the trace "
                         "cut; nothing was used", problems)
     return e_mm
+
+
+@dataclass
+class TracedCut:
+    """The path the trace's tool centre cut, in the plane across its tool axis ``a`` (axes ``e1``, ``e2``):
+    ``c2`` its points there (m, time order), ``height`` the path's place along ``a`` (m) and ``q_deg`` the median
+    commanded joints while it cut."""
+
+    a: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    c2: np.ndarray
+    height: float
+    q_deg: np.ndarray
+
+
+def traced_cut(trace: Trace, robot: Robot, what: str) -> TracedCut:
+    """The cut of ``trace`` (as `read_against` reads it); DataError when nothing ran or the tool hardly moved
+    (``what``: the file it should have made)."""
+    run = trace.column("task_state") == TASK_RUN
+    if not run.any():
+        raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
+    F = robot.frames(np.radians(trace.commanded_q_deg))
+    c_all = F[:, 7, :3, 3]
+    moving = at_feed(trace.time_s, c_all) & run
+    if moving.sum() < 3:
+        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {what}")
+    a = np.median(F[moving, 7, :3, 2], axis=0)
+    a /= np.linalg.norm(a)
+    e1, e2 = plane_basis(a)
+    c = c_all[moving]
+    return TracedCut(a, e1, e2, np.column_stack([c @ e1, c @ e2]), float(np.median(c @ a)),
+                     np.median(trace.commanded_q_deg[moving], axis=0))
+
+
+def wall_offsets(probe: ProbeLog, cut: TracedCut, robot: Robot
+                 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Each touch's e (mm, module docstring), the cosine of its approach with the normal toward the stylus
+    centre, the side of the path the wall is on (+1: beyond the centre), and the touched point's place along the
+    tool axis from the path's (mm)."""
+    e1, e2 = cut.e1, cut.e2
+    x = probe.centres(robot)
+    dist, n = _across(cut.c2, np.column_stack([x @ e1, x @ e2]))    # across the path, toward the stylus centre
+    p = probe.points(robot)
+    dist_p, n_p = _across(cut.c2, np.column_stack([p @ e1, p @ e2]))
+    near_path = dist < CENTRE_ON_PATH_MM / 1000.0                # a stylus about the cutter's size: its centre
+    n[near_path] = n_p[near_path]                                # tells no side
+    d2 = np.column_stack([probe.approach @ e1, probe.approach @ e2])
+    toward = np.einsum("nk,nk->n", n, d2)
+    side = 1.0 if np.median(toward) >= 0 else -1.0                # the wall beyond the centre (r_s < r) or not
+    r = probe.tool_radius_mm / 1000.0
+    rs = probe.stylus_radius_mm / 1000.0 - probe.overtravel_mm / 1000.0
+    e_mm = (np.where(near_path, dist_p - r, side * dist - (r - rs))) * 1000.0
+    return e_mm, toward, side, (p @ cut.a - cut.height) * 1000.0
 
 
 def _across(c2: np.ndarray, x2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
