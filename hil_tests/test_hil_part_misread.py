@@ -143,3 +143,18 @@ def test_a_cmm_part_with_a_wrong_radius_names_no_effect_and_the_radius(cell, cap
     out, err = capsys.readouterr()
     assert code != 0 and "missing_effect" not in out, out
     assert "tool_radius_mm" in err, err
+
+
+def test_a_cmm_part_far_off_along_the_tool_axis_is_refused_naming_its_height(cell, capsys, tmp_path):
+    """Every z + 250 mm (metres for millimetres in a frame, or another datum): once learned, and cut 1.20 x
+    exact; the wall a tool cut lies within `WALL_HEIGHT_MM` of its centre's path along its axis."""
+    lines = (cell / "part.csv").read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("point,"))
+    rows = [line.split(",") for line in lines[k + 1:]]
+    part = tmp_path / "part.csv"
+    part.write_text("\n".join(lines[:k + 1] + [",".join([*r[:3], f"{float(r[3]) + 250:.4f}"]) for r in rows]) + "\n")
+    code = main(["part", "learn", str(START), str(cell / "cut.csv"), str(part), "--best-fit", "-o",
+                 str(tmp_path / "learned.yaml")])
+    err = capsys.readouterr().err
+    assert code == 2 and not (tmp_path / "learned.yaml").exists()
+    assert "part.csv: the points lie" in err and "mm along the tool axis" in err, err

@@ -32,13 +32,11 @@ from ..data.trace_file import Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
 from .foot import foot_on_path
-from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, PartRows, at_feed, plane_basis, read_against
+from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, WALL_HEIGHT_MM, PartRows, at_feed, plane_basis, read_against
 
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
 CHORD_STEPS = 20            # a chord between two traced samples up to this many typical steps long is the path
-WALL_HEIGHT_MM = 50.0       # a touched wall lies within this of the tool centre's path along the tool axis: an
-                            # end mill's flutes reach a few diameters; 250 mm is a frame in metres
 
 
 def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",

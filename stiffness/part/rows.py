@@ -71,6 +71,8 @@ HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
 PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
 UNITS = {"inches": 25.4, "metres": 1000.0}
+WALL_HEIGHT_MM = 50.0    # a measured wall lies within this of the tool centre's path along the tool axis (an end
+                         # mill's flutes reach a few diameters; 250 mm is a frame in metres)
 
 
 @dataclass
@@ -188,6 +190,11 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     else:
         frame = part.frame
     p = part.in_base(frame)
+    height = 1000.0 * float(np.median(p @ a) - np.median(c_all[idx] @ a))
+    if abs(height) > WALL_HEIGHT_MM:
+        raise DataError(f"{part.source}: the points lie {height:+.1f} mm along the tool axis from the tool centre's "
+                        f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it: the points' "
+                        "coordinates or the part_frame are that far off along the tool axis (metres for mm?)")
     blind = trace.gaps() + jumps(trace, c_all, run)         # rows lost, and joints that jumped
     blind.sort(key=lambda b: b.row)
     def why_far(near: np.ndarray, some: bool = False) -> str:
