@@ -111,16 +111,27 @@ class ProbeLog:
         return f"{self.source}: line {self.lines[k]}"
 
 
+PROBE_KEYS = ("stiffcomp_probe", "stylus_radius_mm", "probe_frame", "probing_speed_mm_s", "trigger_latency_ms")
+
+
 def is_probe_log(path: str | Path) -> bool:
-    """Whether ``path`` is a probe log rather than a CMM's points: its header row names the latched joints."""
+    """Whether ``path`` is a probe log rather than a CMM's points: a '#' line names a key only a probe log has
+    (the stylus, its frame, its speed and latency: so a log whose header row is misspelt, or that has none, is
+    still read and refused as one), or its header row names the latched joints."""
     try:
         with open(path, encoding="utf-8-sig") as f:
             for line in f:
-                if line.startswith("#") or not line.strip():
+                if line.startswith("#"):
+                    key = line[1:].split(":", 1)[0].strip().replace(" ", "_")
+                    if key in PROBE_KEYS:
+                        return True
+                    continue
+                if not line.strip():
                     continue
                 return "q1_deg" in [c.strip() for c in line.split(",")]
     except (OSError, UnicodeDecodeError):
         return False
+    return False
     return False
 
 

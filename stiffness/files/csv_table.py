@@ -102,15 +102,23 @@ def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
         k += 1
     if k >= len(lines):
         raise DataError(f"{path}: no header row after the '#' lines; expected {expected}")
+    if ";" in lines[k] and "," not in lines[k]:
+        raise DataError(f"{path}: line {k + 1}: the fields are separated by ';', where the format separates them by "
+                        "',' and writes decimals with '.' (a spreadsheet's export in another locale?): save it as "
+                        f"comma-separated; expected {expected}")
     reader = csv.reader(io.StringIO("\n".join(lines[k:])))
     cols = [c.strip() for c in next(reader)]
-    rows = []
+    rows, wrong = [], []
     for n, row in enumerate(reader):
         line = k + 2 + n
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != len(cols):
             problems.add(f"{path}: line {line}: {len(row)} fields, the header has {len(cols)}")
+            wrong.append((line, len(row) > len(cols)))
             continue
         rows.append((line, row))
+    if wrong and not rows and all(more for _, more in wrong):
+        raise DataError(f"{path}: line {wrong[0][0]}: every row has more fields than the header's {len(cols)}: "
+                        "decimal commas? The format writes decimals with '.' and separates the fields by ','")
     return Table(head, k + 1, cols, rows)

@@ -185,6 +185,22 @@ def test_a_key_given_twice_is_refused_at_its_second_line(probed, tmp_path):
         read_probe(path)
 
 
+@pytest.mark.parametrize("edit, message", [
+    (lambda text: text.replace("touch,q1_deg,", "touch,q1,"), r"line \d+: missing column\(s\) q1_deg; a probe log"),
+    (lambda text: "\n".join(line if line.startswith("#") else line.replace(",", ";") for line in text.splitlines()),
+     r"line \d+: the fields are separated by ';'"),
+    (lambda text: "\n".join(line for line in text.splitlines() if line.startswith("#")), r"no header row.*touch,q1_deg"),
+], ids=["misspelt-header", "semicolons", "header-only"])
+def test_a_probe_log_with_a_broken_table_is_read_as_a_probe_log_and_refused_by_line(probed, tmp_path, edit, message):
+    """Not taken for a CMM part (its '#' keys say it is a probe log), which named keys the user never wrote."""
+    _, q, n, _ = probed
+    path = _log(tmp_path, q, n)
+    path.write_text(edit(path.read_text()))
+    assert is_probe_log(path)
+    with pytest.raises(DataError, match=message):
+        read_probe(path)
+
+
 def test_a_zero_approach_is_refused_by_line(probed, tmp_path):
     _, q, n, _ = probed
     n = n.copy()
