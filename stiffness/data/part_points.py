@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import Field
 
 from ..errors import DataError, Problems
-from ..files.csv_table import read_table
+from ..files.csv_table import given_twice, read_table
 from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig
 
@@ -101,6 +101,7 @@ def read_part(path: str | Path) -> PartMeasurement:
         pts.append(p)
         labels.append(row[label_col].strip() if label_col is not None else str(line))
         where.append(line)
+    given_twice(path, labels, where, "point", problems)
     if problems:
         raise DataError(f"{path}: {problems.count} problem(s); nothing was loaded", problems)
     if len(pts) < 3:

@@ -41,7 +41,7 @@ import numpy as np
 from pydantic import Field, ValidationError
 
 from ..errors import DataError, Problems
-from ..files.csv_table import read_table
+from ..files.csv_table import given_twice, read_table
 from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig, Robot
 from .part_points import PartMeasurement
@@ -117,7 +117,8 @@ PROBE_KEYS = ("stiffcomp_probe", "stylus_radius_mm", "probe_frame", "probing_spe
 def is_probe_log(path: str | Path) -> bool:
     """Whether ``path`` is a probe log rather than a CMM's points: a '#' line names a key only a probe log has
     (the stylus, its frame, its speed and latency: so a log whose header row is misspelt, or that has none, is
-    still read and refused as one), or its header row names the latched joints."""
+    still read and refused as one), or its header row names the latched joints and the approach (a trace names
+    joints too)."""
     try:
         with open(path, encoding="utf-8-sig") as f:
             for line in f:
@@ -128,7 +129,7 @@ def is_probe_log(path: str | Path) -> bool:
                     continue
                 if not line.strip():
                     continue
-                return "q1_deg" in [c.strip() for c in line.split(",")]
+                return {"q1_deg", "approach_x"} <= {c.strip() for c in line.split(",")}     # not a trace's
     except (OSError, UnicodeDecodeError):
         return False
     return False
@@ -161,6 +162,7 @@ def read_probe(path: str | Path) -> ProbeLog:
         d.append(np.array(v[6:]) / n)
         labels.append(row[label_col].strip() if label_col is not None else str(line))
         where.append(line)
+    given_twice(path, labels, where, "touch", problems)
     if problems:
         raise DataError(f"{path}: {problems.count} problem(s); nothing was loaded", problems)
     if len(q) < 3:

@@ -122,3 +122,14 @@ def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
         raise DataError(f"{path}: line {wrong[0][0]}: every row has more fields than the header's {len(cols)}: "
                         "decimal commas? The format writes decimals with '.' and separates the fields by ','")
     return Table(head, k + 1, cols, rows)
+
+
+def given_twice(path, labels: list[str], lines: list[int], noun: str, problems: Problems) -> None:
+    """Each ``noun`` whose label repeats an earlier one's, added to ``problems`` at its line: a file pasted in
+    twice would count every point twice, and a model learned from it would be twice as sure as the part allows."""
+    first: dict[str, int] = {}
+    for label, line in zip(labels, lines):
+        if label in first:
+            problems.add(f"{path}: line {line}: {noun} {label} is given twice (line {first[label]} and line {line})")
+        else:
+            first[label] = line

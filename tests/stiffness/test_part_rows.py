@@ -139,6 +139,8 @@ def test_points_the_tool_passed_twice_are_left_out_and_counted(truth, tmp_path):
     ("# tool_radius_mm: -4\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n", "tool_radius_mm"),
     ("# tool_radius_mm: 4\n# colour: red\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n", "colour"),
     ("# tool_radius_mm: 4\npoint;x_mm;y_mm;z_mm\n1;1,5;2;3\n", r"line 2: the fields are separated by ';'"),
+    ("# tool_radius_mm: 4\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n2,2,2,3\n1,1,2,3\n",
+     r"line 5: point 1 is given twice \(line 3 and line 5\)"),
     ("# tool_radius_mm: 4\npoint,x_mm,y_mm,z_mm\n1,1,5,2,0,3,0\n2,1,5,2,5,-3,0\n",
      r"line 3: every row has more fields than the header's 4: decimal commas\?"),
     ("# tool_radius_mm: 4\n# tool radius mm: 5\npoint,x_mm,y_mm,z_mm\n1,1,2,3\n",
