@@ -146,6 +146,7 @@ def _parts(args, model) -> tuple[list, list[dict]]:
     read): named in the part's notes (the text) and returned for the JSON's ``left_out_features``."""
     from stiffness.data.probe_log import is_probe_log, read_probe
     from stiffness.data.trace_file import read_trace
+    from stiffness.part import coverage
     from stiffness.part.probe import read_probe_against
     from stiffness.part.rows import read_against
 
@@ -153,14 +154,15 @@ def _parts(args, model) -> tuple[list, list[dict]]:
     out, features_left_out = [], []
     for k, (trace, part) in enumerate(pairs):
         if is_probe_log(part):
-            out.append(read_probe_against(read_probe(part), read_trace(trace), model.robot, f"part {k + 1}",
-                                          near_mm=args.near_mm, smooth_hz=args.smooth_hz))
-            continue
-        measurement, left_out = part_qif.read_any(part, args)
-        rows = read_against(measurement, read_trace(trace), model.robot, f"part {k + 1}",
-                            best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz)
-        rows.notes += [x.text(part) for x in left_out]
-        features_left_out += [x.to_dict(part) for x in left_out]
+            rows = read_probe_against(read_probe(part), read_trace(trace), model.robot, f"part {k + 1}",
+                                      near_mm=args.near_mm, smooth_hz=args.smooth_hz)
+        else:
+            measurement, left_out = part_qif.read_any(part, args)
+            rows = read_against(measurement, read_trace(trace), model.robot, f"part {k + 1}",
+                                best_fit=args.best_fit, near_mm=args.near_mm, smooth_hz=args.smooth_hz)
+            rows.notes += [x.text(part) for x in left_out]
+            features_left_out += [x.to_dict(part) for x in left_out]
+        rows.notes += [n for n in [coverage.note(rows)] if n]
         out.append(rows)
     return out, features_left_out
 

@@ -4,6 +4,7 @@ bad input named by file and line (issue 29, item 2)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -241,3 +242,24 @@ def test_a_trace_without_a_stall_names_no_jump(cut, truth):
     """The synthetic cut starts at rest at the contour and moves every row: nothing to name."""
     rows = read_against(read_part(cut.part), read_trace(cut.trace), truth.robot)
     assert rows.gaps == [] and rows.left_out == [] and rows.notes == []
+
+
+@given(angles=st.lists(st.floats(-720, 720, allow_nan=False), min_size=2, max_size=50), turn=st.floats(-360, 360))
+def test_the_span_of_angles_is_invariant_under_a_turn_and_bounded_by_a_full_turn(angles, turn):
+    from stiffness.part.coverage import span_deg
+
+    a = np.array(angles)
+    assert 0.0 <= span_deg(a) <= 360.0
+    assert span_deg(a + turn) == pytest.approx(span_deg(a), abs=1e-6)
+
+
+def test_a_part_measured_on_a_narrow_arc_is_warned_of_and_one_all_round_is_not(cut, truth):
+    from stiffness.part.coverage import note
+
+    rows = read_against(read_part(cut.part), read_trace(cut.trace), truth.robot)
+    assert note(rows) is None
+    part = read_part(cut.part)
+    keep = slice(0, len(part) // 12)                           # a twelfth of the points in the tool's order
+    narrow = replace(part, points_mm=part.points_mm[keep], labels=part.labels[keep], lines=part.lines[keep])
+    warned = note(read_against(narrow, read_trace(cut.trace), truth.robot))
+    assert warned is not None and "warning" in warned and "deg of the" in warned, warned
