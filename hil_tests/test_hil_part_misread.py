@@ -158,3 +158,14 @@ def test_a_cmm_part_far_off_along_the_tool_axis_is_refused_naming_its_height(cel
     err = capsys.readouterr().err
     assert code == 2 and not (tmp_path / "learned.yaml").exists()
     assert "part.csv: the points lie" in err and "mm along the tool axis" in err, err
+
+
+def test_three_adjacent_touches_are_read_as_millimetres_with_a_coverage_warning(cell, capsys, tmp_path):
+    """Three touches a few degrees apart span little in any unit: once taken for a part in inches ("20.9 x
+    smaller ... multiply them by 25.4"); they lie on the wall as placed, so the unit is not in question."""
+    lines = (cell / "probe.csv").read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("touch,"))
+    (tmp_path / "three.csv").write_text("\n".join(lines[:k + 4]) + "\n")
+    assert main(["part", "compare", str(START), str(cell / "cut.csv"), str(tmp_path / "three.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "inches" not in out and "three.csv: warning: its 3 points span" in out, out

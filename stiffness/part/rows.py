@@ -62,7 +62,7 @@ from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
 from .foot import foot_on_path
 from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
-from .suspects import causes, explain, frame_fit
+from .suspects import causes, check_units, explain, frame_fit
 
 TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
@@ -70,7 +70,6 @@ NEAR_MM = 3.0            # a point farther than this from r off the traced path 
 HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
 PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
-UNITS = {"inches": 25.4, "metres": 1000.0}
 WALL_HEIGHT_MM = 50.0    # a measured wall lies within this of the tool centre's path along the tool axis (an end
                          # mill's flutes reach a few diameters; 250 mm is a frame in metres)
 
@@ -180,7 +179,7 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     idx = np.nonzero(moving)[0]
     c2 = np.column_stack([c_all[idx] @ e1, c_all[idx] @ e2])
     r = part.tool_radius_mm / 1000.0
-    _check_units(part, c2, r, trace)
+    check_units(part, c2, r, trace, np.vstack([e1, e2]), near_mm)
     if best_fit or part.frame is None:
         if not best_fit:
             raise DataError(f"{part.source}: no part_frame: the points cannot be placed in the robot's base; give "
@@ -336,27 +335,6 @@ def _abeam(idx: np.ndarray, c2: np.ndarray, p: np.ndarray, cand: np.ndarray) -> 
     j = int(cand[np.argmin(np.linalg.norm(c2[cand] - p, axis=1))])
     _, s, f = foot_on_path(c2, p, j, lambda s: idx[s + 1] == idx[s] + 1)
     return float(idx[s] + f)
-
-
-def _check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace: Trace) -> None:
-    """A part whose contour is 25.4 or 1000 times smaller (or larger) than the traced path's is in the
-    wrong unit: DataError naming the likely one."""
-    pts = part.points_mm / 1000.0
-    size = float(np.max(np.ptp(pts, axis=0)))
-    path = float(np.max(np.ptp(c2, axis=0))) + 2 * r
-    if size <= 0 or path <= 0:
-        return
-    ratio = path / size
-    for unit, factor in UNITS.items():
-        for k, name in ((factor, unit), (1.0 / factor, None)):
-            if abs(np.log(ratio / k)) < np.log(1.25):
-                if name is None:        # the points are larger than the path by the factor
-                    raise DataError(f"{part.source}: the measured contour is {1 / ratio:.0f} x larger than the "
-                                    f"path the trace {trace.source} cut: the points look like they are in a unit "
-                                    f"{factor:g} x smaller than mm (the format is millimetres)")
-                raise DataError(f"{part.source}: the measured contour is {ratio:.1f} x smaller than the path the "
-                                f"trace {trace.source} cut: the points look like they are in {unit}, not millimetres "
-                                f"(docs/part_format.md); multiply them by {factor:g}")
 
 
 def _best_fit(part: PartMeasurement, c: np.ndarray, a: np.ndarray, r: float, iterations: int = 30) -> np.ndarray:

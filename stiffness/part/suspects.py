@@ -21,8 +21,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..data.part_points import PartMeasurement
+from ..errors import DataError
 
 INCH_MM = 25.4
+UNITS = {"inches": INCH_MM, "metres": 1000.0}
 ON_SHARE = 0.9           # a radius that puts this share of the points on the contour explains them
 
 
@@ -127,3 +129,30 @@ def _radius_words(r: float, d: np.ndarray, near_mm: float) -> str:
                      f"inches? {r:g} in is {radius:.3g} mm, a radius that")
             return f": {given} puts {100 * on:.0f} % of the points on the contour (within {near_mm:g} mm)"
     return ""
+
+
+def check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace, plane: np.ndarray, near_mm: float) -> None:
+    """A part whose contour is 25.4 or 1000 times smaller (or larger) than the traced path's is in the wrong
+    unit: DataError naming the likely one. Unless its points, placed by its frame, already lie on the wall (the
+    tool radius off the path ``c2`` in the cut's ``plane``, within ``near_mm``): a few points of a short stretch
+    span little, in any unit."""
+    pts = part.points_mm / 1000.0
+    size = float(np.max(np.ptp(pts, axis=0)))
+    path = float(np.max(np.ptp(c2, axis=0))) + 2 * r
+    if size <= 0 or path <= 0:
+        return
+    if part.frame is not None:
+        near, _ = cKDTree(c2).query(part.in_base() @ plane.T)
+        if 1000.0 * float(np.median(np.abs(near - r))) <= near_mm:
+            return
+    ratio = path / size
+    for unit, factor in UNITS.items():
+        for k, name in ((factor, unit), (1.0 / factor, None)):
+            if abs(np.log(ratio / k)) < np.log(1.25):
+                if name is None:        # the points are larger than the path by the factor
+                    raise DataError(f"{part.source}: the measured contour is {1 / ratio:.0f} x larger than the "
+                                    f"path the trace {trace.source} cut: the points look like they are in a unit "
+                                    f"{factor:g} x smaller than mm (the format is millimetres)")
+                raise DataError(f"{part.source}: the measured contour is {ratio:.1f} x smaller than the path the "
+                                f"trace {trace.source} cut: the points look like they are in {unit}, not millimetres "
+                                f"(docs/part_format.md); multiply them by {factor:g}")
