@@ -88,6 +88,8 @@ NAMED = {   # the misreading, and the cause the refusal names first (`stiffness.
     "the flange frame for the stylus's": ({"header": _swap("probe_frame", "{xyz_mm: [250, 0, 0], rpy_deg: [0, 0, 0]}")},
                                           "(1) probe_frame's xyz_mm [250, 0, 0] puts the stylus off the flange's z axis"),
     "every approach reversed": ({"approach": lambda d: [-x for x in d]}, "(1) every approach is reversed"),
+    "the tool's diameter as its radius": ({"header": _swap("tool_radius_mm", 8)},
+                                          "tool_radius_mm = 8 is the cutter's diameter? "),
 }
 
 
@@ -169,3 +171,24 @@ def test_three_adjacent_touches_are_read_as_millimetres_with_a_coverage_warning(
     assert main(["part", "compare", str(START), str(cell / "cut.csv"), str(tmp_path / "three.csv")]) == 0
     out = capsys.readouterr().out
     assert "inches" not in out and "three.csv: warning: its 3 points span" in out, out
+
+
+@pytest.mark.parametrize("kept", [0.6, 0.9])
+def test_a_trace_cut_short_is_named_as_ending_before_the_probed_contour(cell, tmp_path, kept):
+    """Once blamed on the approach of the touches by its end ("the approach ... makes 15 deg") or on the log
+    ("they do not belong together")."""
+    from stiffness.data.probe_log import read_probe
+    from stiffness.data.trace_file import read_trace
+    from stiffness.errors import DataError
+    from stiffness.model.stiffness_model import StiffnessModel
+    from stiffness.part.probe import read_probe_against
+
+    lines = (cell / "cut.csv").read_text().splitlines()
+    (tmp_path / "short.csv").write_text("\n".join(lines[:int(kept * len(lines))]) + "\n")
+    with pytest.raises(DataError) as e:
+        read_probe_against(read_probe(cell / "probe.csv"), read_trace(tmp_path / "short.csv"),
+                           StiffnessModel.from_yaml(START).robot)
+    text = str(e.value)
+    assert "touches lie beyond where the trace" in text and "short.csv ends" in text, text
+    assert "approach" not in text and "belong together" not in text, text
+

@@ -37,6 +37,7 @@ from .rows import NEAR_MM, SMOOTH_HZ, TASK_RUN, WALL_HEIGHT_MM, PartRows, at_fee
 MAX_APPROACH_DEG = 10.0     # a slant of 10 deg misplaces the point 1.5 % of the stylus radius along the normal
 CENTRE_ON_PATH_MM = 0.5     # a stylus centre this near the tool's path: its side is told by the touched point
 CHORD_STEPS = 20            # a chord between two traced samples up to this many typical steps long is the path
+END_SAMPLES = 3             # a touch nearest one of the path's first or last samples lies by its end
 
 
 def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",
@@ -66,6 +67,8 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
     cut = traced_cut(trace, robot, probe.source)
     outside_limits(probe, robot, lambda: explain(probe, cut, robot, near_mm))
     e_mm, toward, side, axial_mm = wall_offsets(probe, cut, robot)
+    angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
+    _trace_ends_first(probe, trace, cut, robot, e_mm, (np.abs(e_mm) > near_mm) | (angle > MAX_APPROACH_DEG))
     mid = float(np.median(e_mm))
     if (np.abs(e_mm) > near_mm).mean() > 0.5:
         likely = explain(probe, cut, robot, near_mm)
@@ -84,7 +87,6 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
                         f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it. "
                         + (likely or "Likely probe_frame's xyz_mm: the stylus centre in the flange frame, in mm"))
     problems = Problems()
-    angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
     for k in range(len(probe)):
         d = probe.approach[k]
         if angle[k] > MAX_APPROACH_DEG:
@@ -99,6 +101,26 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
         raise DataError(f"{probe.source}: {problems.count} touch(es) are not touches of the contour the trace "
                         "cut; nothing was used", problems)
     return e_mm
+
+
+def _trace_ends_first(probe: ProbeLog, trace: Trace, cut: TracedCut, robot: Robot, e_mm: np.ndarray,
+                      off: np.ndarray) -> None:
+    """DataError when the touches that fail a check (``off``: off the wall, or approaching it slanted) lie by the
+    first or last sample of the traced path (within END_SAMPLES), all but at most a fifth of them: the trace stops
+    before the probed contour does (by its end, the path's normal turns and its distance grows)."""
+    x = probe.centres(robot)
+    _, j = cKDTree(cut.c2).query(np.column_stack([x @ cut.e1, x @ cut.e2]))
+    beyond = off & ((j < END_SAMPLES) | (j >= len(cut.c2) - END_SAMPLES))
+    if not off.any() or beyond.sum() < 0.8 * off.sum():
+        return
+    problems = Problems()
+    for k in np.nonzero(beyond)[0]:
+        problems.add(f"{probe.where(k)}: {e_mm[k]:+.1f} mm off the wall, beyond the traced path's "
+                     f"{'first' if j[k] < END_SAMPLES else 'last'} sample")
+    raise DataError(f"{probe.source}: {int(beyond.sum())} of {len(probe)} touches lie beyond where the trace "
+                    f"{trace.source} ends, and {int((~off).sum())} on the wall it cut: the trace stops before the "
+                    "probed contour does (a recording cut short, or the trace of part of the cut); give the "
+                    "whole cut's trace", problems)
 
 
 @dataclass
@@ -179,8 +201,13 @@ def _stylus_fits(probe: ProbeLog, e_mm: np.ndarray, near_mm: float) -> None:
     mid = float(np.median(e_mm))
     common = np.abs(e_mm - mid) <= near_mm
     if abs(mid) > near_mm and common.mean() > 0.5:
-        fit = probe.stylus_radius_mm - mid
-        better = (f"a stylus radius of about {fit:.1f} mm would put them on it, within the arm's deflection" if fit > 0 else
+        fit, r = probe.stylus_radius_mm - mid, probe.tool_radius_mm
+        if abs(r + mid - r / 2) <= near_mm / 2:           # e = dist - (r - r_s): a tool radius r too large by D is -D
+            raise DataError(f"{probe.source}: tool_radius_mm = {r:g} is the cutter's diameter? {int(common.sum())} of "
+                            f"{len(e_mm)} touches lie {mid:+.2f} mm off the wall the trace cut (median), and a tool "
+                            f"radius of {r / 2:g} mm puts them on it, within the arm's deflection")
+        better = (f"a stylus radius of about {fit:.1f} mm (or a tool radius of about {r + mid:.1f} mm) would put them "
+                  "on it, within the arm's deflection" if fit > 0 else
                   "no stylus radius puts them on it: is tool_radius_mm the cutter's?")
         raise DataError(f"{probe.source}: stylus_radius_mm = {probe.stylus_radius_mm:g} does not fit: "
                         f"{int(common.sum())} of {len(e_mm)} touches lie {mid:+.2f} mm off the wall the trace cut "
