@@ -84,7 +84,8 @@ def run_features(args) -> int:
           f"{'diameter_mm':>12s} {'reported_mm':>12s}")
     for r in rows:
         print(f"{r['name']:16s} {r['id']:>6s} {r['type']:10s} {r['points']:6d} {r['compensated']!s:>11s} "
-              f"{r['units']:6s} {mm(r.get('diameter_mm')):>12s} {mm(r.get('reported_diameter_mm')):>12s}")
+              f"{r['units']:6s} {mm(r.get('diameter_mm')):>12s} {mm(r.get('reported_diameter_mm')):>12s}"
+              + (f"  ({r['note']})" if r.get("note") else ""))
     for x in qif.left_out:
         print(x.text(args.file))
     return 0

@@ -206,18 +206,38 @@ def surface_points(feature: QifFeature, source: str = "") -> tuple[np.ndarray, s
     if feature.type not in CIRCULAR:
         raise DataError(f"{where}: probe-centre points (Compensated false) on a {feature.type} are not moved to "
                         "the surface; export compensated points")
-    if feature.internal is None:
-        raise DataError(f"{where}: probe-centre points (Compensated false), but the file does not say whether the "
-                        "feature is INTERNAL or EXTERNAL (InternalExternal of its definition)")
     if len(p) < 3:
         raise DataError(f"{where}: {len(p)} point(s); a circle needs at least 3")
-    c, _, n = fit_circle(p)
+    c, rc, n = fit_circle(p)
+    internal, decided = feature.internal, ""
+    if internal is None:
+        internal = side_by_diameter(rc, feature.probe_radius_mm, feature.reported_diameter_mm)
+        if internal is None:
+            raise DataError(f"{where}: probe-centre points (Compensated false), but the file says neither whether "
+                            "the feature is INTERNAL or EXTERNAL (InternalExternal of its definition) nor a Diameter "
+                            "that tells: the points are not moved to the surface")
+        decided = (f"; the file does not say INTERNAL or EXTERNAL, its reported diameter "
+                   f"{feature.reported_diameter_mm:.4f} mm does")
     radial = (p - c) - np.outer((p - c) @ n, n)
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)
-    sign = 1.0 if feature.internal else -1.0
-    how = "outward (an internal feature)" if feature.internal else "inward (an external feature)"
+    sign = 1.0 if internal else -1.0
+    how = "outward (an internal feature)" if internal else "inward (an external feature)"
     return (p + sign * feature.probe_radius_mm * radial,
-            f"feature {feature.name}: probe centres moved {feature.probe_radius_mm:g} mm {how} to the surface")
+            f"feature {feature.name}: probe centres moved {feature.probe_radius_mm:g} mm {how} to the surface{decided}")
+
+
+def side_by_diameter(centres_radius_mm: float, probe_radius_mm: float, reported_mm: float | None) -> bool | None:
+    """Whether a circle of probe centres of radius ``centres_radius_mm`` is a hole (True) or a boss (False) by the
+    diameter the CMM reported for its surface: a hole's surface lies the probe's radius outside its centres, a
+    boss's inside, so the two readings differ by the probe's diameter. None when no diameter is reported, or it
+    lies nearer neither reading by more than half the probe's radius."""
+    if reported_mm is None or probe_radius_mm <= 0:
+        return None
+    hole = abs(reported_mm / 2 - (centres_radius_mm + probe_radius_mm))
+    boss = abs(reported_mm / 2 - (centres_radius_mm - probe_radius_mm))
+    if min(hole, boss) > probe_radius_mm / 2:
+        return None
+    return hole < boss
 
 
 def pick(qif: QifResults, name: str | None) -> QifFeature:
@@ -280,12 +300,16 @@ def feature_rows(qif: QifResults) -> list[dict]:
         row = {"name": f.name, "id": f.id, "type": f.type, "points": len(f.points_mm), "compensated": f.compensated,
                "units": qif.unit}
         if f.type in CIRCULAR:
-            d = None
+            d, note = None, None
             if len(f.points_mm) >= 3:
                 try:
                     d = 2.0 * fit_circle(surface_points(f, str(qif.path))[0])[1]
-                except DataError:
-                    d = None
+                except DataError as e:
+                    note = str(e).split(": ", 2)[-1]          # why there is no diameter, without the file's name
+            else:
+                note = f"{len(f.points_mm)} point(s); a circle needs at least 3"
             row.update(diameter_mm=d, reported_diameter_mm=f.reported_diameter_mm)
+            if note:
+                row["note"] = note
         rows.append(row)
     return rows

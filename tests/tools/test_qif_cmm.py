@@ -114,7 +114,9 @@ def _not_triples(path):
 @pytest.mark.parametrize("case, edit, expect", [
     ("count", {"count": 25}, "MeasuredPointSet 20: count '25' but 24 points"),
     ("triples", {}, "MeasuredPointSet 20: Points holds 71 numbers, not x y z triples"),
-    ("not applicable", {"internal": None}, "does not say whether the feature is INTERNAL or EXTERNAL"),
+    ("not applicable", {"internal": None}, "says neither whether the feature is INTERNAL or EXTERNAL"),
+    ("not applicable, a diameter neither side's", {"internal": None, "diameter": 32.0},
+     "nor a Diameter that tells"),
 ])
 def test_a_standard_point_set_that_does_not_add_up_is_refused(tmp_path, case, edit, expect):
     path = write_qif(tmp_path / "bad.qif", _arc(16.0, 24), compensated=False, probe_radius=1.5, flat=True, **edit)

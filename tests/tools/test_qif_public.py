@@ -177,3 +177,48 @@ def test_a_broken_point_cloud_never_gives_a_traceback(tree, tmp_path_factory):
             assert str(path) in str(e) and "\n" not in str(e)
 
     check()
+
+
+def test_a_circle_that_does_not_say_internal_or_external_is_told_by_its_reported_diameter(capsys):
+    """DATUMB and CYL_1 (uncompensated, no InternalExternal): the reported diameter is the probe centres' circle
+    plus the probe's diameter, a hole's; so moved outward, their surface's diameter is the reported one (it
+    showed "-" and said nothing)."""
+    from stiffness.data.qif_part import feature_rows, surface_points
+
+    qif = read_qif(POINTS)
+    rows = {r["name"]: r for r in feature_rows(qif)}
+    for name in ("DATUMB", "CYL_1"):
+        assert rows[name]["diameter_mm"] == pytest.approx(rows[name]["reported_diameter_mm"], abs=1e-3)
+        f = next(f for f in qif.features if f.name == name)
+        assert "its reported diameter" in surface_points(f, "x")[1] and "outward" in surface_points(f, "x")[1]
+
+
+def test_a_circle_nothing_tells_the_side_of_says_so_on_its_row(tmp_path, capsys):
+    """The same file without DATUMB's reported Diameter: the row says why it has no diameter."""
+    from tools.cli import main
+
+    text = POINTS.read_text()
+    start = text.index('id="28"')                       # DATUMB's measurement
+    d0 = text.index("<Diameter>", start)
+    d1 = text.index("</Diameter>", d0) + len("</Diameter>")
+    (tmp_path / "no_diameter.qif").write_text(text[:d0] + text[d1:])
+    assert main(["part", "features", str(tmp_path / "no_diameter.qif")]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("DATUMB"))
+    assert "nor a Diameter that tells" in row and " - " in row, row
+
+
+@pytest.mark.parametrize("internal", [True, False])
+def test_the_side_by_diameter_recovers_a_hole_or_a_boss_within_a_quarter_probe_radius_of_noise(internal):
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from stiffness.data.qif_part import side_by_diameter
+
+    @settings(max_examples=200, deadline=None)
+    @given(rc=st.floats(2.0, 500.0), rp=st.floats(0.1, 5.0), noise=st.floats(-0.25, 0.25))
+    def check(rc, rp, noise):
+        reported = 2 * (rc + (rp if internal else -rp) + noise * rp)
+        assert side_by_diameter(rc, rp, reported) is internal
+        assert side_by_diameter(rc, rp, None) is None
+
+    check()
