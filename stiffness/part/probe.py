@@ -53,8 +53,8 @@ def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str =
     if probe.probing_speed_mm_s is None:
         rows.notes.insert(1, f"{probe.source}: warning: no probing_speed_mm_s and trigger_latency_ms: the probe's "
                              "travel between the contact and the latch (v tau) stays in every touch as a bias along "
-                             "its normal, which learning takes for a deflection (docs/part.md: 1.08-1.12 x the exact "
-                             "model's path error at 5 mm/s, 2.90 x at 50 mm/s); state both in the header")
+                             "its normal, which learning takes for a deflection (docs/part.md: 1.08 x the exact "
+                             "model's path error at 5 mm/s, 2.94 x at 50 mm/s); state both in the header")
     return rows
 
 
