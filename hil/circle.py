@@ -14,7 +14,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
-from .delay_band import delay_band_ms, timing_with_delays
+from .delay_band import delay_band_ms, device_lateness, timing_with_delays
 from .dynamics import (
     DynamicOptions,
     identify_from_pass,
@@ -135,7 +135,8 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
     band = delay_band_ms(scenario, service_overrides, robot_interface)
-    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays)
+    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays,
+                        "robot" if robot_interface else "PLC")
     summary["robot_interface"] = robot_interface or "none"
     summary["plc_program"] = passes[names[-1]].extra.get("plc_program")      # None on the robot road
     if found is not None:
@@ -158,12 +159,13 @@ def dynamics_summary(found, dynamic: DynamicOptions) -> dict:
 
 def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
               again: dict | None = None, band: tuple[float, float] | None = None,
-              repeat_delays: list[float | None] | None = None) -> dict:
+              repeat_delays: list[float | None] | None = None, device: str = "PLC") -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
     uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
     ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures. ``band``: the
     end-to-end delay the loop can show (`hil.delay_band`); a delay outside it, the first cut's or a repeat's
-    (``repeat_delays``, s, the compensated pass's further cuts), makes the timing untrustworthy."""
+    (``repeat_delays``, s, the compensated pass's further cuts), makes the timing untrustworthy, naming the
+    virtual ``device`` when it did not keep up its cycles (`hil.delay_band.device_lateness`)."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -196,8 +198,11 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     summary["delay_ms_repeats"] = [None if d is None else round(1000.0 * d, 2) for d in repeat_delays or []]
     if band is not None:
         summary["delay_band_ms"] = [round(band[0], 2), round(band[1], 2)]
+        log = passes["compensated"].log if "compensated" in passes else None
+        cause = (device_lateness(log, world.t_end, 1000.0 * float(log["period"]), device)
+                 if log is not None and not lockstep else None)
         summary["timing"] = timing_with_delays(summary["timing"], [summary["delay_ms"], *summary["delay_ms_repeats"]],
-                                               band)
+                                               band, cause)
     return summary
 
 

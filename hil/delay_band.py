@@ -28,6 +28,7 @@ from .scenario import Scenario
 
 SLACK_MS = 2.0           # transport and wake-up above the periods: generous, the band is for gross errors
 FORCE_HZ = 1.0           # where the filters' group delay is read: the force's content is a few hertz
+RAN_SHARE = 0.8          # a device that ran fewer of its cycles than this share was starved by the host
 
 
 def group_delay_ms(sos: np.ndarray, rate_hz: float, at_hz: float = FORCE_HZ) -> float:
@@ -56,22 +57,39 @@ def delay_band_ms(scenario: Scenario, overrides: dict | None = None,
     return low, low + cycle.period_ms + device_ms + SLACK_MS
 
 
-def delay_verdict(delay_ms: float | None, band: tuple[float, float]) -> str | None:
+def device_lateness(log: dict, t_end: float, period_ms: float, device: str) -> str | None:
+    """The cause when the virtual ``device`` (the PLC, the robot) ran fewer than `RAN_SHARE` of the cycles its
+    ``period_ms`` owes the cut (program time 0 to ``t_end``, s; ``log["t"]``: each cycle's time): a host too busy
+    for it, whose log then has too few samples to tell the delay by. None when it kept up."""
+    t = np.asarray(log["t"])
+    t = t[(t >= 0.0) & (t <= t_end)]
+    owed = 1000.0 * t_end / period_ms
+    if len(t) >= RAN_SHARE * owed:
+        return None
+    apart = f", {1000.0 * float(np.median(np.diff(t))):.1f} ms apart (median)" if len(t) > 1 else ""
+    return (f"the virtual {device} ran {len(t)} of the {owed:.0f} cycles of {period_ms:g} ms the cut owes it{apart}: "
+            "the host was too busy for it")
+
+
+def delay_verdict(delay_ms: float | None, band: tuple[float, float], cause: str | None = None) -> str | None:
     """None when ``delay_ms`` is in ``band`` (or was not measured), else the sentence that says the run's
-    timing was off."""
+    timing was off, with its ``cause`` where known (`device_lateness`)."""
     if delay_ms is None or band[0] <= delay_ms <= band[1]:
         return None
     side = "below what the loop's filters alone hold back" if delay_ms < band[0] else "above what its periods allow"
+    why = f": {cause}, so the delay cannot be told and its figures do not show the service" if cause else (
+        " or its log was off, so its figures do not show the service")
     return (f"the end-to-end delay {delay_ms:.2f} ms is {side} ({band[0]:.1f} to {band[1]:.1f} ms, "
-            "hil/delay_band.py): this run's timing or its log was off, so its figures do not show the service; "
-            "run it again")
+            f"hil/delay_band.py): this run's timing{why}; run it again" + (" on a quieter host" if cause else ""))
 
 
-def timing_with_delays(timing: dict, delays_ms: list[float | None], band: tuple[float, float]) -> dict:
+def timing_with_delays(timing: dict, delays_ms: list[float | None], band: tuple[float, float],
+                       cause: str | None = None) -> dict:
     """A run's ``timing`` verdict (`hil.circle.timing_verdict`), made untrustworthy by the first of its cuts'
-    delays (ms: the first cut's, then each repeat's) outside ``band``, naming that cut when there are several."""
+    delays (ms: the first cut's, then each repeat's) outside ``band``, naming that cut when there are several
+    and the ``cause`` where known."""
     for k, d in enumerate(delays_ms, 1):
-        off = delay_verdict(d, band)
+        off = delay_verdict(d, band, cause)
         if off is not None:
             which = f"cut {k} of {len(delays_ms)}: " if len(delays_ms) > 1 else ""
             return {**timing, "trustworthy": False, "verdict": which + off}

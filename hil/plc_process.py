@@ -12,7 +12,7 @@ from plc_interface.register_map import RegisterMap
 
 from .cell_network import PlcFaults, TcpNetwork
 from .plc_program import PlcProgram
-from .priority import below_the_service
+from .priority import as_a_plc, below_the_service
 from .virtual_plc import VirtualPlc
 from .world import World
 
@@ -22,7 +22,8 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
              ads_port: int | None = None) -> None:
     """Process entry: load the program, connect, report ready, wait for the start time in ``go_value``, run,
     save the log. ``rmap`` is the service config's register map (`ServiceConfig.register_map`); ``ads_port`` the
-    service's ADS server (None: not served). Runs below the service's priority (`hil.priority`)."""
+    service's ADS server (None: not served). Loads and connects below the service's priority, then runs its cycle
+as a PLC (`hil.priority`)."""
     below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)
@@ -37,6 +38,7 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
         ready.set()
         while go_value.value <= 0:
             time.sleep(0.005)
+        as_a_plc(logging.getLogger("hil.plc"))
         log = plc.run(world.t_start, world.t_end, go_value.value)
         np.savez(out_file, **log.arrays(), written=np.array(sorted(network.written)), overruns=plc.overruns,
                  errors=network.errors, period=plc.period, t0=go_value.value,

@@ -76,6 +76,8 @@ def window_errors(world: World, ev: dict) -> dict[str, float]:
     return out
 
 
+TOOTH_SAMPLES = 10     # the force averaged over one tooth period at this many points (the mean of a sinusoid
+                       # and of its harmonics below the tenth over one period is zero)
 ALIAS_MS = 4.0          # samples further apart than this: the force averaged over each one's interval
 
 
@@ -86,17 +88,50 @@ def end_to_end_delay(world: World, log: dict) -> float | None:
     None when the best lag is an end of `LAGS_S`: then no delay in the range explains it (a truth with an
     effect far from linear in the force, e.g. a hysteresis that flips twice per circle, pulled the fit to 0).
 
-    Where the log's samples lie further apart than `ALIAS_MS` (a robot road at 12 ms or more), the force is
-    averaged over the interval each sample stands for, centred on it (no lag of its own): sampled that sparsely,
-    the tooth-passing content of the raw force aliases into the fit, and RSI at 12 ms read 5.5 ms for a chain
-    whose filters alone hold back 6.5 (with the average: 7.6-8.1 ms, as at 4 ms)."""
+    The raw force's tooth-passing content times the fit finely but gives it a minimum every tooth period (the
+    400 Hz teeth sampled by a 2 ms PLC: minima 1-2.5 ms apart), and the lowest of them can be the wrong one: on
+    a quiet host the best lag read 6.0 ms in one run, below what the filters alone hold back, and 8.0 or 10.0
+    in others. So the force averaged over one tooth period, centred (no lag of its own, no tooth content: one
+    minimum), picks the basin first, and the raw force's lowest minimum within half a tooth period of it is the
+    delay. Where the log's samples lie further apart than `ALIAS_MS` (a robot road at 12 ms or more), the force
+    is averaged over the interval each sample stands for instead (a millisecond grid over several tooth
+    periods): RSI at 12 ms read 5.5 ms on the raw force, for a chain whose filters alone hold back 6.5 (with the
+    average: 7.6-8.1 ms, as at 4 ms)."""
     t = np.asarray(log["t"])
     use = (t >= 0.0) & (t <= world.t_end)
     if use.sum() < 50:
         return None
     step_s = float(np.median(np.diff(t[use])))
     half = int(step_s * 1000.0 / 2.0) if step_s * 1000.0 > ALIAS_MS else 0
-    window = np.arange(-half, half + 1) * 1e-3
+    if half:
+        return _best(delay_cost(world, log, np.arange(-half, half + 1) * 1e-3))
+    tooth_s = 1.0 / world.milling.f_tooth
+    basin = _best(delay_cost(world, log, (np.arange(TOOTH_SAMPLES) + 0.5) / TOOTH_SAMPLES * tooth_s - tooth_s / 2))
+    if basin is None:
+        return None
+    raw = delay_cost(world, log, np.zeros(1))
+    return _best(raw, np.abs(LAGS_S - basin) <= tooth_s / 2)
+
+
+def _best(cost: np.ndarray | None, within: np.ndarray | None = None) -> float | None:
+    """The lag of the lowest ``cost`` (among the lags ``within``, default all), refined on the parabola through
+    it and its neighbours; None at an end of `LAGS_S`."""
+    if cost is None:
+        return None
+    k = int(np.argmin(np.where(within, cost, np.inf) if within is not None else cost))
+    if not 0 < k < len(cost) - 1:
+        return None
+    c0, c1, c2 = cost[k - 1: k + 2]
+    den = c0 - 2 * c1 + c2
+    return float(LAGS_S[k] + (0.5 * (c0 - c2) / den if den > 0 else 0.0) * (LAGS_S[1] - LAGS_S[0]))
+
+
+def delay_cost(world: World, log: dict, window: np.ndarray) -> np.ndarray | None:
+    """The least-squares misfit of the applied correction's TCP displacement by the force averaged over
+    ``window`` (s, offsets about each sample) at each lag of `LAGS_S` (`end_to_end_delay`); None without a
+    correction."""
+    t = np.asarray(log["t"])
+    use = (t >= 0.0) & (t <= world.t_end)
     robot = world.robot
     moved = (robot.frames(np.radians(np.asarray(log["q_cmd"])[use]))[:, 7, :3, 3]
              - robot.frames(np.radians(np.asarray(log["q_ref"])[use]))[:, 7, :3, 3])
@@ -108,12 +143,7 @@ def end_to_end_delay(world: World, log: dict) -> float | None:
         f = np.mean([world.force(t[use] - lag + w) for w in window], axis=0)
         X = np.column_stack([f, np.ones(len(f))])
         cost.append(float(np.sum((moved - X @ np.linalg.lstsq(X, moved, rcond=None)[0]) ** 2)))
-    k = int(np.argmin(cost))
-    if 0 < k < len(cost) - 1:                       # the parabola through the best three
-        c0, c1, c2 = cost[k - 1: k + 2]
-        den = c0 - 2 * c1 + c2
-        return float(LAGS_S[k] + (0.5 * (c0 - c2) / den if den > 0 else 0.0) * (LAGS_S[1] - LAGS_S[0]))
-    return None
+    return np.array(cost)
 
 
 STYLES = {"uncompensated": ("tab:red", "-"), "compensated": ("tab:blue", "-"), "dynamic": ("tab:green", "-")}

@@ -33,6 +33,7 @@ from .suspects import placing_keys
 
 P_FAR = float(norm.sf(5.0))
 HINT_SHARE = 0.5     # a shift of the part is named as the likely cause when it explains this share of the residual
+RADIUS_MARGIN = 0.1  # ... and a radius when it alone explains within this share of what the two together do
 
 
 def problems(learned, start, data) -> list[str]:
@@ -115,8 +116,8 @@ def _residual(learned, start, data) -> tuple[str, str] | None:
 def _placement_hint(learned, data, rows: np.ndarray, r: np.ndarray) -> str:
     """'Likely ...' when one distance along every normal (a radius off) or one rigid shift of each part's points
     (n . d along each normal, with the distance) explains at least HINT_SHARE of the residual ``r`` of ``rows``;
-    '' otherwise. The radius is named when it alone explains as much as the two together less HINT_SHARE's
-    complement of what they leave."""
+    '' otherwise. The radius is named when it alone explains HINT_SHARE and within RADIUS_MARGIN of what the
+    radius and the shift explain together."""
     normal = data.axes[rows, 0]
     config = np.asarray(data.config)[rows]
     by_label = {p.label: p.part for p in learned.parts}
@@ -129,14 +130,12 @@ def _placement_hint(learned, data, rows: np.ndarray, r: np.ndarray) -> str:
         both_left[m] = r[m] - A @ x
         c = float(np.mean(r[m]))
         const_left[m] = r[m] - c
-        part = by_label.get(lab)
-        if part is not None:
-            fixes.append(_radius_fix(part, lab, c))
+        fixes.append(_radius_fix(by_label[lab], lab, c))
         shifts.append(f"{lab} ({', '.join(f'{v:+.2f}' for v in x[:3])}) mm")
     both = 1.0 - float(np.sum(both_left ** 2)) / total
     const = 1.0 - float(np.sum(const_left ** 2)) / total
     radius, frame, probed = _keys(learned)
-    if const >= HINT_SHARE and const >= both - (1.0 - HINT_SHARE) * (1.0 - const):
+    if const >= HINT_SHARE and const >= both - RADIUS_MARGIN:
         return (f"Likely a wrong {radius}: one distance along every normal explains {100 * const:.0f} % of what is "
                 f"left ({'; '.join(fixes)}); else a wrong {frame}, or an effect the model lacks")
     if both < HINT_SHARE:
