@@ -190,7 +190,9 @@ def test_a_key_given_twice_is_refused_at_its_second_line(probed, tmp_path):
     (lambda text: "\n".join(line if line.startswith("#") else line.replace(",", ";") for line in text.splitlines()),
      r"line \d+: the fields are separated by ';'"),
     (lambda text: "\n".join(line for line in text.splitlines() if line.startswith("#")), r"no header row.*touch,q1_deg"),
-], ids=["misspelt-header", "semicolons", "header-only"])
+    (lambda text: text + "\n".join(line for line in text.splitlines() if line[:1].isdigit()) + "\n",
+     r"line \d+: touch 1 is given twice \(line \d+ and line \d+\)"),
+], ids=["misspelt-header", "semicolons", "header-only", "pasted-twice"])
 def test_a_probe_log_with_a_broken_table_is_read_as_a_probe_log_and_refused_by_line(probed, tmp_path, edit, message):
     """Not taken for a CMM part (its '#' keys say it is a probe log), which named keys the user never wrote."""
     _, q, n, _ = probed
