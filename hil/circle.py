@@ -135,8 +135,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
     band = delay_band_ms(scenario, service_overrides, robot_interface)
-    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays,
-                        "robot" if robot_interface else "PLC")
+    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays, "robot" if robot_interface else "PLC")
     summary["robot_interface"] = robot_interface or "none"
     summary["plc_program"] = passes[names[-1]].extra.get("plc_program")      # None on the robot road
     if found is not None:

@@ -27,6 +27,8 @@ import numpy as np
 from ..data.probe_log import ProbeLog
 from ..errors import DataError, Problems
 from ..kinematics.robot import PoseConfig, Robot
+from .probe_geometry import MAX_APPROACH_DEG, wall_offsets
+from .rows import WALL_HEIGHT_MM
 
 ON_SHARE = 0.9       # a misreading that puts this share of the touches on the wall explains them,
 ON_TOLERANCE = 1 / 3   # each within this share of the tolerance (a third: not a reading off by the stylus)
@@ -53,8 +55,6 @@ def outside_limits(probe: ProbeLog, robot: Robot, likely) -> None:
 def explain(probe: ProbeLog, cut, robot: Robot, near_mm: float) -> str:
     """'Likely causes, likeliest first: (1) ...' for the misreadings that put the touches on the wall of ``cut``
     (`probe.TracedCut`); '' when none does."""
-    from .probe import MAX_APPROACH_DEG, WALL_HEIGHT_MM, wall_offsets
-
     found = []
     _, toward, side, _ = wall_offsets(probe, cut, robot)
     away = side < 0 and float(np.median(toward)) < -np.cos(np.radians(MAX_APPROACH_DEG))

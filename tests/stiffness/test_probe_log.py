@@ -19,7 +19,8 @@ from stiffness.data.trace_file import read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
-from stiffness.part.probe import _across, read_probe_against
+from stiffness.part.probe import read_probe_against
+from stiffness.part.probe_geometry import _across
 from stiffness.part.rows import read_against
 
 ROOT = Path(__file__).resolve().parents[2]
