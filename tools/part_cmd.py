@@ -92,6 +92,7 @@ def _check_options(args) -> None:
 def _check_order(args) -> None:
     """MODEL TRACE PART, each file what its place says, and no part given twice: a file in the wrong place is
     named as swapped before it is read as what it is not."""
+    from stiffness.data.part_points import is_cmm_part
     from stiffness.data.probe_log import is_probe_log
     from stiffness.errors import ConfigError
 
@@ -102,9 +103,9 @@ def _check_order(args) -> None:
     for trace, part in pairs:
         if Path(part).suffix.lower() in (".yaml", ".yml"):
             raise ConfigError(f"{part}: given as the part, but it is a YAML file (a model?): {order}")
-        if is_probe_log(trace) or _is_cmm_part(trace):
+        if is_probe_log(trace) or is_cmm_part(trace):
             raise ConfigError(f"{trace}: given as the trace, but it is a {'probe log' if is_probe_log(trace) else 'part'}"
-                              f"{' (swapped with ' + part + '?)' if part else ''}: {order}")
+                              f" (swapped with {part}?): {order}")
     seen: dict[str, str] = {}
     for _, part in pairs:
         key = str(Path(part).resolve())
@@ -112,18 +113,6 @@ def _check_order(args) -> None:
             raise ConfigError(f"{part}: the same part is given twice: each counts as one more part, so the model "
                               "would learn it twice as surely as it should")
         seen[key] = part
-
-
-def _is_cmm_part(path: str) -> bool:
-    """Whether ``path`` reads as a CMM's points: its header row names x_mm, y_mm and z_mm."""
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            for line in f:
-                if line.strip() and not line.startswith("#"):
-                    return {"x_mm", "y_mm", "z_mm"} <= {c.strip() for c in line.split(",")}
-    except (OSError, UnicodeDecodeError):
-        return False
-    return False
 
 
 def _check_probe_options(args, parts: list[str]) -> None:

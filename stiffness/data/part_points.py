@@ -111,6 +111,18 @@ def read_part(path: str | Path) -> PartMeasurement:
                            header.stiffcomp_part or "")
 
 
+def is_cmm_part(path: str | Path) -> bool:
+    """Whether ``path`` reads as a CMM's points: the first row after its '#' lines names x_mm, y_mm and z_mm."""
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            for line in f:
+                if line.strip() and not line.startswith("#"):
+                    return {"x_mm", "y_mm", "z_mm"} <= {c.strip() for c in line.split(",")}
+    except (OSError, UnicodeDecodeError):
+        return False
+    return False
+
+
 def _header(path: Path, table) -> PartHeader:
     """The '#' lines (`Table.header`: errors at the file's line), validated."""
     data = table.header(path, "tool_radius_mm, part_frame")

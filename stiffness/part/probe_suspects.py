@@ -20,6 +20,7 @@ A stylus radius that is off is not among them: `probe._stylus_fits` names it fro
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -27,7 +28,7 @@ import numpy as np
 from ..data.probe_log import ProbeLog
 from ..errors import DataError, Problems
 from ..kinematics.robot import PoseConfig, Robot
-from .probe_geometry import MAX_APPROACH_DEG, wall_offsets
+from .probe_geometry import MAX_APPROACH_DEG, TracedCut, wall_offsets
 from .rows import WALL_HEIGHT_MM
 
 ON_SHARE = 0.9       # a misreading that puts this share of the touches on the wall explains them,
@@ -35,7 +36,7 @@ ON_TOLERANCE = 1 / 3   # each within this share of the tolerance (a third: not a
 OFFSET_DEG = 5.0     # a joint whose touches sit this far from the cut's (median) is tried shifted back
 
 
-def outside_limits(probe: ProbeLog, robot: Robot, likely) -> None:
+def outside_limits(probe: ProbeLog, robot: Robot, likely: Callable[[], str]) -> None:
     """DataError naming every touch's line with a joint outside the robot's limits (nothing used), and what
     ``likely()`` says of the log (`explain`)."""
     inside = robot.within_limits(probe.q_deg)
@@ -52,9 +53,9 @@ def outside_limits(probe: ProbeLog, robot: Robot, likely) -> None:
                     f"reach{rad}; nothing was used" + (f". {why}" if why else ""), problems)
 
 
-def explain(probe: ProbeLog, cut, robot: Robot, near_mm: float) -> str:
-    """'Likely causes, likeliest first: (1) ...' for the misreadings that put the touches on the wall of ``cut``
-    (`probe.TracedCut`); '' when none does."""
+def explain(probe: ProbeLog, cut: TracedCut, robot: Robot, near_mm: float) -> str:
+    """'Likely causes, likeliest first: (1) ...' for the misreadings that put the touches on the wall of ``cut``;
+    '' when none does."""
     found = []
     _, toward, side, _ = wall_offsets(probe, cut, robot)
     away = side < 0 and float(np.median(toward)) < -np.cos(np.radians(MAX_APPROACH_DEG))
@@ -72,7 +73,7 @@ def explain(probe: ProbeLog, cut, robot: Robot, near_mm: float) -> str:
     return "Likely causes, likeliest first: " + "; ".join(f"({k}) {t}" for k, (_, t) in enumerate(found, 1))
 
 
-def _misreadings(probe: ProbeLog, cut, reversed_may: bool):
+def _misreadings(probe: ProbeLog, cut: TracedCut, reversed_may: bool):
     """(words, the log with the misreading undone) for each misreading of the module's docstring; the approach
     reversed only where ``reversed_may``: the approaches point straight back along the normal, to a wall on the
     near side of the stylus centre, which a stylus smaller than the tool cannot touch."""
