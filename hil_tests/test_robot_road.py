@@ -134,14 +134,21 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     # its size)
     u = tr["unix_time_s"]
     c_max = np.abs(corrections(tr, np.arange(len(u)))).max()
-    for r in np.flatnonzero((u > d.sent_unix[0] + 0.3) & (u < d.sent_unix[-1]))[::7]:
+    period_s = float(np.median(np.diff(d.sent_unix)))
+    rows = np.flatnonzero((u > d.sent_unix[0] + 0.3) & (u < d.sent_unix[-1]))[::7]
+    checked = 0
+    for r in rows:
         # the packets of the 100 ms before the row (and 5 ms after: the row's stamp and the packet's are two clocks)
         near = np.flatnonzero((d.sent_unix >= u[r] - 0.1) & (d.sent_unix <= u[r] + 0.005))
+        if d.sent_unix[near].max(initial=-np.inf) < u[r] - 3 * period_s:
+            continue    # the robot's own host stalled (its packets stopped): the row's correction moved on alone
+        checked += 1
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
         if settings.interface == "kuka_rsi":
             assert np.abs(d.q_cmd[near] - q).max(axis=1).min() <= 1e-4, r
         else:
             assert np.abs(d.q_ref[near] - q).max(axis=1).min() <= c_max + 1e-4, r
+    assert checked >= 0.95 * len(rows), (checked, len(rows))
 
 
 def test_the_shipped_kuka_config_obeys_the_robots_enable_and_traces_its_joints(tmp_path):
