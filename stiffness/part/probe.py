@@ -16,8 +16,14 @@ touch that cannot be a touch of this contour is refused by line, nothing used:
   r_s (1 - cos theta) along n, and a probe that moved away from the wall or along it touched something else;
 * the trigger must lie where the tool passed: the point within ``near_mm`` of the tool radius off the path;
 * the stylus radius must fit: when most touches lie off the wall by one common distance beyond ``near_mm``,
-  the radius is named with the one that puts them on it, rather than every touch as far off; most touches off
-  by distances that differ: the log and the trace do not belong together.
+  the radius is named with the one that puts them on it (or the tool's diameter given as its radius), rather
+  than every touch as far off; most touches off by distances that differ: the log and the trace do not belong
+  together.
+
+Before those, and where the touches as a whole are not on the wall, the likelier causes are named first: joints
+outside the robot's limits, a misreading of the log that puts the touches back on the wall when undone
+(`probe_suspects`), a trace that ends before the probed contour does, and touches far off the wall's height
+along the tool axis (`rows.WALL_HEIGHT_MM`).
 """
 
 from __future__ import annotations
