@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import Field
 
 from ..errors import DataError, Problems
-from ..files.csv_table import given_twice, read_table
+from ..files.csv_table import given_twice, peek, read_table
 from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig
 
@@ -113,14 +113,7 @@ def read_part(path: str | Path) -> PartMeasurement:
 
 def is_cmm_part(path: str | Path) -> bool:
     """Whether ``path`` reads as a CMM's points: the first row after its '#' lines names x_mm, y_mm and z_mm."""
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            for line in f:
-                if line.strip() and not line.startswith("#"):
-                    return {"x_mm", "y_mm", "z_mm"} <= {c.strip() for c in line.split(",")}
-    except (OSError, UnicodeDecodeError):
-        return False
-    return False
+    return {"x_mm", "y_mm", "z_mm"} <= peek(path)[1]
 
 
 def _header(path: Path, table) -> PartHeader:

@@ -41,7 +41,7 @@ import numpy as np
 from pydantic import Field, ValidationError
 
 from ..errors import DataError, Problems
-from ..files.csv_table import given_twice, read_table
+from ..files.csv_table import given_twice, peek, read_table
 from ..files.yaml_schema import Strict, format_validation_error
 from ..kinematics.robot import PoseConfig, Robot
 from .part_points import PartMeasurement
@@ -119,21 +119,8 @@ def is_probe_log(path: str | Path) -> bool:
     (the stylus, its frame, its speed and latency: so a log whose header row is misspelt, or that has none, is
     still read and refused as one), or its header row names the latched joints and the approach (a trace names
     joints too)."""
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            for line in f:
-                if line.startswith("#"):
-                    key = line[1:].split(":", 1)[0].strip().replace(" ", "_")
-                    if key in PROBE_KEYS:
-                        return True
-                    continue
-                if not line.strip():
-                    continue
-                return {"q1_deg", "approach_x"} <= {c.strip() for c in line.split(",")}     # not a trace's
-    except (OSError, UnicodeDecodeError):
-        return False
-    return False
-    return False
+    keys, cols = peek(path)
+    return bool(keys & set(PROBE_KEYS)) or {"q1_deg", "approach_x"} <= cols     # a trace names joints too
 
 
 def read_probe(path: str | Path) -> ProbeLog:

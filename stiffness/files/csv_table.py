@@ -84,6 +84,22 @@ class Table:
             yield line, row, v
 
 
+def peek(path: str | Path) -> tuple[set[str], set[str]]:
+    """The keys of ``path``'s '# key: value' lines (spaces read as '_') and the names of its header row, read
+    without a judgement, for telling one kind of file from another; both empty when it cannot be read."""
+    keys: set[str] = set()
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            for line in f:
+                if line.startswith("#"):
+                    keys.add(line[1:].split(":", 1)[0].strip().replace(" ", "_"))
+                elif line.strip():
+                    return keys, {c.strip() for c in line.split(",")}
+    except (OSError, UnicodeDecodeError):
+        return set(), set()
+    return keys, set()
+
+
 def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
     """``path``'s table; a row with the wrong number of fields is added to ``problems`` and left out.
     DataError when the file is missing, unreadable or has no header row (``expected`` says which columns)."""
