@@ -37,7 +37,10 @@ RUN if ls /usr/local/share/ca-certificates/stiffcomp/*.crt >/dev/null 2>&1; then
 COPY pyproject.toml README.md ./
 COPY stiffness ./stiffness
 COPY service ./service
-COPY plc_interface ./plc_interface
+COPY io_process ./io_process
+COPY robot_road ./robot_road
+COPY plc_link ./plc_link
+COPY io_base ./io_base
 COPY tools ./tools
 COPY hil ./hil
 COPY cell ./cell
@@ -60,7 +63,7 @@ RUN python3 -m venv "$VIRTUAL_ENV" \
  && pip uninstall -y -q pip setuptools wheel \
  && rm -rf ./*.egg-info \
  && find "$VIRTUAL_ENV" -depth -type d -name tests -path "*/site-packages/*" -exec rm -rf {} + \
- && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness service plc_interface tools hil
+ && python3 -m compileall -q -j 0 "$VIRTUAL_ENV" stiffness io_base plc_link robot_road io_process service cell st_runtime tools hil
 
 # The compiled cycle (numba) of every shipped model, compiled into one folder: the generated modules
 # ($STIFFCOMP_KERNEL_CACHE) and numba's cache of every compiled function, the kernel's own included

@@ -27,14 +27,14 @@ test-fast: $(STAMP)
 	$(VENV)/bin/lint-imports
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(PY) -m pytest -q -m "not (realtime or hil or container or slow)"
 
-# ads-client (Node.js) for tests/plc_interface/test_ads_node.py, from the committed lock file, into a
+# ads-client (Node.js) for tests/plc_link/test_ads_node.py, from the committed lock file, into a
 # folder git ignores. Without npm nothing is installed and that test is skipped (one line in pytest's summary).
-NODE_CHECK := tests/plc_interface/node
+NODE_CHECK := tests/plc_link/node
 node-deps: $(NODE_CHECK)/node_modules/.package-lock.json
 $(NODE_CHECK)/node_modules/.package-lock.json: $(NODE_CHECK)/package-lock.json
 	@if command -v npm >/dev/null 2>&1; then npm ci --prefix $(NODE_CHECK) --no-audit --no-fund --loglevel=error; fi
 
-# mbpoll (libmodbus) for tests/plc_interface/test_modbus_security.py, the Debian package, when this runs as root
+# mbpoll (libmodbus) for tests/plc_link/test_modbus_security.py, the Debian package, when this runs as root
 # with apt-get. Otherwise nothing is installed and that test is skipped (one line in pytest's summary).
 mbpoll:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
@@ -94,10 +94,10 @@ image:
 image-test: image $(STAMP)
 	$(PY) deploy/image_test.py --image $(IMAGE)
 
-# The ABB EGM packets' Python code from plc_interface/robot/egm.proto, by grpcio-tools' protoc (test extras);
-# the protobuf floor in pyproject.toml is the runtime the file demands (tests/plc_interface/test_egm.py checks both)
+# The ABB EGM packets' Python code from robot_road/egm.proto, by grpcio-tools' protoc (test extras);
+# the protobuf floor in pyproject.toml is the runtime the file demands (tests/robot_road/test_egm.py checks both)
 egm-proto: $(STAMP)
-	$(PY) -m grpc_tools.protoc -Iplc_interface/robot --python_out=plc_interface/robot plc_interface/robot/egm.proto
+	$(PY) -m grpc_tools.protoc -Irobot_road --python_out=robot_road robot_road/egm.proto
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -39,8 +39,8 @@ import bench_model
 import bench_trace
 
 from hil.testing import free_port, wait_for_port, write_config
-from plc_interface.register_map import RegisterMap
-from tools.ads_probe import open_ads, read_cycle_count
+from plc_link.register_map import RegisterMap
+from tools.pyads_connection import open_ads, read_cycle_count
 from tools.status_cmd import BlockReader
 
 

@@ -55,7 +55,7 @@ int main(int argc, char **argv) {
         double end = now();
         exec[n] = end - start; jitter[n] = prev < 0 ? 0.0 : (start - prev - period); if (jitter[n] < 0) jitter[n] = -jitter[n];
         prev = start; n++;
-        due += period;                                    /* the one catch-up rule: see plc_interface/deadlines.py */
+        due += period;                                    /* the one catch-up rule: see io_base/deadlines.py */
         if (end > due) { long missed = (long)((end - due) / period); due += missed * period; exceeded += 1 + missed; }
     }
     qsort(exec, n, sizeof(double), cmp); qsort(jitter, n, sizeof(double), cmp);
@@ -89,8 +89,8 @@ def poll(c, seconds: float, rate_hz: float, count: int, wait_s: float = 0.0) -> 
     at ``rate_hz`` on absolute deadlines for ``seconds``; print the requests and errors as JSON. The
     imports come first: a client that connects, then imports for seconds, is closed as silent."""
     from hil.testing import CONFIG
-    from plc_interface.deadlines import Deadlines
-    from plc_interface.register_map import RegisterMap
+    from io_base.deadlines import Deadlines
+    from plc_link.register_map import RegisterMap
 
     start = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"].start
     t_give_up = time.monotonic() + wait_s
@@ -130,7 +130,7 @@ def task_counters(port: int) -> tuple[int, int]:
     from pymodbus.client import ModbusTcpClient
 
     from hil.testing import CONFIG
-    from plc_interface.register_map import RegisterMap
+    from plc_link.register_map import RegisterMap
 
     codec = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"]
     with ModbusTcpClient("127.0.0.1", port=port, timeout=2.0) as c:
@@ -148,7 +148,7 @@ def run(seconds: float, modbus_clients: int, ads_clients: int, reference: Path |
         over = {"plc": {"port": port}, "cycle": {"stats_log_interval_s": 0, "realtime_priority": priority}}
         ads = None
         if ads_clients:
-            from plc_interface.ads.settings import AdsSettings  # noqa: F401 - present when ADS is installed
+            from plc_link.ads.settings import AdsSettings  # noqa: F401 - present when ADS is installed
 
             ads = {"host": f"127.0.{port % 250 + 1}.1", "port": 48898}
             over["ads"] = {"enabled": True, "host": ads["host"], "port": 48898}
@@ -234,7 +234,7 @@ def main() -> int:
     try:
         import pyads  # noqa: F401
 
-        from plc_interface.ads.settings import AdsSettings  # noqa: F401
+        from plc_link.ads.settings import AdsSettings  # noqa: F401
     except ImportError:
         print("note: pyads or the ADS server is not installed: the run has no ADS clients")
         ads_clients = 0

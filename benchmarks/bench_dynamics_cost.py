@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from hil.testing import model_with
-from plc_interface.contract import FROM_PLC, Command, FromPlc
+from plc_link.contract import FROM_PLC, Command, FromPlc
 from service.ati import Reading
 from service.config import ServiceConfig, load_config
 from service.pipeline import Cycle

@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from hil.testing import BEYOND_SPRINGS, model_with
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.ati import Reading
 from service.config import load_config
 from service.pipeline import Cycle

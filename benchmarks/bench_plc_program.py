@@ -19,9 +19,9 @@ import numpy as np
 from hil.cell_network import ImageNetwork
 from hil.plc_program import generate_program
 from hil.virtual_plc import VirtualPlc
-from plc_interface.contract import Status, to_plc
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
+from plc_link.contract import Status, to_plc
+from plc_link.image import ProcessImage
+from plc_link.register_map import RegisterMap
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNNING = int(Status.RUNNING | Status.ACTIVE | Status.SENSOR_OK | Status.PLC_SEEN)

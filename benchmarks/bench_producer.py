@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from hil.testing import write_config
-from plc_interface.contract import TO_PLC, Producer, TaskState, ToPlc
+from plc_link.contract import TO_PLC, Producer, TaskState, ToPlc
 from service.app import Service
 from service.config import load_config
 

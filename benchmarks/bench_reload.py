@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from hil.testing import scaled_model_file, write_config
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.compensation import load_model
 from service.config import load_config
 from service.pipeline import Cycle

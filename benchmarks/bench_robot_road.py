@@ -47,8 +47,8 @@ def modbus_load(port: int, stop) -> None:
     from pymodbus.client import ModbusTcpClient
 
     from hil.testing import CONFIG
-    from plc_interface.deadlines import Deadlines
-    from plc_interface.register_map import RegisterMap
+    from io_base.deadlines import Deadlines
+    from plc_link.register_map import RegisterMap
 
     codec = RegisterMap.from_yaml(CONFIG / "registers.yaml").codecs["to_plc"]
     c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0)
@@ -81,7 +81,7 @@ def one(interface: str, seconds: float, busy: bool, io_priority: int, robot_prio
     from hil.run import ServiceProcess
     from hil.testing import free_port, write_config
     from hil.virtual_robot import VirtualRobot, controller_for
-    from plc_interface.robot.settings import RobotSettings
+    from robot_road.settings import RobotSettings
     from stiffness.kinematics.robot import load_robot
 
     robot = load_robot(ROOT / "config" / "robots" / "kr125.yaml")

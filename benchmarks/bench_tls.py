@@ -2,7 +2,7 @@
 
 Alternating runs of the service as `make run` starts it (`stiffcomp run`, config/default.yaml on free
 ports): TLS off, the PLC clients on plain Modbus TCP; TLS on (``plc.tls``, certificates made by
-`plc_interface.certs`, plain Modbus beside it), the same clients over TLS with client certificates.
+`io_base.certs`, plain Modbus beside it), the same clients over TLS with client certificates.
 In every run 4 clients poll 32 input registers at 500 Hz each, as PLCs would; they start with the
 service, poll from the moment it serves, and the service stops when they are done, so nearly the whole
 run (all but its start-up) is under load. The figure is the cycle's work time p50 (``--stats-json``) of
@@ -35,7 +35,7 @@ def poller(port: int, seconds: float, cert_dir: str | None) -> None:
     from bench_cycle import poll
     from pymodbus.client import ModbusTcpClient, ModbusTlsClient
 
-    from plc_interface.tls import client_context
+    from io_base.tls import client_context
 
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)      # no line per refused try while it starts
     if cert_dir:
@@ -82,7 +82,7 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=30.0, help="s of load per run")
     ap.add_argument("--json", default=None, metavar="FILE")
     args = ap.parse_args()
-    from plc_interface import certs
+    from io_base import certs
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="stiffcomp-bench-tls-") as tmp:

@@ -36,11 +36,11 @@ import yaml
 from image_cycle import check_compiled, check_cycle, check_realtime, docker
 
 from hil.testing import ROOT, free_port
-from plc_interface.endpoints import PROBES
-from plc_interface.health import READY_CHECKS
-from plc_interface.register_map import RegisterMap
-from tools.ads_probe import ADS_TCP_PORT, CYCLE_SYMBOL, open_ads, read_cycle_count
+from io_process.endpoints import PROBES
+from io_process.health import READY_CHECKS
+from plc_link.register_map import RegisterMap
 from tools.block_reader import BlockReader
+from tools.pyads_connection import ADS_TCP_PORT, CYCLE_SYMBOL, open_ads, read_cycle_count
 
 SITE = "/etc/stiffcomp"
 PROBE_MAX_S = 1.0          # the probe's wall time in the container, median of 3 (the HEALTHCHECK allows 3 s)

@@ -1,6 +1,6 @@
 """The cell network's ADS client: a PLC's ADSREAD and ADSWRITE sent to the service's ADS server over AMS/TCP, as a
 TwinCAT runtime's router sends them (Beckhoff, "ADS specification": the AMS/TCP header, the 32-byte AMS header,
-the ADS Read and Write commands; the frames are `plc_interface.ads.ams`'s, the service's own reading of them).
+the ADS Read and Write commands; the frames are `plc_link.ads.ams`'s, the service's own reading of them).
 
 One request at a time, answered before the next is sent: the virtual PLC sends a request when its block starts it
 and takes the answer at the block's next call (`hil.cell_network`).
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import socket
 
-from plc_interface.ads import ams
+from plc_link.ads import ams
 
 SOURCE_PORT = 32905                 # a PLC runtime's ADS client port range starts at 32768 (TwinCAT)
 FAILED = ams.ADSERR_DEVICE_ERROR    # no answer, or one that does not belong to the request

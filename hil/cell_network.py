@@ -32,10 +32,10 @@ from dataclasses import dataclass
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from plc_interface.ads import ams
-from plc_interface.ads.area import MB_GROUP, AreaView, Layout
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
+from plc_link.ads import ams
+from plc_link.ads.area import MB_GROUP, AreaView, Layout
+from plc_link.image import ProcessImage
+from plc_link.register_map import RegisterMap
 from st_runtime import Ended
 from st_runtime.requests import MB_ADDRESS, WIN32, modbus_error
 

@@ -15,6 +15,7 @@ from stiffness.model.stiffness_model import StiffnessModel
 
 from .cmm import CmmResult, measure
 from .delay_band import delay_band_ms, device_lateness, timing_with_delays
+from .device_log import DeviceLog, RobotLog
 from .dynamics import (
     DynamicOptions,
     identify_from_pass,
@@ -25,7 +26,7 @@ from .dynamics import (
 from .iso9283 import circle_figures
 from .lockstep import run_lockstep
 from .probe import ProbeResult, probe
-from .report import end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
+from .report import Evaluation, end_to_end_delay, errors, evaluate_pass, plot, window_errors, windows_figure
 from .run import Faults, HilError, PassResult, run_pass
 from .scenario import Scenario
 from .world import World
@@ -37,7 +38,7 @@ class CircleResult:
 
     summary: dict
     passes: dict[str, PassResult]
-    evaluations: dict[str, dict]
+    evaluations: dict[str, Evaluation]
     world: World
     cmm: dict[str, CmmResult]
 
@@ -102,7 +103,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
     passes: dict[str, PassResult] = {}
-    again: dict[str, list[dict]] = {}                  # the evaluations of each pass's further repeats
+    again: dict[str, list[Evaluation]] = {}            # the evaluations of each pass's further repeats
     delays: list[float | None] = []                    # the end-to-end delay (s) of the compensated pass's repeats
     with tempfile.TemporaryDirectory(prefix="stiffcomp-hil-") as tmp:
         base = Path(workdir or tmp)
@@ -135,7 +136,7 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
         world, evals[name] = evaluate_pass(scenario, truth, r)
         parts[name] = measure(scenario, world, evals[name])
     band = delay_band_ms(scenario, service_overrides, robot_interface)
-    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays, "robot" if robot_interface else "PLC")
+    summary = summarise(world, passes, evals, parts, lockstep, again, band, delays)
     summary["robot_interface"] = robot_interface or "none"
     summary["plc_program"] = passes[names[-1]].extra.get("plc_program")      # None on the robot road
     if found is not None:
@@ -156,15 +157,16 @@ def dynamics_summary(found, dynamic: DynamicOptions) -> dict:
             "explained": round(found.explained, 5), "explained_static": round(found.explained_static, 5)}
 
 
-def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bool,
-              again: dict | None = None, band: tuple[float, float] | None = None,
-              repeat_delays: list[float | None] | None = None, device: str = "PLC") -> dict:
+def summarise(world: World, passes: dict[str, PassResult], evals: dict[str, Evaluation],
+              parts: dict[str, CmmResult], lockstep: bool, again: dict[str, list[Evaluation]] | None = None,
+              band: tuple[float, float] | None = None, repeat_delays: list[float | None] | None = None) -> dict:
     """The summary of the passes: the last one's figures (the compensated or the dynamic pass), the
     uncompensated pass's as ``_uncompensated`` twins and, with a dynamic pass, the static one's as ``_static``.
     ``again``: the evaluations of each pass's further repeats, for its ISO 9283 path figures. ``band``: the
     end-to-end delay the loop can show (`hil.delay_band`); a delay outside it, the first cut's or a repeat's
     (``repeat_delays``, s, the compensated pass's further cuts), makes the timing untrustworthy, naming the
-    virtual ``device`` when it did not keep up its cycles (`hil.delay_band.device_lateness`)."""
+    virtual device (the PLC, the robot: the type of the pass's log) when it did not keep up its cycles
+    (`hil.delay_band.device_lateness`)."""
     last = list(passes)[-1]
     mean_u, max_u = errors(evals["uncompensated"])
     mean_c, max_c = errors(evals[last])
@@ -198,7 +200,7 @@ def summarise(world: World, passes: dict, evals: dict, parts: dict, lockstep: bo
     if band is not None:
         summary["delay_band_ms"] = [round(band[0], 2), round(band[1], 2)]
         log = passes["compensated"].log if "compensated" in passes else None
-        cause = (device_lateness(log, world.t_end, 1000.0 * float(log["period"]), device)
+        cause = (device_lateness(log.t, world.t_end, 1000.0 * log.period, log.device)
                  if log is not None and not lockstep else None)
         summary["timing"] = timing_with_delays(summary["timing"], [summary["delay_ms"], *summary["delay_ms_repeats"]],
                                                band, cause)
@@ -212,7 +214,7 @@ def check_robot_section(interface: str | None, section: dict | None) -> dict | N
         return None
     from pydantic import ValidationError
 
-    from plc_interface.robot.settings import RobotSettings
+    from robot_road.settings import RobotSettings
     from stiffness.files.yaml_schema import format_validation_error
 
     from .run import shipped_robot_section
@@ -229,15 +231,12 @@ def check_robot_section(interface: str | None, section: dict | None) -> dict | N
     return section
 
 
-def robot_road(log: dict) -> dict:
+def robot_road(log: DeviceLog) -> dict:
     """The robot road's figures of a pass, from its virtual robot's log: the interface's answers that came late
     (or not at all) and the 99th percentile of the answers' round trip at the robot, in ms (None with a PLC)."""
-    if "rtt_s" not in log:
+    if not isinstance(log, RobotLog):
         return {"late_answers": None, "reply_latency_p99_ms": None}
-    rtt = np.asarray(log["rtt_s"])
-    ok = rtt[np.isfinite(rtt)]
-    return {"late_answers": int(log["late"]),
-            "reply_latency_p99_ms": round(1000.0 * float(np.percentile(ok, 99)), 3) if len(ok) else None}
+    return {"late_answers": log.late, "reply_latency_p99_ms": log.reply_latency_p99_ms()}
 
 
 @dataclass
@@ -279,7 +278,8 @@ def cut(scenario: Scenario, truth_path: Path, model_path: Path, workdir: Path, t
     return Cut(mean, worst, part, result, probed)
 
 
-def write_report(folder: Path, world: World, evals: dict, passes: dict, summary: dict) -> None:
+def write_report(folder: Path, world: World, evals: dict[str, Evaluation], passes: dict[str, PassResult],
+                 summary: dict) -> None:
     """hil_circle.png (Fig. 8), summary.json (with the task statistics) and the per-cycle errors."""
     folder.mkdir(parents=True, exist_ok=True)
     plot(world, evals, folder / "hil_circle.png")
@@ -288,15 +288,9 @@ def write_report(folder: Path, world: World, evals: dict, passes: dict, summary:
     detail["reduction_pct"] = (round(100.0 * (1 - summary["mean_error_mm"] / summary["mean_error_mm_uncompensated"]),
                                      1) if summary["mean_error_mm_uncompensated"] > 0 else None)
     detail["service_stats"] = {k: p.stats for k, p in passes.items()}
-    if "rtt_s" in next(iter(passes.values())).log:        # a virtual robot in the PLC's place
-        detail["robot"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
-                               "late_answers": int(p.log["late"])} for k, p in passes.items()}
-    else:
-        detail["plc"] = {k: {"cycles": len(p.log["t"]), "overruns": int(p.log["overruns"]),
-                             "modbus_errors": int(p.log["errors"])} for k, p in passes.items()}
+    detail[next(iter(passes.values())).log.kind] = {k: p.log.counts() for k, p in passes.items()}
     (folder / "summary.json").write_text(json.dumps(detail, indent=2) + "\n")
     for k, ev in evals.items():
-        c = ev["cut"]
-        np.savetxt(folder / f"errors_{k}.csv", np.column_stack([ev["t"][c], np.degrees(ev["angle"][c]),
-                                                                 ev["err_mm"][c]]),
+        c = ev.cut
+        np.savetxt(folder / f"errors_{k}.csv", np.column_stack([ev.t[c], np.degrees(ev.angle[c]), ev.err_mm[c]]),
                    delimiter=",", header="t_s,angle_deg,radial_error_mm", comments="", fmt="%.6f")

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from stiffness.kinematics.robot import PoseConfig
 from .iso9283 import cut_by_angle
 from .scenario import Scenario
 from .world import World
+
+if TYPE_CHECKING:
+    from .report import Evaluation
 
 
 @dataclass
@@ -65,8 +69,8 @@ class CmmResult:
         return write_part(path, local, self.tool_radius_mm, self.frame, title)
 
 
-def measure(scenario: Scenario, world: World, evaluation: dict) -> CmmResult:
-    """The virtual CMM's points of one pass (``evaluation``: `hil.report.evaluate`'s arrays)."""
+def measure(scenario: Scenario, world: World, evaluation: Evaluation) -> CmmResult:
+    """The virtual CMM's points of one pass (``evaluation``: `hil.report.evaluate`'s)."""
     cfg = scenario.cmm
     path = world.path
     r = scenario.milling.tool_diameter_mm / 2000.0

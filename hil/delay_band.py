@@ -1,6 +1,6 @@
-"""The band a HIL run's end-to-end delay must fall in, from the loop's own parts: so that a run whose timing was
-off (a device process the host ran late, a log stamped at the wrong time) says so instead of reporting half
-the delay in silence (issue 45: 3.95 and 4.0 ms once each, 7.97 to 8.03 ms in thirty other runs).
+"""The band a HIL run's end-to-end delay must fall in, from the loop's own parts: a run whose timing was off (a
+device process the host ran late, a log stamped at the wrong time) says so instead of reporting a delay outside
+the band in silence.
 
 The delay from the force at the tool to the correction the device applied (`hil.report.end_to_end_delay`) is
 at least what the causal filters in the loop hold back: the virtual sensor's low-pass (``sensor.lowpass_hz``,
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from plc_interface.robot.settings import RobotSettings
+from robot_road.settings import RobotSettings
 from service.filters import FilterConfig, SosLowPass
 from service.task import CycleConfig
 from stiffness.files.yaml_schema import deep_update, read_yaml
@@ -57,11 +57,11 @@ def delay_band_ms(scenario: Scenario, overrides: dict | None = None,
     return low, low + cycle.period_ms + device_ms + SLACK_MS
 
 
-def device_lateness(log: dict, t_end: float, period_ms: float, device: str) -> str | None:
+def device_lateness(t: np.ndarray, t_end: float, period_ms: float, device: str) -> str | None:
     """The cause when the virtual ``device`` (the PLC, the robot) ran fewer than `RAN_SHARE` of the cycles its
-    ``period_ms`` owes the cut (program time 0 to ``t_end``, s; ``log["t"]``: each cycle's time): a host too busy
-    for it, whose log then has too few samples to tell the delay by. None when it kept up."""
-    t = np.asarray(log["t"])
+    ``period_ms`` owes the cut (program time 0 to ``t_end``, s; ``t``: each cycle's time, its log's): a host too
+    busy for it, whose log then has too few samples to tell the delay by. None when it kept up."""
+    t = np.asarray(t)
     t = t[(t >= 0.0) & (t <= t_end)]
     owed = 1000.0 * t_end / period_ms
     if len(t) >= RAN_SHARE * owed:

@@ -22,13 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
-from plc_interface.endpoints import SHIPPED_CONFIG
+from io_process.endpoints import SHIPPED_CONFIG
 from stiffness.dynamics.modes import DEFLECTION, FORCE, Identified, Record, identify
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import M_TO_MM
 
-from .report import end_to_end_delay, errors, evaluate_pass, evaluate_uncompensated, window_errors
+from .device_log import Track
+from .report import Evaluation, end_to_end_delay, errors, evaluate_pass, evaluate_uncompensated, window_errors
 from .robot_stub import RobotStub
 from .run import HilError
 from .scenario import Scenario
@@ -55,7 +56,7 @@ class DynamicOptions:
     delay_ms: float | None = None        # dynamics.delay_ms (None: measured on the static pass, `service_delay_ms`)
 
 
-def service_delay_ms(opts: DynamicOptions, world: World, static_log: dict) -> float:
+def service_delay_ms(opts: DynamicOptions, world: World, static_log: Track) -> float:
     """The delay the service is given: ``opts.delay_ms``, else the end-to-end delay measured on the static
     pass; HilError when it cannot be measured (`hil.report.end_to_end_delay` returned None)."""
     if opts.delay_ms is not None:
@@ -74,9 +75,9 @@ def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
     world = World(scenario, truth.robot)
     stub = RobotStub(truth, scenario.robot, scenario.payload)
     ev = evaluate_uncompensated(world, stub, RECORD_PERIOD_S)
-    q = np.array([world.path.q_ref_deg(x) for x in ev["t"]])
+    q = np.array([world.path.q_ref_deg(x) for x in ev.t])
     nominal = truth.robot.frames(np.radians(q))[:, 7, :3, 3]
-    return Record(ev["t"] - ev["t"][0], world.force(ev["t"]), ev["p"] - nominal, "the HIL's uncompensated pass")
+    return Record(ev.t - ev.t[0], world.force(ev.t), ev.p - nominal, "the HIL's uncompensated pass")
 
 
 def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17, axes: tuple[int, ...] = (0, 1, 2),
@@ -182,7 +183,7 @@ def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicO
     return found
 
 
-def figures(world: World, ev: dict) -> dict:
+def figures(world: World, ev: Evaluation) -> dict:
     """The figures of the Done-when: the entry and exit windows' peaks, the steady mean, the mean and max (mm)."""
     w = window_errors(world, ev)
     mean, worst = errors(ev)

@@ -22,8 +22,12 @@ phi, so an attained path crosses it where its own angle about the circle's centr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .report import Evaluation
 
 
 @dataclass
@@ -57,17 +61,17 @@ def path_figures(commanded: np.ndarray, attained: np.ndarray, at: np.ndarray | N
     return PathFigures(float(at_p.max()), float(rt.max()), float(label[at_p.argmax()]), float(label[rt.argmax()]))
 
 
-def cut_by_angle(evaluation: dict) -> tuple[np.ndarray, np.ndarray]:
+def cut_by_angle(evaluation: Evaluation) -> tuple[np.ndarray, np.ndarray]:
     """The cut's actual TCP (base, m) in time order and its angle about the circle's centre, unwrapped and
-    starting near 0 (``evaluation``: `hil.report.evaluate`'s arrays)."""
-    cut = evaluation["cut"]
-    order = np.argsort(evaluation["t"][cut])
-    ang = np.unwrap(evaluation["angle"][cut][order])
+    starting near 0 (``evaluation``: `hil.report.evaluate`'s)."""
+    cut = evaluation.cut
+    order = np.argsort(evaluation.t[cut])
+    ang = np.unwrap(evaluation.angle[cut][order])
     ang -= 2 * np.pi * np.round(ang[0] / (2 * np.pi))       # the start near 0, not near 2 pi
-    return ang, evaluation["p"][cut][order]
+    return ang, evaluation.p[cut][order]
 
 
-def in_planes(path, evaluation: dict, phi: np.ndarray) -> np.ndarray:
+def in_planes(path, evaluation: Evaluation, phi: np.ndarray) -> np.ndarray:
     """Where the cut's path first crosses the plane normal to the circle ``path`` (`hil.path.CirclePath`: its
     plane the base's xy) at each angle ``phi`` (m,): (m, 3), NaN where the cut never reaches that angle.
     Between two cycles the TCP's distance from the circle's axis and its height go linearly with its angle, so
@@ -87,7 +91,7 @@ def in_planes(path, evaluation: dict, phi: np.ndarray) -> np.ndarray:
     return out
 
 
-def circle_figures(path, evaluations: list[dict], points: int) -> PathFigures:
+def circle_figures(path, evaluations: list[Evaluation], points: int) -> PathFigures:
     """AT_p and RT_p (mm) of the repeats of one pass (their evaluations) about the commanded circle ``path``
     (`hil.path.CirclePath`), at ``points`` angles equally spaced round it that every repeat reaches; where each
     is largest as the angle about the circle's centre (deg, 0 to 360), not as the index among the angles kept."""

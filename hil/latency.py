@@ -29,6 +29,7 @@ from service.ati import AtiProtocol
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update
 
+from .device_log import PlcLog
 from .plc_process import plc_main
 from .run import ServiceProcess, _end, _wait, free_udp_port, multicast_or_fail, write_service_config
 from .scenario import Scenario
@@ -131,11 +132,10 @@ def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: floa
         stats, _ = service.result()
         with np.load(folder / "sent.npz") as z:
             sent_t = z["t"]
-        with np.load(folder / "plc.npz") as z:
-            names = cfg.register_map().codecs["to_plc"].names
-            w = z["to_plc"][:, [names.index(n) for n in ("wrench_fx", "wrench_fy", "wrench_fz")]]
-            t_read = z["t_read"]
-            period = float(z["period"])
+        log = PlcLog.load(folder / "plc.npz")
+        names = cfg.register_map().codecs["to_plc"].names
+        w = log.to_plc[:, [names.index(n) for n in ("wrench_fx", "wrench_fy", "wrench_fz")]]
+        t_read, period = log.t_read, log.period
     code = np.rint(np.linalg.norm(w, axis=1) - OFFSET_N)
     ok = np.isfinite(code) & (code >= 0) & (code < CODES)
     lat = latencies(sent_t, t_read[ok], code[ok].astype(int)) * 1000.0

@@ -23,7 +23,6 @@ import random
 from pathlib import Path
 
 import can
-import numpy as np
 
 from service.app import Service
 from service.config import load_config
@@ -33,6 +32,7 @@ from stiffness.data.trace_file import TraceFile
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .cell_network import ImageNetwork
+from .device_log import PlcLog
 from .run import PassResult, pass_program, write_service_config
 from .scenario import Scenario
 from .sensor import HilSensor
@@ -97,7 +97,7 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     stats = service.info.stats()
     stats["status"] = "stopped"
     return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True,
-                                                     "plc_program": program.summary(log["dialled"])})
+                                                     "plc_program": program.summary(log.dialled)})
 
 
 def _protocol(cfg):
@@ -107,7 +107,7 @@ def _protocol(cfg):
 
 
 def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: bool, out: TraceFile | None,
-          program) -> dict:
+          program) -> PlcLog:
     """Step the service every cycle and the PLC every PLC period from WARM_UP_S before the lead to the end."""
     rmap = cfg.register_map()
     c = scenario.plc
@@ -118,7 +118,7 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
     plc_every = max(1, round(plc.period / period))
     t_first = world.t_start - WARM_UP_S
     n = round((world.t_end - t_first) / period) + 1
-    log = plc.new_log(n // plc_every + 2)
+    plc.new_log(n // plc_every + 2)
     for k in range(n):
         t = t_first + k * period
         service.source.scenario_t = t
@@ -133,5 +133,4 @@ def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: b
         plc.cycle(t, lambda t=t: t)
     if out is not None:
         out.write(service.trace.take())
-    return {**log.arrays(), "written": np.array(sorted(network.written)), "overruns": 0, "errors": network.errors,
-            "period": plc.period, "t0": 0.0, "dialled": np.array(sorted(network.dialled))}
+    return plc.device_log(0.0)          # no deadlines in lock step: no overruns

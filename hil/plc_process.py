@@ -6,9 +6,7 @@ from __future__ import annotations
 import logging
 import time
 
-import numpy as np
-
-from plc_interface.register_map import RegisterMap
+from plc_link.register_map import RegisterMap
 
 from .cell_network import PlcFaults, TcpNetwork
 from .plc_program import PlcProgram
@@ -21,8 +19,8 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
              program_folder: str, faults: PlcFaults | None = None, connect_timeout_s: float = 60.0,
              ads_port: int | None = None) -> None:
     """Process entry: load the program, connect, report ready, wait for the start time in ``go_value``, run,
-    save the log. ``rmap`` is the service config's register map (`ServiceConfig.register_map`); ``ads_port`` the
-    service's ADS server (None: not served). Loads and connects below the service's priority, then runs its cycle
+    save its log (`hil.device_log.PlcLog`) to ``out_file``. ``rmap`` is the service config's register map
+    (`ServiceConfig.register_map`); ``ads_port`` the service's ADS server (None: not served). Loads and connects below the service's priority, then runs its cycle
 as a PLC (`hil.priority`)."""
     below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
@@ -39,9 +37,6 @@ as a PLC (`hil.priority`)."""
         while go_value.value <= 0:
             time.sleep(0.005)
         as_a_plc(logging.getLogger("hil.plc"))
-        log = plc.run(world.t_start, world.t_end, go_value.value)
-        np.savez(out_file, **log.arrays(), written=np.array(sorted(network.written)), overruns=plc.overruns,
-                 errors=network.errors, period=plc.period, t0=go_value.value,
-                 dialled=np.array(sorted(network.dialled)))
+        plc.run(world.t_start, world.t_end, go_value.value).save(out_file)
     finally:
         network.close()

@@ -21,8 +21,8 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from plc_interface.plc_library import Endpoint, generate
-from plc_interface.register_map import RegisterMap
+from cell.plc import Endpoint, generate
+from plc_link.register_map import RegisterMap
 from st_runtime import Runtime, StError, f32, load
 
 from .errors import HilError

@@ -15,7 +15,7 @@ the other devices). On a host whose cores are busy with other work, a robot at n
 answers late: through EGM's 48 ms path corrections 74 late answers in one cut, and a part that `part learn`
 refused as not fitting the model. The PLC, which runs its TwinCAT program through the ST runtime and a Modbus or
 ADS client (about 0.6 ms of work every 2 ms), ran 754 and 1075 of the 2409 cycles a cut owes it at nice 5
-beside two busy processes, and the end-to-end delay could not be told from so few (issue 50, item 15).
+beside two busy processes, and the end-to-end delay could not be told from so few.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def below_the_service() -> None:
 def as_a_robot_controller(log) -> None:
     """The virtual robot's process: SCHED_FIFO ``ROBOT_FIFO`` where permitted (one line in ``log``), else
     below the service as the other devices."""
-    from plc_interface.scheduling import set_fifo
+    from io_base.scheduling import set_fifo
 
     if not set_fifo(ROBOT_FIFO, "virtual robot", log):
         below_the_service()
@@ -49,6 +49,6 @@ def as_a_robot_controller(log) -> None:
 def as_a_plc(log) -> None:
     """The virtual PLC's cycle: SCHED_FIFO ``PLC_FIFO`` where permitted (one line in ``log``), else below the
     service as the other devices (the process starts there: `below_the_service`)."""
-    from plc_interface.scheduling import set_fifo
+    from io_base.scheduling import set_fifo
 
     set_fifo(PLC_FIFO, "virtual PLC", log)

@@ -1,5 +1,5 @@
 """The virtual probe: after the cut the robot, unloaded, probes the contour it machined with a touch probe in
-its spindle, as the robot-side programs do (robot/probe/, docs/part.md "The robot probes its own part").
+its spindle, as the robot-side programs do (cell/robot/generated/probe/, docs/part.md "The robot probes its own part").
 
 The machined wall is what the cut left: the tool's actual centre p (the stub's true TCP over the cut,
 `hil.report.evaluate`) offset by the tool radius r toward the wall. For each touch at a nominal path angle phi
@@ -31,14 +31,14 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial import cKDTree
 
 from stiffness.data.probe_log import write_probe
 from stiffness.kinematics.robot import PoseConfig, Robot
-from stiffness.part.foot import foot_on_path
+from stiffness.part.contour import ToolPath
 
 from .iso9283 import cut_by_angle
 from .path import solve_ik
+from .report import Evaluation
 from .scenario import Scenario
 from .world import World
 
@@ -62,9 +62,9 @@ class ProbeResult:
                            self.probe_frame, title, self.speed_mm_s, self.latency_ms)
 
 
-def probe(scenario: Scenario, world: World, robot: Robot, evaluation: dict, touches: int | None = None,
+def probe(scenario: Scenario, world: World, robot: Robot, evaluation: Evaluation, touches: int | None = None,
           seed: int | None = None) -> ProbeResult:
-    """The virtual probe's touches of one pass (``evaluation``: `hil.report.evaluate`'s arrays) by the truth
+    """The virtual probe's touches of one pass (``evaluation``: `hil.report.evaluate`'s record) by the truth
     ``robot``; ``touches`` and ``seed`` override the scenario's ``probe`` section."""
     cfg = scenario.probe
     path = world.path
@@ -75,7 +75,8 @@ def probe(scenario: Scenario, world: World, robot: Robot, evaluation: dict, touc
     a = path.R_tool[:, 2]
     P = np.eye(3) - np.outer(a, a)
     ang, p = cut_by_angle(evaluation)
-    tree = cKDTree(p @ P)
+    actual = ToolPath(p, a)                                         # the tool's actual path, seen along its axis
+    centre = actual.c2.mean(axis=0)
     mask = np.radians(cfg.entry_exit_mask_deg)
     phi = np.linspace(mask, 2 * np.pi - mask, n_touch)
     phi = phi[(phi >= ang.min()) & (phi <= ang.max())]
@@ -88,7 +89,7 @@ def probe(scenario: Scenario, world: World, robot: Robot, evaluation: dict, touc
         d /= np.linalg.norm(d)
         P0 = path.point(f) - (cfg.depth_mm / 1000.0) * a
         eps = sigma * rng.standard_normal(3)
-        s = _touch(tree, p, P, a, P0 + eps, d, side, r - rs)
+        s = _touch(actual, centre, P0 + eps, d, side, r - rs)
         tau = (cfg.latency_ms + rng.uniform(-cfg.latency_jitter_ms, cfg.latency_jitter_ms)) / 1000.0
         x_latch = P0 + (s + cfg.speed_mm_s / 1000.0 * tau) * d
         k = round(f / (2 * np.pi) * (len(guess_of) - 1))
@@ -102,14 +103,14 @@ def probe(scenario: Scenario, world: World, robot: Robot, evaluation: dict, touc
                        cfg.latency_ms)
 
 
-def _touch(tree: cKDTree, p: np.ndarray, P: np.ndarray, a: np.ndarray, start: np.ndarray, d: np.ndarray,
-           side: float, at: float, iterations: int = 8) -> float:
-    """How far along ``d`` from ``start`` the stylus centre lies ``at`` (r - r_s) from the tool's actual path
-    ``p`` on the wall's side: Newton on the signed distance in the plane across the tool axis ``a``."""
+def _touch(actual: ToolPath, centre: np.ndarray, start: np.ndarray, d: np.ndarray, side: float, at: float,
+           iterations: int = 8) -> float:
+    """How far along ``d`` from ``start`` the stylus centre lies ``at`` (r - r_s) from the tool's ``actual`` path
+    on the wall's side: Newton on the signed distance in the plane across the tool axis."""
     s = 0.0
     for _ in range(iterations):
         x = start + s * d
-        signed = _signed(tree, p, P, a, x, side)
+        signed = _signed(actual, centre, x, side)
         step = at - signed
         s += step
         if abs(step) < 1e-10:
@@ -117,15 +118,12 @@ def _touch(tree: cKDTree, p: np.ndarray, P: np.ndarray, a: np.ndarray, start: np
     return s
 
 
-def _signed(tree: cKDTree, p: np.ndarray, P: np.ndarray, a: np.ndarray, x: np.ndarray, side: float) -> float:
-    """The signed distance (m) of ``x`` from the path ``p`` across the tool axis: positive on the wall's side.
-    The foot of the perpendicular on the polyline near the nearest sample (the samples a cycle apart)."""
-    xp = x @ P
-    _, j = tree.query(xp)
-    c = p @ P
-    dist, s, f = foot_on_path(c, xp, int(j))
-    foot = c[s] + f * (c[s + 1] - c[s]) if f > 0.0 else c[s]
-    out = side * (xp - foot)
-    # the wall's side: away from the circle's centre for a pocket (side +1), toward it for a boss
-    radial = foot - (p.mean(axis=0) @ P)
-    return dist if np.dot(out, radial) >= 0 else -dist
+def _signed(actual: ToolPath, centre: np.ndarray, x: np.ndarray, side: float) -> float:
+    """The signed distance (m) of ``x`` from the ``actual`` path across the tool axis: positive on the wall's side,
+    away from the path's ``centre`` (in the plane) for a pocket (side +1), toward it for a boss. The foot of the
+    perpendicular on the polyline beside the nearest sample, every chord of it the path (the samples a cycle
+    apart)."""
+    x2 = actual.in_plane(x[None])
+    dist, foot = actual.feet(x2, chord_steps=np.inf)
+    out = side * (x2[0] - foot[0])
+    return float(dist[0]) if np.dot(out, foot[0] - centre) >= 0 else -float(dist[0])

@@ -8,6 +8,7 @@ cycles of the cut (0 <= t <= one circle) count.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -16,38 +17,54 @@ from matplotlib.figure import Figure
 
 from stiffness.report.plots import legend_below
 
+from .device_log import Track
 from .robot_stub import RobotStub
 from .world import World
 
 if TYPE_CHECKING:
     from stiffness.model.stiffness_model import StiffnessModel
 
+    from .run import PassResult
     from .scenario import Scenario
 
 
-def evaluate(world: World, stub: RobotStub, log: dict) -> dict[str, np.ndarray]:
-    """Actual TCP, path angle and radial error (mm) of every cycle of a pass; ``cut`` marks the cut."""
-    t = np.asarray(log["t"])
-    p, F_t = stub.actual(t, np.asarray(log["q_cmd"]), world.force, world.t_start, world.t_end)
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """A pass as the robot stub cut it, per cycle: its time (s), the actual TCP (base, m, (n, 3)), its angle about
+    the circle's centre (rad), its radial path error (mm, + outside), whether the cycle is of the cut
+    (0 <= t <= one circle) and the process force at the tool (N, base, (n, 3))."""
+
+    t: np.ndarray
+    p: np.ndarray
+    angle: np.ndarray
+    err_mm: np.ndarray
+    cut: np.ndarray
+    force: np.ndarray
+
+
+def evaluate(world: World, stub: RobotStub, track: Track) -> Evaluation:
+    """Actual TCP, path angle and radial error (mm) of every cycle of a pass's ``track`` (its device's log)."""
+    t = np.asarray(track.t)
+    p, F_t = stub.actual(t, np.asarray(track.q_cmd), world.force, world.t_start, world.t_end)
     angle, err = world.path.radial_error(p)
     cut = (t >= 0.0) & (t <= world.path.duration)
-    return {"t": t, "p": p, "angle": angle, "err_mm": err * 1000.0, "cut": cut, "force": F_t}
+    return Evaluation(t=t, p=p, angle=angle, err_mm=err * 1000.0, cut=cut, force=F_t)
 
 
-def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result) -> tuple[World, dict]:
-    """The world of ``scenario`` and `evaluate` of a pass's ``result`` (a `hil.run.PassResult`, real time or
-    lock step: its ``log``) on the robot stub of ``truth``."""
+def evaluate_pass(scenario: Scenario, truth: StiffnessModel, result: PassResult) -> tuple[World, Evaluation]:
+    """The world of ``scenario`` and `evaluate` of a pass's ``result`` (real time or lock step: its ``log``) on
+    the robot stub of ``truth``."""
     world = World(scenario, truth.robot)
     return world, evaluate(world, RobotStub(truth, scenario.robot, scenario.payload), result.log)
 
 
-def evaluate_uncompensated(world: World, stub: RobotStub, period_s: float) -> dict[str, np.ndarray]:
+def evaluate_uncompensated(world: World, stub: RobotStub, period_s: float) -> Evaluation:
     """`evaluate` for a pass without compensation, from the world and the stub alone: the PLC would
     command q_ref at every cycle (``period_s`` apart), which nothing in the service changes, so the
     path error needs no process. The same figure as an uncompensated pass, without its jitter."""
     t = np.arange(world.t_start, world.t_end, period_s)
     q = np.array([world.path.q_ref_deg(x) for x in t])
-    return evaluate(world, stub, {"t": t, "q_cmd": q})
+    return evaluate(world, stub, Track(t=t, q_ref=q, q_cmd=q))
 
 
 WINDOW_S = 0.1          # the entry and exit windows: this long after the force starts and after the circle closes
@@ -61,17 +78,17 @@ def windows(world: World) -> dict[str, tuple[float, float]]:
     return {"entry": (0.0, WINDOW_S), "exit": (end, end + WINDOW_S)}
 
 
-def window_errors(world: World, ev: dict) -> dict[str, float]:
+def window_errors(world: World, ev: Evaluation) -> dict[str, float]:
     """Peak and mean |path error| (mm) in the entry and exit windows and over the steady part of the cut (the
     cut without the windows): ``entry_peak_mm``, ``entry_mean_mm``, ``exit_…``, ``steady_peak_mm``, ``steady_mean_mm``."""
-    t, e = ev["t"], np.abs(ev["err_mm"])
+    t, e = ev.t, np.abs(ev.err_mm)
     out, inside = {}, np.zeros(len(t), dtype=bool)
     for name, (a, b) in windows(world).items():
         m = (t >= a) & (t <= b)
         inside |= m
         out[f"{name}_peak_mm"] = float(e[m].max()) if m.any() else float("nan")
         out[f"{name}_mean_mm"] = float(e[m].mean()) if m.any() else float("nan")
-    steady = ev["cut"] & ~inside
+    steady = ev.cut & ~inside
     out["steady_peak_mm"], out["steady_mean_mm"] = float(e[steady].max()), float(e[steady].mean())
     return out
 
@@ -81,7 +98,7 @@ TOOTH_SAMPLES = 10     # the force averaged over one tooth period at this many p
 ALIAS_MS = 4.0          # samples further apart than this: the force averaged over each one's interval
 
 
-def end_to_end_delay(world: World, log: dict) -> float | None:
+def end_to_end_delay(world: World, log: Track) -> float | None:
     """The delay (s) from the force at the tool to the correction the PLC applied: the lag at which the
     applied correction's TCP displacement, FK(q_cmd) - FK(q_ref), is best explained as a linear function of
     the process force (least squares over `LAGS_S`, refined on a parabola); None without a correction, and
@@ -97,7 +114,7 @@ def end_to_end_delay(world: World, log: dict) -> float | None:
     is averaged over the interval each sample stands for instead (a millisecond grid over several tooth
     periods): RSI at 12 ms read 5.5 ms on the raw force, for a chain whose filters alone hold back 6.5 (with the
     average: 7.6-8.1 ms, as at 4 ms)."""
-    t = np.asarray(log["t"])
+    t = np.asarray(log.t)
     use = (t >= 0.0) & (t <= world.t_end)
     if use.sum() < 50:
         return None
@@ -126,15 +143,15 @@ def _best(cost: np.ndarray | None, within: np.ndarray | None = None) -> float | 
     return float(LAGS_S[k] + (0.5 * (c0 - c2) / den if den > 0 else 0.0) * (LAGS_S[1] - LAGS_S[0]))
 
 
-def delay_cost(world: World, log: dict, window: np.ndarray) -> np.ndarray | None:
+def delay_cost(world: World, log: Track, window: np.ndarray) -> np.ndarray | None:
     """The least-squares misfit of the applied correction's TCP displacement by the force averaged over
     ``window`` (s, offsets about each sample) at each lag of `LAGS_S` (`end_to_end_delay`); None without a
     correction."""
-    t = np.asarray(log["t"])
+    t = np.asarray(log.t)
     use = (t >= 0.0) & (t <= world.t_end)
     robot = world.robot
-    moved = (robot.frames(np.radians(np.asarray(log["q_cmd"])[use]))[:, 7, :3, 3]
-             - robot.frames(np.radians(np.asarray(log["q_ref"])[use]))[:, 7, :3, 3])
+    moved = (robot.frames(np.radians(np.asarray(log.q_cmd)[use]))[:, 7, :3, 3]
+             - robot.frames(np.radians(np.asarray(log.q_ref)[use]))[:, 7, :3, 3])
     if np.abs(moved).max() < 1e-7:
         return None
     moved = moved - moved.mean(axis=0)
@@ -156,20 +173,20 @@ def label(name: str, passes: dict) -> str:
     return name
 
 
-def errors(ev: dict) -> tuple[float, float]:
+def errors(ev: Evaluation) -> tuple[float, float]:
     """(mean, max) absolute path error over the cut, mm."""
-    e = np.abs(ev["err_mm"][ev["cut"]])
+    e = np.abs(ev.err_mm[ev.cut])
     return float(e.mean()), float(e.max())
 
 
-def plot(world: World, passes: dict[str, dict], path: str | Path, exaggerate: float = 20.0) -> Path:
+def plot(world: World, passes: dict[str, Evaluation], path: str | Path, exaggerate: float = 20.0) -> Path:
     """`circle_figure` written to ``path`` (PNG)."""
     path = Path(path)
     circle_figure(world, passes, exaggerate).savefig(path, dpi=130)
     return path
 
 
-def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.0) -> Figure:
+def circle_figure(world: World, passes: dict[str, Evaluation], exaggerate: float = 20.0) -> Figure:
     """Fig. 8: (a) nominal, uncompensated and compensated paths (radial error exaggerated), (b) the error
     around the circle; the legend below both, off the data."""
     r_mm = world.path.radius * 1000.0
@@ -179,18 +196,18 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
     ax.plot(r_mm * np.cos(th), r_mm * np.sin(th), "k-", lw=1.2, label="nominal")
     styles = STYLES
     for name, ev in passes.items():
-        c = ev["cut"]
-        rr = r_mm + exaggerate * ev["err_mm"][c]
-        ax.plot(rr * np.cos(ev["angle"][c]), rr * np.sin(ev["angle"][c]), color=styles[name][0], lw=0.9,
+        c = ev.cut
+        rr = r_mm + exaggerate * ev.err_mm[c]
+        ax.plot(rr * np.cos(ev.angle[c]), rr * np.sin(ev.angle[c]), color=styles[name][0], lw=0.9,
                 label=f"{label(name, passes)} (error x{exaggerate:g})")
     ax.set_xlabel("x in the circle's plane, mm")
     ax.set_ylabel("y, mm")
     ax.set_title(f"a) milled circle, r = {r_mm:g} mm")
     bx = fig.add_subplot(1, 2, 2)
     for name, ev in passes.items():
-        c = ev["cut"]
-        mean = np.abs(ev["err_mm"][c]).mean()
-        bx.plot(np.degrees(ev["angle"][c]), ev["err_mm"][c], color=styles[name][0], lw=0.8,
+        c = ev.cut
+        mean = np.abs(ev.err_mm[c]).mean()
+        bx.plot(np.degrees(ev.angle[c]), ev.err_mm[c], color=styles[name][0], lw=0.8,
                 label=f"{label(name, passes)}: mean |e| {mean:.3f} mm")
     bx.axhline(0.0, color="k", lw=0.6)
     bx.set_xlabel("angle along the circle, deg")
@@ -201,15 +218,15 @@ def circle_figure(world: World, passes: dict[str, dict], exaggerate: float = 20.
     return fig
 
 
-def windows_figure(world: World, passes: dict[str, dict]) -> Figure:
+def windows_figure(world: World, passes: dict[str, Evaluation]) -> Figure:
     """The path error in the entry and the exit windows (and 50 ms either side), each pass a line."""
     fig = Figure(figsize=(12, 4.4), layout="constrained")
     axes = []
     for k, (name, (a, b)) in enumerate(windows(world).items()):
         ax = fig.add_subplot(1, 2, k + 1)
         for pname, ev in passes.items():
-            m = (ev["t"] >= a - 0.05) & (ev["t"] <= b + 0.05)
-            ax.plot(1000 * (ev["t"][m] - a), ev["err_mm"][m], color=STYLES[pname][0], lw=0.9,
+            m = (ev.t >= a - 0.05) & (ev.t <= b + 0.05)
+            ax.plot(1000 * (ev.t[m] - a), ev.err_mm[m], color=STYLES[pname][0], lw=0.9,
                     label=label(pname, passes))
         ax.axvspan(0, 1000 * (b - a), color="0.9")
         ax.axhline(0.0, color="k", lw=0.5)

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plc_interface.scheduling import set_fifo
+from io_base.scheduling import set_fifo
 
 from .virtual_robot import VirtualRobot, run_cycles
 
@@ -55,11 +55,10 @@ def drive(vr: VirtualRobot, seconds: float, t0: float | None = None, priority: i
         gc.collect()
         gc.freeze()             # a controller's loop: no long collection of what was there before it began
         start = now - t0
-        cy = run_cycles(vr, start, start + seconds - vr.c.period, t0)
+        cy = run_cycles(vr, start, start + seconds - vr.controller.period, t0)
     finally:
         if fifo:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    s = cy.arrays()
-    k = s["sent"]
-    return Drive(s["sent_unix"][k], s["stamp"][k], s["q_ref"][k], s["q_cmd"][k], s["answered"][k], s["answer"][k],
-                 s["rtt_s"][k], s["frames"][k], s["send_lag_s"][k])
+    k = cy.sent
+    return Drive(cy.sent_unix[k], cy.stamp[k], cy.q_ref[k], cy.q_cmd[k], cy.answered[k], cy.answer[k], cy.rtt_s[k],
+                 cy.frames[k], cy.send_lag_s[k])

@@ -29,14 +29,15 @@ from pymodbus.client import ModbusTcpClient
 
 from hil.cell_network import PlcFaults
 from hil.testing import free_port, write_config
-from plc_interface.contract import TaskState
-from plc_interface.endpoints import read_probe
-from plc_interface.register_map import RegisterMap
+from io_process.endpoints import read_health
+from plc_link.contract import TaskState
+from plc_link.register_map import RegisterMap
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .device_log import PlcLog, RobotLog
 from .errors import HilError
 from .multicast import MulticastError, check_multicast
 from .plc_process import plc_main
@@ -60,9 +61,10 @@ class Faults:
 
 @dataclass
 class PassResult:
-    """What one pass left: the PLC's cycle log, the service's stats and log, what was refused."""
+    """What one pass left: the device's log (the virtual PLC's, or the virtual robot's on the robot road), the
+    service's stats and log, what was refused."""
 
-    log: dict
+    log: PlcLog | RobotLog
     stats: list[dict]
     service_log: str
     compensate: bool
@@ -108,7 +110,7 @@ class ServiceProcess:
             if self.proc.poll() is not None:
                 raise HilError(f"the service exited with {self.proc.returncode}:\n{self.log_path.read_text()}")
             try:
-                if read_probe(*self.health_at, timeout_s=1.0).get("task_state") == TaskState.RUN:
+                if read_health(*self.health_at, timeout_s=1.0).get("task_state") == TaskState.RUN:
                     return
             except (OSError, http.client.HTTPException, ValueError):
                 pass                                    # not serving yet
@@ -147,7 +149,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     """Run the closed loop once in real time; returns the PLC's log and the service's stats. ``trace``: the
     service records every cycle there (`stiffcomp run --trace`). ``robot_interface`` (``kuka_rsi``,
     ``abb_egm``): the robot road instead of the PLC: a virtual robot of that interface (`hil.robot_process`)
-    drives the cut, the service has no PLC (``plc.role: none``) and its log stands for the PLC's; the
+    drives the cut, the service has no PLC (``plc.role: none``) and the pass's log is the robot's; the
     interface's sub-section is ``robot_section``, by default the shipped robot config's (`shipped_robot_section`).
     ``plc_program``: the folder of the TwinCAT program the virtual PLC runs (by default the library generated for
     this pass's config, `hil.plc_program.generate_program`)."""
@@ -168,7 +170,7 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     ctx = multiprocessing.get_context("spawn")
     go = ctx.Value("d", 0.0)
     sensor_ready, plc_ready, stop = ctx.Event(), ctx.Event(), ctx.Event()
-    out_file = folder / f"plc_{'comp' if compensate else 'uncomp'}.npz"
+    out_file = folder / f"{'plc' if robot_interface is None else 'robot'}_{'comp' if compensate else 'uncomp'}.npz"
     services = [ServiceProcess(cfg_path, folder, 0, trace=trace)]
     ati = {"base_id": cfg.source.ati.base_id, "counts_per_force": cfg.source.ati.counts_per_force,
            "counts_per_torque": cfg.source.ati.counts_per_torque}
@@ -212,11 +214,12 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
         for p in procs:
             _end(p)
     results = [s.result() for s in services]
-    with np.load(out_file) as z:
-        log = {k: z[k] for k in z.files}
     extra = {"unmapped_nonzero": unmapped}
-    if program is not None:
-        extra["plc_program"] = program.summary(log["dialled"])
+    if program is None:
+        log = RobotLog.load(out_file)
+    else:
+        log = PlcLog.load(out_file)
+        extra["plc_program"] = program.summary(log.dialled)
     return PassResult(log, [r[0] for r in results], "\n".join(r[1] for r in results), compensate, extra)
 
 
@@ -229,10 +232,12 @@ def pass_program(cfg, plc_program: Path | None, folder: Path) -> PlcProgram:
 
 def shipped_robot_section(interface: str) -> dict:
     """The ``robot.<interface>`` sub-section of the shipped config/robot_<interface>.yaml: the HIL's virtual robot
-    is set up as the shipped robot side is (EGM: path mode at 48 ms)."""
+    is set up as the shipped robot side is (EGM: path mode at 48 ms). An interface without a shipped config: its
+    model's defaults, which its declaration makes the robot side's it ships."""
     from stiffness.files.yaml_syntax import read_yaml
 
-    return dict(read_yaml(ROOT / "config" / f"robot_{interface}.yaml")["robot"][interface])
+    shipped = ROOT / "config" / f"robot_{interface}.yaml"
+    return dict(read_yaml(shipped)["robot"][interface]) if shipped.exists() else {}
 
 
 def probe_unmapped(port: int, rmap: RegisterMap) -> list[str]:

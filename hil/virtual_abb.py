@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from plc_interface.robot import egm
-from plc_interface.robot.packets import PacketError
+from robot_road import egm
+from robot_road.packets import PacketError
 
 from .virtual_robot import CLOCK0_MS, Delayed, RobotController, joints_for
 
@@ -44,8 +44,8 @@ class AbbController(RobotController):
 
     def __init__(self, settings, robot, delay_s: float = 0.0, kp: float = KP, bandwidth_hz: float = BANDWIDTH_HZ):
         super().__init__(settings, robot, delay_s)
-        self.mode = settings.abb_egm.mode
-        self.every = max(1, round(settings.abb_egm.cycle_ms / 1000.0 / IPO_S))
+        self.mode = settings.section.mode
+        self.every = max(1, round(settings.section.cycle_ms / 1000.0 / IPO_S))
         self.kp = float(kp)
         self._smooth = 1.0 - math.exp(-2.0 * math.pi * bandwidth_hz * IPO_S)
         self._lag = 1.0 - math.exp(-IPO_S / SERVO_LAG_S)

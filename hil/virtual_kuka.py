@@ -20,9 +20,9 @@ import math
 
 import numpy as np
 
-from plc_interface.robot import rsi
-from plc_interface.robot.packets import PacketError
-from plc_interface.robot.tcp import motion_of_rkorr
+from robot_road import rsi
+from robot_road.packets import PacketError
+from robot_road.tcp import motion_of_rkorr
 
 from .virtual_robot import CLOCK0_MS, Delayed, RobotController, joints_for
 
@@ -42,7 +42,7 @@ class KukaController(RobotController):
     def __init__(self, settings, robot, delay_s: float = 0.0, aspos_holds_correction: bool = False,
                  extra: dict[str, int] | None = None):
         super().__init__(settings, robot, delay_s)
-        self.k = settings.kuka_rsi
+        self.k = settings.section
         self.period = self.k.cycle_ms / 1000.0
         self.aspos_holds = aspos_holds_correction
         self.extra = dict(extra or {})

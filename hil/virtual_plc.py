@@ -23,11 +23,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from plc_interface.deadlines import Deadlines
-from plc_interface.register_map import RegisterMap
+from io_base.deadlines import Deadlines
+from plc_link.register_map import RegisterMap
 from st_runtime import f32
 
 from .cell_network import CellNetwork
+from .device_log import PlcLog
 from .plc_program import PlcProgram
 
 
@@ -44,10 +45,6 @@ class CycleLog:
         self.to_plc = np.full((n, n_out), np.nan)
         self.k = 0
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        k = self.k
-        return {"t": self.t[:k], "t_read": self.t_read[:k], "link": self.link[:k], "q_ref": self.q_ref[:k],
-                "q_cmd": self.q_cmd[:k], "applied": self.applied[:k], "to_plc": self.to_plc[:k]}
 
 
 class VirtualPlc:
@@ -115,9 +112,18 @@ class VirtualPlc:
             lg.to_plc[k] = self.out_codec.decode(list(self._words.unpack(raw)))
         lg.k += 1
 
-    def run(self, t_start: float, t_end: float, t0: float, clock: Callable[[], float] = time.monotonic) -> CycleLog:
+    def device_log(self, t0: float) -> PlcLog:
+        """The cycles logged so far, with what the network saw (the addresses written, the failed requests, what
+        was dialled) and the overruns; ``t0``: the clock time of program time 0."""
+        lg, net = self.log, self.network
+        k = lg.k
+        return PlcLog(t=lg.t[:k], q_ref=lg.q_ref[:k], q_cmd=lg.q_cmd[:k], applied=lg.applied[:k], period=self.period,
+                      t0=t0, overruns=self.overruns, t_read=lg.t_read[:k], link=lg.link[:k], to_plc=lg.to_plc[:k],
+                      written=np.array(sorted(net.written)), errors=net.errors, dialled=np.array(sorted(net.dialled)))
+
+    def run(self, t_start: float, t_end: float, t0: float, clock: Callable[[], float] = time.monotonic) -> PlcLog:
         """Run cycles on absolute deadlines (`Deadlines`, the project's one catch-up rule) from program time
-        ``t_start`` to ``t_end``; program time t = clock() - t0. Returns the cycle log.
+        ``t_start`` to ``t_end``; program time t = clock() - t0. Returns the PLC's log (`device_log`).
 
         Each cycle runs, and is logged, at the program time it starts, not at its deadline: after an overrun the
         catch-up rule starts the next cycle at once on a deadline up to a period past, and stamped with that
@@ -130,4 +136,4 @@ class VirtualPlc:
             self.cycle(now - t0)
             deadlines.advance(clock())
             self.overruns = deadlines.exceeded
-        return self.log
+        return self.device_log(t0)

@@ -4,7 +4,7 @@ The robot is the clock. The controller interpolates on its own cycle (`RobotCont
 ms, EGM's 4 ms), sends its packet to the sensor (the service's robot road) every `RobotController.every`
 cycles (EGM path corrections: every 48 ms) and takes the answer that arrives within the cycle. What each
 interface's packets hold and what its answers do is the interface's own module, written from its maker's
-manual or a real recording, as the road's is (`plc_interface.robot.interface`):
+manual or a real recording, as the road's is (`robot_road.interface`):
 
 * `hil.virtual_kuka.KukaController`: KUKA RSI as a real KR C4 behaves;
 * `hil.virtual_abb.AbbController`: ABB EGM as ABB's EGM manual defines it.
@@ -16,7 +16,6 @@ sends no more packets and holds its last position, and `VirtualRobot.stopped_at`
 
 from __future__ import annotations
 
-import importlib
 import socket
 import struct
 import time
@@ -24,23 +23,22 @@ from collections import deque
 
 import numpy as np
 
-from plc_interface.deadlines import Deadlines
-from plc_interface.robot.settings import RobotSettings
-from plc_interface.robot.tcp import TcpJacobian
+from io_base.deadlines import Deadlines
+from robot_road import registry
+from robot_road.settings import RobotSettings
+from robot_road.tcp import TcpJacobian
 from stiffness.kinematics.spatial import damped_pinv_solve
 
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)    # Linux's number where Python does not name it
 CLOCK0_MS = 1_000_000      # the controller's clock (ms) at program time 0: a stamp never below zero
 TIMEOUT_COUNT = 100        # late answers in a row before the robot stops (the HIL's: a loaded host's stalls)
 
-# interface name -> "module:class" of its virtual controller (the road's registry's twin)
-CONTROLLERS = {"kuka_rsi": "hil.virtual_kuka:KukaController", "abb_egm": "hil.virtual_abb:AbbController"}
 
 
 def controller_for(settings: RobotSettings, robot, **options) -> RobotController:
-    """The virtual controller of ``settings.interface``, from the registry."""
-    module, cls = CONTROLLERS[settings.interface].split(":")
-    return getattr(importlib.import_module(module), cls)(settings, robot, **options)
+    """The virtual controller of ``settings.interface``, as the interface's declaration names it
+    (`robot_road.registry`)."""
+    return registry.load(settings.declaration.controller)(settings, robot, **options)
 
 
 def joints_for(jacobian: TcpJacobian, q_deg, target, rows: slice = slice(0, 6)) -> np.ndarray:
@@ -81,7 +79,7 @@ class RobotController:
     every = 1                   # a packet every this many cycles
 
     def __init__(self, settings: RobotSettings, robot, delay_s: float = 0.0):
-        self.s, self.robot = settings, robot
+        self.settings, self.robot = settings, robot
         self.jacobian = TcpJacobian(robot) if settings.cartesian else None
         self.delay_s = float(delay_s)
         self.stamp = 0
@@ -126,7 +124,7 @@ class VirtualRobot:
 
     def __init__(self, controller: RobotController, host: str, port: int, reference,
                  timeout_count: int = TIMEOUT_COUNT):
-        self.c = controller
+        self.controller = controller
         self.address = (host, port)
         self.reference = reference
         self.timeout_count = int(timeout_count)
@@ -158,7 +156,7 @@ class VirtualRobot:
         answer's arrival as the kernel stamped it (SO_TIMESTAMPNS), so a robot process that the host runs late
         neither lengthens it nor takes a late answer for one in time."""
         self._drain()
-        packet = self.c.packet(t if stamp_t is None else stamp_t, q_ref)
+        packet = self.controller.packet(t if stamp_t is None else stamp_t, q_ref)
         wall_by = time.time_ns() + int(1e9 * (answer_by - clock()))
         t_send = time.time_ns()
         self.sock.sendto(packet, self.address)
@@ -171,10 +169,10 @@ class VirtualRobot:
             except OSError:                         # ICMP unreachable: the service is not there (yet)
                 break
             t_got = arrival_ns(anc)
-            if t_got <= wall_by and self.c.take(data, t, q_ref):
+            if t_got <= wall_by and self.controller.take(data, t, q_ref):
                 self.in_a_row = 0
                 return True, (t_got - t_send) / 1e9
-        self.c.late += 1
+        self.controller.late += 1
         self.in_a_row += 1
         if self.in_a_row >= self.timeout_count and self.stopped_at is None:
             self.stopped_at = t
@@ -182,10 +180,11 @@ class VirtualRobot:
 
 
 class Cycles:
-    """Per interpolation cycle of a virtual robot's run, preallocated: the program time and its deadline, the
-    programmed and commanded joints and the correction applied; per packet (``sent``) its stamp, whether its
-    answer came in its cycle, the answer's values, the round trip (s), the path frame (EGM path) and how late
-    the packet left after its deadline (the robot's own lateness)."""
+    """Per interpolation cycle of a virtual robot's run, preallocated (`run_cycles` fills every row): the program
+    time and its deadline, the programmed and commanded joints and the correction applied; per packet (``sent``)
+    its stamp, whether its answer came in its cycle, the answer's values, the round trip (s), the path frame (EGM
+    path) and how late the packet left after its deadline (the robot's own lateness); for the run the deadlines
+    it exceeded (``overruns``)."""
 
     def __init__(self, n: int):
         self.t, self.due, self.sent_unix = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
@@ -194,17 +193,14 @@ class Cycles:
         self.stamp = np.zeros(n, dtype=np.int64)
         self.answer, self.frames = np.full((n, 6), np.nan), np.full((n, 3, 3), np.nan)
         self.rtt_s, self.send_lag_s = np.full(n, np.nan), np.zeros(n)
-        self.k = 0
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return {name: v[:self.k] for name, v in vars(self).items() if isinstance(v, np.ndarray)}
+        self.overruns = 0
 
 
 def run_cycles(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> Cycles:
     """The robot's cycles from program time ``t_start`` to ``t_end`` (program time = clock - ``t0``) on
     absolute deadlines: a packet every ``every`` cycles, its answer awaited until the next cycle is due. A
     robot that stopped (too many late answers) sends nothing more and holds where it stood."""
-    c = vr.c
+    c = vr.controller
     n = round((t_end - t_start) / c.period) + 1
     log = Cycles(n)
     deadlines = Deadlines(c.period, start=t0 + t_start)
@@ -214,8 +210,8 @@ def run_cycles(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> Cyc
         # the cycle runs, and is logged, when it starts: a real controller's interpolation starts on its deadline,
         # this process on a shared host may start late (the catch-up rule then runs it at once on a deadline up to
         # a period past), and a cycle stamped with its deadline would carry a correction read later than its
-        # time says (the HIL's end-to-end delay then came out short, issue 45). The packet's stamp keeps the
-        # robot's own clock, the deadline.
+        # time says, which shortens the measured end-to-end delay. The packet's stamp keeps the robot's own
+        # clock, the deadline.
         t = now - t0
         log.t[k], log.due[k] = t, deadlines.due
         log.send_lag_s[k] = now - deadlines.due
@@ -235,7 +231,6 @@ def run_cycles(vr: VirtualRobot, t_start: float, t_end: float, t0: float) -> Cyc
         else:
             log.q_cmd[k] = log.q_cmd[k - 1] if k else c.commanded(t, q_ref)
         log.applied[k] = log.q_cmd[k] - q_ref
-        log.k = k + 1
         deadlines.advance(time.monotonic())
     log.overruns = deadlines.exceeded
     return log

@@ -10,7 +10,6 @@ import sys
 
 import numpy as np
 import pytest
-from hil_lib import ROOT
 
 from hil.scenario import load_scenario
 from hil.testing import BEYOND_SPRINGS, truth_with
@@ -18,6 +17,7 @@ from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part.rows import read_against
+from testlib.hil import ROOT
 from tools.cli import main
 
 WINDOWS = {f"{w}_{k}_mm" for w in ("entry", "exit", "steady") for k in ("peak", "mean")}   # issue 26

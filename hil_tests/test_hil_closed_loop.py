@@ -9,12 +9,12 @@ is written outside the register map.
 from __future__ import annotations
 
 import numpy as np
-from hil_lib import EXAMPLES, MODELS, OUT, nothing_outside_the_map, scenario, write_model
 
 from hil.circle import run_circle
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign
+from testlib.hil import EXAMPLES, MODELS, OUT, nothing_outside_the_map, scenario, write_model
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
 
@@ -36,9 +36,9 @@ def test_exact_model_cuts_the_mean_path_error_by_90_percent(tmp_path):
     # the same force trace in both passes: the wrench the service filtered agrees between them
     u, c = res.passes["uncompensated"].log, res.passes["compensated"].log
     k = OUT.index("wrench_fx")
-    fx_u = np.interp(c["t"], u["t"], u["to_plc"][:, k])
-    cut = (c["t"] > 0.3) & (c["t"] < res.world.path.duration)
-    assert np.abs(fx_u - c["to_plc"][:, k])[cut].mean() < 0.05 * np.abs(fx_u[cut]).mean()
+    fx_u = np.interp(c.t, u.t, u.to_plc[:, k])
+    cut = (c.t > 0.3) & (c.t < res.world.path.duration)
+    assert np.abs(fx_u - c.to_plc[:, k])[cut].mean() < 0.05 * np.abs(fx_u[cut]).mean()
 
 
 def test_model_identified_from_a_simulated_campaign_cuts_it_by_75_percent(tmp_path):

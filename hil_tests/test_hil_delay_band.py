@@ -10,18 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hil_lib import ROOT, scenario
 
 from hil import report
 from hil.cell_network import ImageNetwork
 from hil.delay_band import delay_band_ms, delay_verdict, timing_with_delays
+from hil.device_log import Track
 from hil.plc_program import generate_program
 from hil.report import end_to_end_delay
 from hil.virtual_plc import VirtualPlc
 from hil.world import World
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
+from plc_link.image import ProcessImage
+from plc_link.register_map import RegisterMap
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import ROOT, scenario
 
 PERIOD = 0.004
 
@@ -60,7 +61,7 @@ def test_a_late_plc_cycle_is_stamped_when_it_ran_not_at_its_deadline(program, st
         log = plc.run(0.0, 0.2, t0, clock=clock)
     finally:
         image.close()
-    t = log.arrays()["t"]
+    t = log.t
     assert len(t) > 10 and np.array_equal(t, np.asarray(seen))
     assert np.all(np.isin(np.round(t + t0, 9), np.round(clock.readings, 9)))   # a reading of the clock, each
     due = t0 + np.floor(np.round(t / PERIOD, 6)) * PERIOD
@@ -112,11 +113,10 @@ def test_a_sparse_log_reads_the_delay_it_has_whatever_its_sampling(monkeypatch):
     aliases: it read 5.5 ms, below what the filters alone hold back."""
     sc = scenario()
     world = World(sc, StiffnessModel.from_yaml(sc.resolve(sc.truth)).robot)
-    with np.load(RSI_12MS) as z:
-        log = {k: z[k] for k in z.files}
+    log = Track.load(RSI_12MS)
     low, _ = delay_band_ms(sc, robot_interface="kuka_rsi")
-    every = [end_to_end_delay(world, {k: v[start::n] for k, v in log.items()}) for n in (1, 2, 4)
-             for start in {0, n // 2}]
+    every = [end_to_end_delay(world, Track(log.t[start::n], log.q_ref[start::n], log.q_cmd[start::n]))
+             for n in (1, 2, 4) for start in {0, n // 2}]
     assert all(low <= d * 1000.0 <= 9.0 for d in every), every          # measured 6.8-8.3 ms
     monkeypatch.setattr(report, "ALIAS_MS", 1e9)                # no interval average: the tooth period's alone
     assert low <= end_to_end_delay(world, log) * 1000.0 <= 9.0
@@ -141,8 +141,7 @@ def test_the_tooth_passing_leaves_the_delay_fit_one_minimum_which_picks_the_raw_
     lowest minimum within half a tooth period of it."""
     sc = scenario()
     world = World(sc, StiffnessModel.from_yaml(sc.resolve(sc.truth)).robot)
-    with np.load(PLC_2MS) as z:
-        log = {k: z[k] for k in z.files}
+    log = Track.load(PLC_2MS)
     band = delay_band_ms(sc)
     tooth_s = 1.0 / world.milling.f_tooth
     averaged = (np.arange(report.TOOTH_SAMPLES) + 0.5) / report.TOOTH_SAMPLES * tooth_s - tooth_s / 2
@@ -160,11 +159,11 @@ def test_a_device_that_did_not_keep_its_cycles_is_named_as_the_cause_of_a_delay_
     from hil.delay_band import device_lateness
 
     t_end, band = 4.8, delay_band_ms(scenario())
-    starved = {"t": np.arange(-0.2, t_end, 0.0046)}
-    kept = {"t": np.arange(-0.2, t_end, 0.002)}
+    starved = np.arange(-0.2, t_end, 0.0046)                   # each cycle's time
+    kept = np.arange(-0.2, t_end, 0.002)
     assert device_lateness(kept, t_end, 2.0, "PLC") is None
     cause = device_lateness(starved, t_end, 2.0, "PLC")
-    ran = int(((starved["t"] >= 0) & (starved["t"] <= t_end)).sum())
+    ran = int(((starved >= 0) & (starved <= t_end)).sum())
     assert cause.startswith(f"the virtual PLC ran {ran} of the 2400 cycles of 2 ms") and "4.6 ms apart" in cause
     calm = {"exceeded_share": 0.0, "trustworthy": True, "verdict": "the 1 ms cycle kept its deadlines"}
     t = timing_with_delays(calm, [2.5], band, cause)

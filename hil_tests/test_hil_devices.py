@@ -8,7 +8,6 @@ import time
 import can
 import numpy as np
 import pytest
-from hil_lib import EXAMPLES, scenario
 
 from hil.robot_stub import RobotStub
 from hil.sensor import HilSensor
@@ -19,6 +18,7 @@ from service.config import load_config
 from service.errors import CanFrameError, SensorTimeout
 from service.sources.can_source import CanSource
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import EXAMPLES, scenario
 
 TRUTH = StiffnessModel.from_yaml(EXAMPLES / "truth_reference.yaml")
 

@@ -7,13 +7,12 @@ holds is the models', and real time adds nothing to it but three process start-u
 
 from __future__ import annotations
 
-from hil_lib import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
-
 from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign
+from testlib.hil import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
 
 TRUTH = EXAMPLES / "truth_backlash.yaml"
 

@@ -25,7 +25,6 @@ import re
 
 import numpy as np
 import pytest
-from hil_lib import ROOT
 
 from hil.circle import run_circle
 from hil.dynamics import DynamicOptions, compare
@@ -33,6 +32,7 @@ from hil.lockstep import run_lockstep
 from hil.report import evaluate_pass
 from hil.scenario import load_scenario
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import ROOT
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 ROBUST = 0.1
@@ -110,8 +110,8 @@ def test_with_the_frequency_20_percent_off_the_robust_filter_still_gains_and_los
 
 def reversal_split(ev: dict) -> tuple[np.ndarray, np.ndarray]:
     """|error| (mm) within the reversal windows, and elsewhere on the circle."""
-    c = ev["cut"]
-    a, e = np.degrees(ev["angle"][c]), np.abs(ev["err_mm"][c])
+    c = ev.cut
+    a, e = np.degrees(ev.angle[c]), np.abs(ev.err_mm[c])
     inside = np.zeros(len(a), dtype=bool)
     for lo, hi in REVERSALS_DEG:
         inside |= (a > lo) & (a < hi)
@@ -145,11 +145,11 @@ def test_hysteresis_at_joint_1_reversals_compensated(result, tmp_path):
     inside = {}
     for name in ("compensated", "dynamic"):
         ev = res.evaluations[name]
-        mean = float(np.abs(ev["err_mm"][ev["cut"]]).mean())
+        mean = float(np.abs(ev.err_mm[ev.cut]).mean())
         inside[name] = reversal_max(ev)
         assert mean <= 0.10 * unc, (name, mean, unc)
     static = res.evaluations["compensated"]
     assert reversal_ratio(static) <= 2.0, reversal_ratio(static)
     assert inside["dynamic"] <= inside["compensated"], inside     # the dynamic path adds no glitch of its own
     springs = evaluate_pass(sc, truth, run_lockstep(sc, truth, TRUTH, True, tmp_path / "springs"))[1]
-    assert float(np.abs(springs["err_mm"][springs["cut"]]).mean()) > 3 * res.summary["mean_error_mm_static"]
+    assert float(np.abs(springs.err_mm[springs.cut]).mean()) > 3 * res.summary["mean_error_mm_static"]

@@ -17,7 +17,6 @@ the three effects moves the tool in the circle's plane.
 from __future__ import annotations
 
 import pytest
-from hil_lib import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
 
 from hil.report import evaluate_uncompensated
 from hil.robot_stub import RobotStub
@@ -29,6 +28,7 @@ from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign, CampaignSpec
+from testlib.hil import EXAMPLES, MODELS, compensated, mean_error, scenario, write_model
 
 LOW_TABLE_Q_DEG = [0.0, -45.0, 100.0, 0.0, 35.0, 0.0]     # tool down, TCP 0.55 m below joint 2
 

@@ -17,7 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hil_lib import (
+
+from hil.cell_network import PlcFaults
+from plc_link.contract import Fault, Status
+from testlib.hil import (
     EXAMPLES,
     Faults,
     compensated,
@@ -28,9 +31,6 @@ from hil_lib import (
     value,
 )
 
-from hil.cell_network import PlcFaults
-from plc_interface.contract import Fault, Status
-
 TRUTH = EXAMPLES / "truth_reference.yaml"
 T_FAULT = 1.5                       # s after the cut started
 FEED = 30.0                         # mm/s: a 7.3 s circle leaves room for the fault and the recovery
@@ -38,17 +38,17 @@ RESTART_FEED = 10.0                 # mm/s: 22 s, room for a new service's start
 
 
 def at(r, t_from, t_to=np.inf):
-    t = r.log["t"]
+    t = r.log.t
     return (t >= t_from) & (t < t_to)
 
 
 def read_before(r, t_fault: float) -> np.ndarray:
     """The PLC cycles whose read completed before the fault was injected at ``t_fault`` (s after the start)."""
-    return r.log["t_read"] - float(r.log["t0"]) < t_fault
+    return r.log.t_read - r.log.t0 < t_fault
 
 
 def assert_working_before_the_fault(r):
-    m = at(r, 0.3, T_FAULT) & read_before(r, T_FAULT) & r.log["link"]
+    m = at(r, 0.3, T_FAULT) & read_before(r, T_FAULT) & r.log.link
     assert m.sum() > 50
     assert (value(r, "fault_word")[m] == 0).all()
     assert ((value(r, "status_word")[m].astype(int) & Status.ACTIVE) != 0).all()
@@ -58,7 +58,7 @@ def assert_service_safe(r, fault: str):
     """From the cycle the fault is first seen: latched, faulted, not active; the correction ramps to zero
     without growing and stays there; the robot ends on its references. No deadline: a loaded host may
     delay the trip, never the order of the states."""
-    t, link = r.log["t"], r.log["link"]
+    t, link = r.log.t, r.log.link
     bit = int(Fault.from_kind(fault))
     fw = np.nan_to_num(value(r, "fault_word")).astype(int)
     tripped = np.flatnonzero((t >= T_FAULT) & link & (fw & bit != 0))
@@ -74,7 +74,7 @@ def assert_service_safe(r, fault: str):
     assert len(zero), "the correction never reached zero"
     assert (c[zero[0]:] == 0.0).all()
     assert len(c) - zero[0] > 20                             # held at zero, not just touched
-    assert np.abs(r.log["q_cmd"][m][-20:] - r.log["q_ref"][m][-20:]).max() < 1e-9
+    assert np.abs(r.log.q_cmd[m][-20:] - r.log.q_ref[m][-20:]).max() < 1e-9
 
 
 def run(tmp_path, faults, feed: float = FEED):
@@ -100,15 +100,15 @@ def assert_recovers(r, ev, lost_from: float, lost_to: float):
     """No correction while the link is lost; active again after, with the path error back down."""
     lost = at(r, lost_from, lost_to)
     assert lost.sum() > 20
-    assert np.abs(r.log["applied"][lost]).max() == 0.0
-    assert np.abs(r.log["q_cmd"][lost] - r.log["q_ref"][lost]).max() < 1e-9
+    assert np.abs(r.log.applied[lost]).max() == 0.0
+    assert np.abs(r.log.q_cmd[lost] - r.log.q_ref[lost]).max() < 1e-9
     st = np.nan_to_num(value(r, "status_word")).astype(int)
-    back = np.flatnonzero(at(r, lost_to) & r.log["link"] & (st & Status.ACTIVE != 0) & (value(r, "fault_word") == 0))
+    back = np.flatnonzero(at(r, lost_to) & r.log.link & (st & Status.ACTIVE != 0) & (value(r, "fault_word") == 0))
     assert len(back), "the compensation never resumed"
-    t_back = r.log["t"][back[0]]
-    resumed = at(r, t_back + 0.5, ev["t"][ev["cut"]].max())
+    t_back = r.log.t[back[0]]
+    resumed = at(r, t_back + 0.5, ev.t[ev.cut].max())
     assert resumed.sum() > 100, f"resumed only at t = {t_back:.2f} s"
-    assert r.log["link"][resumed].all()
+    assert r.log.link[resumed].all()
     assert (value(r, "fault_word")[resumed] == 0).all()
     assert mean_error(ev, t_back + 0.5) < 0.3 * mean_error(ev, lost_from, lost_to)
 
@@ -119,7 +119,7 @@ def test_modbus_client_drops_and_reconnects(tmp_path):
     assert_working_before_the_fault(r)
     # the answer to the request sent before the drop is taken in the first cycle after it (the blocks end a
     # request at the call after the one that sent it): from the next, no link
-    assert not r.log["link"][at(r, T_FAULT + 2 * float(r.log["period"]), T_FAULT + drop)].any()
+    assert not r.log.link[at(r, T_FAULT + 2 * r.log.period, T_FAULT + drop)].any()
     assert "fault plc_heartbeat" in r.service_log and "faults reset by the PLC" in r.service_log
     assert_recovers(r, ev, T_FAULT + 0.15, T_FAULT + drop)
 
@@ -129,7 +129,7 @@ def test_service_restarted_mid_run(tmp_path):
     assert_working_before_the_fault(r)
     assert len(r.stats) == 2 and all(s["status"] == "stopped" for s in r.stats)
     assert r.service_log.count("service running") == 2
-    t, link = r.log["t"], r.log["link"]
+    t, link = r.log.t, r.log.link
     lost = np.flatnonzero((t >= T_FAULT) & ~link)
     assert len(lost), "the PLC never lost the stopped service"
     t_lost = t[lost[0]]

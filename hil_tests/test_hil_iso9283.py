@@ -8,10 +8,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from hil_lib import scenario
 
 from hil.circle import run_circle
 from hil.iso9283 import circle_figures, cut_by_angle, in_planes, path_figures
+from hil.report import Evaluation
+from testlib.hil import scenario
 
 # four attained paths about a barycentre line shifted by MEAN from the commanded one; each path's own offset
 # from the barycentre line: two 0.01 mm along x, two 0.02 mm along y (they sum to zero)
@@ -41,13 +42,21 @@ def test_shifted_copies_of_a_path_give_the_figures_worked_by_hand():
     assert one.accuracy == pytest.approx(np.linalg.norm(k[:, None] * MEAN + s[:, None] * SPREAD[0], axis=1).max())
 
 
-def _evaluation(radial_mm: float, axial_mm: float, t: np.ndarray, center: np.ndarray, radius: float) -> dict:
+def _cut(t: np.ndarray, p: np.ndarray, phi: np.ndarray) -> Evaluation:
+    """An evaluation of a cut at times ``t`` through the points ``p`` (m) at angles ``phi`` (rad), every cycle
+    of the cut; its radial error and force are not read here (zero)."""
+    n = len(t)
+    return Evaluation(t=t, p=p, angle=phi % (2 * np.pi), err_mm=np.zeros(n), cut=np.ones(n, dtype=bool),
+                      force=np.zeros((n, 3)))
+
+
+def _evaluation(radial_mm: float, axial_mm: float, t: np.ndarray, center: np.ndarray, radius: float) -> Evaluation:
     """A cut of the circle (m, like `hil.report.evaluate`'s) sampled at times ``t`` over one turn, its path
     ``radial_mm`` outside the commanded circle and ``axial_mm`` above it."""
     phi = 2 * np.pi * t / t[-1]
     r = radius + radial_mm / 1000.0
     p = center + np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(len(t), axial_mm / 1000.0)])
-    return {"t": t, "p": p, "angle": phi % (2 * np.pi), "cut": np.ones(len(t), dtype=bool)}
+    return _cut(t, p, phi)
 
 
 def test_a_circle_cut_twice_is_read_where_each_cut_crosses_the_normal_planes():
@@ -89,7 +98,7 @@ def test_the_worst_points_are_given_as_the_angles_a_user_reads():
         phi = np.linspace(start, 2 * np.pi, 20_000)
         r = radius + (0.02 + 0.05 * bump(phi, 200.0) + (-1) ** k * 0.03 * bump(phi, 120.0)) / 1000.0
         p = center + np.column_stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(phi)])
-        cuts.append({"t": phi - start, "p": p, "angle": phi % (2 * np.pi), "cut": np.ones(len(phi), dtype=bool)})
+        cuts.append(_cut(phi - start, p, phi))
     f = circle_figures(path, cuts, 720)
     assert f.worst_accuracy_at == pytest.approx(200.0, abs=0.5)
     assert f.worst_repeatability_at == pytest.approx(120.0, abs=0.5)
@@ -115,11 +124,11 @@ def test_in_lock_step_the_repeats_are_one_path(lockstep_twice):
     phi = np.linspace(0.0, 2 * np.pi, len(res.world.path.phi) - 1, endpoint=False)
     for name, suffix in (("compensated", ""), ("uncompensated", "_uncompensated")):
         ev = res.evaluations[name]
-        cut = ev["cut"]
-        order = np.argsort(ev["t"][cut])
+        cut = ev.cut
+        order = np.argsort(ev.t[cut])
         angle = cut_by_angle(ev)[0]
-        radial = ev["err_mm"][cut][order]
-        axial = (ev["p"][cut][order, 2] - res.world.path.center[2]) * 1000.0
+        radial = ev.err_mm[cut][order]
+        axial = (ev.p[cut][order, 2] - res.world.path.center[2]) * 1000.0
         at_planes = np.hypot(np.interp(phi, angle, radial), np.interp(phi, angle, axial)).max()
         every_cycle = np.hypot(radial, axial).max()
         assert s["path_repeatability_mm" + suffix] == 0.0

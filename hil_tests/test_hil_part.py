@@ -13,7 +13,6 @@ import json
 
 import numpy as np
 import pytest
-from hil_lib import ROOT
 
 from hil.circle import cut
 from hil.scenario import load_scenario
@@ -25,6 +24,7 @@ from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part.diagnose import diagnose_parts
 from stiffness.part.learn import learn
 from stiffness.part.rows import read_against
+from testlib.hil import ROOT
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -9,12 +9,12 @@ import json
 import math
 
 import pytest
-from hil_lib import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hil.circle import cut
 from hil.scenario import load_scenario
+from testlib.hil import ROOT
 from tools.cli import main
 
 BUILT = ROOT / "examples" / "truth_geometric_errors.yaml"

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hil_lib import ROOT
 
 from hil.circle import cut, run_circle
 from hil.scenario import load_scenario
@@ -23,6 +22,7 @@ from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part.learn import learn
 from stiffness.part.rows import read_against
+from testlib.hil import ROOT
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 
@@ -39,7 +39,7 @@ def test_the_circle_and_the_part_loop_through_the_robot_road(tmp_path, interface
     assert s["cycles"] > 1000 and 0.0 < s["reply_latency_p99_ms"] <= 4.0, s       # answered within the cycle
     # the virtual robot runs below the service, so a loaded host makes it late now and then; it never stopped
     log = res.passes["compensated"].log
-    assert 0 <= s["late_answers"] < len(log["t"]) and np.isnan(log["stopped_at"]), s
+    assert 0 <= s["late_answers"] < len(log.t) and np.isnan(log.stopped_at), s
     sample_ms = 48.0 if interface == "abb_egm" else 0.0
     assert s["delay_ms"] is not None and 0.0 < s["delay_ms"] < 30.0 + sample_ms, s
     low, high = s["delay_band_ms"]             # issue 45, item 5: the road's delay in its band, or the run says so

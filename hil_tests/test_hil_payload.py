@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hil_lib import EXAMPLES, OUT, ROOT, scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -25,6 +24,7 @@ from hil.report import evaluate_pass
 from hil.world import World
 from service.gravity import PAYLOAD_BODIES, GravityCompensator, GravityConfig
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import EXAMPLES, OUT, ROOT, scenario
 
 TRUTH = EXAMPLES / "truth_reference.yaml"
 FEED = 60.0                      # mm/s: a 3.7 s circle
@@ -98,16 +98,16 @@ def test_a_wrong_gravity_config_shows_in_the_closed_loop(tmp_path):
     ev_right, ev_wrong = (evaluate_pass(sc, truth, r)[1] for r in (right, wrong))
     missing = 6.0 * np.array(sc.payload.g_mps2)                      # base axes, N
     for r, expected in ((right, np.zeros(3)), (wrong, missing)):
-        t = r.log["t"]
-        hold = (t < -0.02) & r.log["link"]          # before the cut: no process force, only the payload
+        t = r.log.t
+        hold = (t < -0.02) & r.log.link          # before the cut: no process force, only the payload
         assert hold.sum() >= 10
-        f = r.log["to_plc"][hold][:, [OUT.index(f"wrench_f{a}") for a in "xyz"]]
+        f = r.log.to_plc[hold][:, [OUT.index(f"wrench_f{a}") for a in "xyz"]]
         np.testing.assert_allclose(f.mean(0), expected, atol=2.0)
     assert slow_error(ev_wrong) > 3.0 * slow_error(ev_right), (slow_error(ev_wrong), slow_error(ev_right))
 
 
 def slow_error(ev: dict, span_s: float = 0.2) -> float:
     """Mean |path error| over the cut after a moving average over ``span_s`` (mm)."""
-    t, e = ev["t"][ev["cut"]], ev["err_mm"][ev["cut"]]
+    t, e = ev.t[ev.cut], ev.err_mm[ev.cut]
     n = max(round(span_s / np.median(np.diff(t))), 1)
     return float(np.abs(np.convolve(e, np.ones(n) / n, "same")[n:-n]).mean())

@@ -12,16 +12,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hil_lib import ROOT, scenario
 
 from hil.cell_network import ImageNetwork, PlcFaults
 from hil.circle import run_circle
 from hil.errors import HilError
 from hil.plc_program import PlcProgram, generate_program
 from hil.virtual_plc import VirtualPlc
-from plc_interface.contract import Command, Fault, Status, to_plc
-from plc_interface.image import ProcessImage
-from plc_interface.register_map import RegisterMap
+from plc_link.contract import Command, Fault, Status, to_plc
+from plc_link.image import ProcessImage
+from plc_link.register_map import RegisterMap
+from testlib.hil import ROOT, scenario
 
 RMAP = RegisterMap.from_yaml(ROOT / "config" / "registers.yaml")
 Q_REF = [10.0, -60.0, 90.0, 0.0, 60.0, 0.0]
@@ -210,7 +210,7 @@ def test_in_real_time_an_edited_main_cuts_uncompensated_and_the_summary_names_it
     edited = uncorrected(program.folder, tmp_path / "edited")
     res = run_circle(scenario(60.0), workdir=tmp_path / "rt", plc_program=edited)
     s, log = res.summary, res.passes["compensated"].log
-    assert np.abs(log["q_cmd"] - log["q_ref"]).max() == 0.0          # no correction reached an axis, any cycle
+    assert np.abs(log.q_cmd - log.q_ref).max() == 0.0          # no correction reached an axis, any cycle
     # the path error is the uncompensated pass's but for real time's jitter (2.5 % apart with both cores busy)
     assert s["mean_error_mm"] == pytest.approx(s["mean_error_mm_uncompensated"], rel=0.05)
     assert s["plc_program"]["files"]["MAIN.TcPOU"] != program.summary()["files"]["MAIN.TcPOU"]
@@ -219,15 +219,15 @@ def test_in_real_time_an_edited_main_cuts_uncompensated_and_the_summary_names_it
 
 def test_the_committed_library_with_its_ads_main_cuts_compensated_in_lock_step(tmp_path):
     """plc/ as the cell loads it (MAIN calls FB_StiffComp: ADSREAD and ADSWRITE against the service's %MB area)."""
-    s = run_circle(scenario(60.0), lockstep=True, workdir=tmp_path, plc_program=ROOT / "plc").summary
+    s = run_circle(scenario(60.0), lockstep=True, workdir=tmp_path, plc_program=ROOT / "cell" / "plc" / "generated").summary
     assert s["mean_error_mm"] < 0.1 * s["mean_error_mm_uncompensated"], s
-    assert s["plc_program"]["folder"] == str(ROOT / "plc" / "twincat")
+    assert s["plc_program"]["folder"] == str(ROOT / "cell" / "plc" / "generated" / "twincat")
     assert s["plc_program"]["dialled"] == ["ADS 127.0.0.1.1.1 port 851"], s["plc_program"]
 
 
 @pytest.mark.realtime
 def test_in_real_time_the_committed_library_reaches_the_service_over_ads(tmp_path):
     """The same through the processes: the program's ADS requests go to the service's ADS server over AMS/TCP."""
-    s = run_circle(scenario(60.0), workdir=tmp_path, plc_program=ROOT / "plc").summary
+    s = run_circle(scenario(60.0), workdir=tmp_path, plc_program=ROOT / "cell" / "plc" / "generated").summary
     assert s["mean_error_mm"] < 0.1 * s["mean_error_mm_uncompensated"], s
     assert s["plc_program"]["dialled"] == ["ADS 127.0.0.1.1.1 port 851"], s["plc_program"]

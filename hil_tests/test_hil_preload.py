@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hil_lib import scenario
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -37,6 +36,7 @@ from hil.robot_stub import RobotStub
 from hil.testing import truth_with
 from service.gravity import PAYLOAD_BODIES, GravityConfig
 from stiffness.kinematics.statics import Statics
+from testlib.hil import scenario
 
 
 @settings(max_examples=60, deadline=None)

@@ -14,11 +14,11 @@ from __future__ import annotations
 import json
 
 import pytest
-from hil_lib import ROOT
 
 from hil.circle import cut
 from hil.scenario import load_scenario
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import ROOT
 from tools.cli import main
 
 BUILT = ROOT / "examples" / "truth_geometric_errors.yaml"
@@ -96,7 +96,7 @@ def _rsi_cut(model, folder, trace=None, probe_log=None) -> dict:
             probe_log=probe_log)
     stats = c.result.stats[-1]
     return {"mean_mm": c.mean_error_mm, "cycles": stats.get("cycles"), "exceeded": stats.get("exceed_count"),
-            "late_answers": int(c.result.log["late"])}
+            "late_answers": c.result.log.late}
 
 
 @pytest.mark.realtime

@@ -8,13 +8,13 @@ import shutil
 
 import pytest
 import yaml
-from hil_lib import EXAMPLES, scenario
 
 from hil.run import HilError, ServiceProcess, write_service_config
 from hil.testing import CONFIG, free_port, write_config
-from plc_interface.contract import TaskState
-from plc_interface.endpoints import read_probe
+from io_process.endpoints import read_health
+from plc_link.contract import TaskState
 from service.config import load_config
+from testlib.hil import EXAMPLES, scenario
 
 
 def resolved(cfg) -> dict[str, str]:
@@ -51,7 +51,7 @@ def test_ready_when_health_says_the_task_runs_whatever_the_log_says(tmp_path):
     service = ServiceProcess(cfg, tmp_path, log_level="WARNING")
     try:
         service.wait_running()
-        assert read_probe(*service.health_at)["task_state"] == TaskState.RUN
+        assert read_health(*service.health_at)["task_state"] == TaskState.RUN
         assert "service running" not in service.log_path.read_text()
     finally:
         service.stop()

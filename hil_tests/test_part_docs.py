@@ -12,9 +12,8 @@ from __future__ import annotations
 import re
 import shlex
 
-from hil_lib import ROOT
-
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import ROOT
 from tools.cli import main
 
 PAGE = ROOT / "docs" / "part.md"

@@ -12,10 +12,10 @@ import subprocess
 import sys
 
 import numpy as np
-from hil_lib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.hil import ROOT
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 HEADING = "### Cut, measure, learn, cut again"

@@ -19,10 +19,10 @@ from hil.robot_drive import Drive, drive
 from hil.run import ServiceProcess
 from hil.testing import CONFIG, free_port, write_config
 from hil.virtual_robot import VirtualRobot, controller_for
-from plc_interface.endpoints import read_probe
-from plc_interface.robot import rsi
-from plc_interface.robot.settings import RobotSettings
-from plc_interface.robot.tcp import TcpJacobian
+from io_process.endpoints import read_health
+from robot_road import rsi
+from robot_road.settings import RobotSettings
+from robot_road.tcp import TcpJacobian
 from service.config import load_config
 from stiffness.kinematics.robot import load_robot
 
@@ -193,7 +193,7 @@ def test_the_shipped_kuka_config_obeys_the_robots_enable_and_traces_its_joints(t
 
 
 def health(service: ServiceProcess) -> dict:
-    return read_probe(*service.health_at, timeout_s=2.0)
+    return read_health(*service.health_at, timeout_s=2.0)
 
 
 def metric(service: ServiceProcess, key: str) -> float:
@@ -246,19 +246,19 @@ def test_a_silent_robot_latches_the_fault_and_what_is_not_the_robots_changes_not
         assert np.all(again.answer[0] == 0.0) and np.nanmax(np.abs(again.answer[-10:])) > 1e-3
         until(lambda: health(service)["faults"] == [])
         bad_q = [7.75] * 6
-        stranger.sendto(rsi.robot_packet(vr.c.stamp + 4, bad_q, bad_q), ("127.0.0.1", settings.port))
+        stranger.sendto(rsi.robot_packet(vr.controller.stamp + 4, bad_q, bad_q), ("127.0.0.1", settings.port))
         until(lambda: refused(service, "peer") == 1)
         vr.sock.sendto(b"<Rob TYPE='KUKA'><IPOC>12", ("127.0.0.1", settings.port))
         until(lambda: refused(service, "malformed") == 1)
         nan_q = [float("nan"), *bad_q[1:]]
-        vr.sock.sendto(rsi.robot_packet(vr.c.stamp + 8, nan_q, nan_q), ("127.0.0.1", settings.port))
+        vr.sock.sendto(rsi.robot_packet(vr.controller.stamp + 8, nan_q, nan_q), ("127.0.0.1", settings.port))
         until(lambda: refused(service, "joints") == 1)
         for s in (stranger, vr.sock):                       # none of them was answered
             s.setblocking(False)
             with pytest.raises(BlockingIOError):
                 s.recv(4096)
             s.setblocking(True)
-        vr.c.stamp += 8
+        vr.controller.stamp += 8
         after = drive(vr, 0.3, t0, ROBOT_FIFO)
         assert after.late == 0 or after.late <= 2
     finally:

@@ -4,27 +4,28 @@ Two processes, as TwinCAT separates its real-time task from the ADS router and t
 
 * this process runs the 1 ms cycle (`CyclicTask`) and nothing else while it runs: no server, no notifier
   thread, no file or socket I/O but the sensor's non-blocking reads; log lines only on state changes;
-* the I/O process (`plc_interface.io_process.IoProcess`) serves Modbus TCP (or the Modbus client
+* the I/O process (`io_process.process.IoProcess`) serves Modbus TCP (or the Modbus client
   role), ADS and the robot road on one asyncio loop (`service.io_config`).
 
 They meet only in the shared `ProcessImage`, which neither side ever waits on. Each cycle the service
-builds the contract's `ToPlc` record by name (`plc_interface.contract.Producer`) and publishes it.
+builds the contract's `ToPlc` record by name (`plc_link.contract.Producer`) and publishes it.
 
-The two processes watch each other, so neither dies unnoticed. The main thread of this process (the caller of
-`Service.watch_io`, between its waits) notices an I/O process that died, logs it, latches ``io_process`` (the
-cycle ramps the correction to zero), and then restarts it, at most ``faults.io_restarts`` times, or fails the
-service (`failure`; `stiffcomp run` exits 1). The I/O process exits with code 1 when this one dies.
+The two processes watch each other, so neither dies unnoticed: the main thread of this process calls
+`Service.watch_io` between its waits, which restarts an I/O process that died or fails the service
+(`service.io_watch`). The I/O process exits with code 1 when this one dies.
 
 Start-up validates everything first: the config, the model (and whether the real-time predictor supports all its
-effects), the register map against the contract and the F/T source. Then the I/O process starts, then the cycle.
-With ``cycle.compiled`` the signal path is compiled (`service.kernel`: numba loads it from its disk cache, or
-compiles it the first time) in a thread that runs while the I/O process starts, so the first cycle never waits
-for a compiler; a model with no compiled form runs on the Python path (one log line).
+effects), the register map against the contract and the F/T source (`service.startup`). Then the I/O process
+starts, then the cycle. With ``cycle.compiled`` the signal path compiles in a thread meanwhile
+(`service.startup.Compiling`), so the first cycle never waits for a compiler.
+
+Each part of the service that is not the cycle has a module of its own: the I/O process's start, stop and watch
+(`service.io_watch`), the start-up's checks and compiler (`service.startup`), a reload (`service.reload`), the
+statistics it reports (`service.run_stats`).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
@@ -32,18 +33,17 @@ from pathlib import Path
 
 import numpy as np
 
-from plc_interface.contract import Fault, FromPlc, Producer, TaskState, TaskValues, ToPlc, stopped
-from plc_interface.errors import PlcError
-from plc_interface.image import ProcessImage
-from plc_interface.io_server import IoSettings
+from plc_link.contract import FromPlc, Producer, TaskState, TaskValues, ToPlc, stopped
+from plc_link.image import ProcessImage
 
 from .compensation import load_model
 from .config import ServiceConfig
 from .cycle_rules import task_row
-from .errors import ServiceConfigError
-from .io_config import io_settings
+from .io_watch import IoWatch
 from .pipeline import Cycle
+from .run_stats import log_stats, write_stats
 from .sources import make_source
+from .startup import Compiling, check_plc_values
 from .task import CyclicTask, TaskInfo
 from .trace import TraceOptions, TraceRing, TraceWriter
 from .value_vector import Values
@@ -80,26 +80,18 @@ class Service:
         # the cycle's values as one vector (`service.value_vector`): the compiled service packs its record from it
         self.values = Values(len(FromPlc._fields) + len(self.rmap.codecs["to_plc"].names))
         self.cycle = Cycle.from_config(cfg, self.model, self.values.signals)
-        dyn = self.cycle.compensator.dynamics
-        for name in (dyn.plc_values() if dyn is not None else []):
-            if name not in self.rmap.codecs["from_plc"].index:
-                raise ServiceConfigError(f"{cfg.path}: dynamics.feedforward reads {name} from the PLC, but "
-                                         f"plc.register_map = {cfg.plc.register_map} has no register {name} "
-                                         "(docs/register_map.md, \"The plan\")")
+        check_plc_values(cfg, self.cycle, self.rmap)
         self.period = cfg.cycle.period_ms / 1000.0
         self.info = TaskInfo(self.period, cfg.cycle.history)
         self.produce = Producer()
         self.produce.check(self._task_values(TaskState.INIT), self.cycle.signals())
-        self._to_plc = self.produce.indices(self.values.slots)     # TO_PLC's values in the vector
-        self._packers = None            # (image, trace) packers of the compiled service (`_compile`), None: records
+        self.to_plc_slots = self.produce.indices(self.values.slots)     # TO_PLC's values in the vector
+        self._packers = None            # (image, trace) packers of the compiled service, None: records
         self._steady = None             # its steady cycle (`service.steady`)
-        self.io = None
+        self.io_watch = IoWatch(self)
         self.task: CyclicTask | None = None
         self.failed = threading.Event()
         self.failure: str | None = None         # why the service failed, in words (--stats-json)
-        self.io_deaths: list[str] = []          # how each I/O process ended that died
-        self.io_restarts = 0
-        self.road_stats: dict | None = None     # the robot road's counts, from the last I/O process that ended
         self._closed = False
         self._stop_at: tuple[int, float] | None = None       # (last cycle, last time) of the stop ramp
         self.pending: list = []         # a prepared reload the cycle takes (pop, atomic) and swaps in (service.reload)
@@ -116,27 +108,14 @@ class Service:
         self.trace = TraceRing() if trace is not None else None
         self.record = self.produce(self._task_values(TaskState.INIT), self.cycle.signals())
         self.compile_s: float | None = None     # how long the compiled path took to be ready (s)
-        self._compiling = None
-        if cfg.cycle.compiled:
-            self._compiling = threading.Thread(target=self._compile, name="stiffcomp-compile", daemon=True)
-            self._compiling.start()
+        self._compiling = Compiling(self) if cfg.cycle.compiled else None
 
     def wait_compiled(self) -> None:
         """Until the compiled signal path is ready (or the Python path stays): before the first cycle."""
-        if self._compiling is not None:
-            self._compiling.join()              # loaded from numba's cache in well under a second
-            self._compiling = None
-
-    def _compile(self) -> None:
-        """The compiled signal path (a thread of the start-up, beside the I/O process's start)."""
-        t0 = time.perf_counter()
-        try:
-            self.cycle.compensator.compile()
-        except Exception as e:  # noqa: BLE001 - any reason (no compiled form, no numba) leaves the Python path
-            log.warning("the cycle runs on the Python path: %s", e)
-            return
-        self._packers, self._steady = self.values.compiled(self, self._to_plc)
-        self.compile_s = time.perf_counter() - t0       # `start` says it, once the I/O process serves
+        compiling, self._compiling = self._compiling, None
+        if compiling is not None:
+            compiling.join()
+            self._packers, self._steady, self.compile_s = compiling.packers, compiling.steady, compiling.seconds
 
     def _task_tuple(self, state: int) -> list[float]:
         """The task's counters of the cycle now, in `TaskValues`' order, also into the values' task part
@@ -153,7 +132,7 @@ class Service:
     def record(self) -> ToPlc:
         """The last cycle's `ToPlc` record (the compiled service builds it when asked, from `values`)."""
         if self._record is None:
-            self._record = ToPlc._make(self.values.V[self._to_plc].tolist())
+            self._record = ToPlc._make(self.values.V[self.to_plc_slots].tolist())
         return self._record
 
     @record.setter
@@ -252,13 +231,11 @@ class Service:
                 self.trace_writer = None
                 self.stop()
                 raise
-        settings = io_settings(self.cfg, self.model.robot)
-        if settings is not None:
-            try:
-                self.io = self._start_io(settings)
-            except BaseException:
-                self.stop()             # frees the image and the source (the I/O process cleaned up itself)
-                raise
+        try:
+            self.io_watch.start()
+        except BaseException:
+            self.stop()                 # frees the image and the source (the I/O process cleaned up itself)
+            raise
         self.wait_compiled()
         if self.compile_s is not None:  # said only now: a start that failed before this line says nothing ready
             log.info("compiled signal path ready in %.2f s", self.compile_s)
@@ -271,7 +248,7 @@ class Service:
         a = self.cfg.ads
         r = self.cfg.robot
         log.info("service running: %.3f ms cycle, source %s, PLC %s%s%s", self.period * 1000, self.cfg.source.type,
-                 p.role if self.io is None else p.served(),
+                 p.role if self.io_watch.process is None else p.served(),
                  f", ADS {a.host}:{a.port} ({a.net_id}:{a.ams_port})" if a.enabled else "",
                  f", robot {r.served()}" if r.enabled else "")
 
@@ -290,8 +267,7 @@ class Service:
         if self.task_state != TaskState.STOP:      # a cycle that never ran or died still leaves the stopped state
             self.record = stopped(self.record)
             self.image.publish(self.record, time.time_ns())
-        if self.io is not None:
-            self._stop_io(self.io)
+        self.io_watch.stop()
         if self.trace_writer is not None:
             self.trace_counts = self.trace_writer.stop()
         if self.trace is not None:
@@ -303,19 +279,6 @@ class Service:
         log.info("service stopped after %d cycles (status: stopped)" if task is not None else
                  "the service did not start: %d cycles ran (status: stopped)", self.info.cycle_count)
 
-    def _start_io(self, settings: IoSettings):
-        """A running I/O process serving ``settings`` on this image (it cleans up after itself on error)."""
-        from plc_interface.io_process import IoProcess
-
-        io = IoProcess(self.image, settings)
-        io.start()
-        log.info("I/O process running (pid %d)", io.pid)
-        return io
-
-    def _stop_io(self, io) -> None:
-        io.stop()
-        self.road_stats = io.final_stats.get("robot", self.road_stats)
-
     def _fail(self, reason: str) -> bool:
         """The service failed for ``reason`` (`failure`, ``--stats-json``; `stiffcomp run` exits 1)."""
         self.failure = reason
@@ -323,48 +286,14 @@ class Service:
         self.failed.set()
         return False
 
-    # -- the watch on the I/O process ------------------------------------------------------------
     def watch_io(self) -> bool:
-        """Check the I/O process (the main thread calls this between its waits); False when the service
-        must stop because it failed (`failure` says why).
-
-        An I/O process that died: one error line; ``io_process`` latched (the PLC sees it once the I/O
-        serves again; it stays until the PLC resets it); the correction ramps to zero; then a new I/O
-        process, or, beyond ``faults.io_restarts``, the failure."""
-        io = self.io
-        if io is None or self._closed or io.alive:
-            return self.failure is None
-        how = io.exit_reason
-        self.io_deaths.append(how)
-        limit = self.cfg.faults.io_restarts
-        message = f"the I/O process (pid {io.pid}) died ({how}): the PLC cannot reach the service"
-        log.error("%s; fault io_process latched, the correction ramps to zero", message)
-        self.cycle.supervisor.held = ((Fault.IO_PROCESS, message),)
-        self._wait_ramped_for_io()
-        self._stop_io(io)
-        self.io = None
-        if self.io_restarts >= limit:
-            return self._fail(f"the I/O process died ({how}) and faults.io_restarts = {limit} allows no "
-                              f"{'more ' if limit else ''}restart")
-        self.io_restarts += 1
-        log.warning("restarting the I/O process (%d of faults.io_restarts = %d)", self.io_restarts, limit)
-        try:
-            self.io = self._start_io(io_settings(self.cfg, self.model.robot))
-        except PlcError as e:
-            return self._fail(f"the I/O process died ({how}) and did not start again: {e}")
-        self.cycle.supervisor.held = ()
-        log.warning("the I/O process serves again (pid %d); fault io_process stays latched until the PLC resets "
-                    "it", self.io.pid)
-        return True
-
-    def _wait_ramped_for_io(self) -> None:
-        """Until the cycle has latched io_process and ramped the correction to zero (bounded as the stop is)."""
-        task = self.task
-        deadline = time.monotonic() + 5 * self.cfg.limits.fault_ramp_s + 1.0
-        while task is not None and task.running and time.monotonic() < deadline:
-            if int(self.record.fault_word) & Fault.IO_PROCESS and not any(self.cycle.correction):
-                return
-            time.sleep(0.005)
+        """Check the I/O process (the main thread calls this between its waits; `service.io_watch`); False
+        when the service must stop because it failed (`failure` says why)."""
+        if not self._closed:
+            why = self.io_watch.watch()
+            if why is not None:
+                return self._fail(why)
+        return self.failure is None
 
     def on_hangup(self):
         """SIGHUP (and `stiffcomp reload`): reload the config file (`service.reload.reload`; one log line,
@@ -380,21 +309,9 @@ class Service:
         return TaskState(int(self.record.task_state))
 
     def log_stats(self) -> None:
-        s = self.info.stats()
-        c = self.cycle
-        log.info("task: cycles %d, exceed %d, exec p50/p99/max %.1f/%.1f/%.1f us, jitter p99.9 %.1f us; "
-                 "faults [%s]; correction %s deg", s["cycles"], s["exceed_count"], s["exec_us"]["p50"],
-                 s["exec_us"]["p99"], s["exec_us"]["max"], s["period_jitter_us"]["p999"],
-                 ", ".join(c.faults.active()) or "none", np.array2string(np.array(c.correction), precision=4))
+        """One log line of the task's statistics (`service.run_stats.log_stats`)."""
+        log_stats(self)
 
     def write_stats(self, path: str | Path) -> dict:
-        stats = self.info.stats()
-        stats["status"] = "stopped" if self.task_state == TaskState.STOP else "running"
-        stats["failure"] = self.failure
-        stats["io_process"] = {"deaths": self.io_deaths, "restarts": self.io_restarts}
-        if self.cfg.robot.enabled:
-            stats["robot"] = self.road_stats
-        if self.trace_counts is not None:
-            stats["trace"] = {"file": str(self.trace_options.path), **self.trace_counts}
-        Path(path).write_text(json.dumps(stats, indent=2) + "\n")
-        return stats
+        """The ``--stats-json`` file (`service.run_stats.write_stats`)."""
+        return write_stats(self, path)

@@ -23,12 +23,13 @@ from types import SimpleNamespace
 
 from pydantic import Field, ValidationError
 
-from plc_interface.ads.settings import AdsSettings
-from plc_interface.endpoints import SHIPPED_CONFIG, load_register_map, resolve_path
-from plc_interface.errors import RegisterMapError
-from plc_interface.register_map import RegisterMap
-from plc_interface.robot.settings import RobotSettings
-from plc_interface.settings import MonitoringSettings, PlcSettings
+from io_process.endpoints import SHIPPED_CONFIG, load_register_map, resolve_path
+from io_process.settings import MonitoringSettings
+from plc_link.ads.settings import AdsSettings
+from plc_link.errors import RegisterMapError
+from plc_link.register_map import RegisterMap
+from plc_link.settings import PlcSettings
+from robot_road.settings import RobotSettings
 from stiffness.errors import StiffnessError, quote
 from stiffness.files.kinds import looks_like
 from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
@@ -96,7 +97,7 @@ class ServiceConfig(Strict):
         """Who writes the command word and the heartbeat, as messages name it: the PLC, or (``plc.role: none`` with
         a robot interface) the robot, whose packets are the heartbeat."""
         if self.robot.enabled and self.plc.role == "none":
-            return f"the robot ({self.robot.served().split(' on ')[0]} packets)"
+            return f"the robot ({self.robot.declaration.title} packets)"
         return "the PLC"
 
     def register_map(self) -> RegisterMap:

@@ -6,9 +6,9 @@ decides and reports is therefore computed by one function whichever way the cycl
 * `heartbeat` and `heartbeat_late`: the PLC heartbeat's bookkeeping and its timeout (the fault's message
   stays with the supervisor);
 * `safe_state`: whether the correction must ramp to zero;
-* `status_word`: the `plc_interface.contract.Status` bits of the cycle;
+* `status_word`: the `plc_link.contract.Status` bits of the cycle;
 * `sample_age_ms`: the age of the newest good sample;
-* `task_row`: the task's counters of the cycle, in `plc_interface.contract.TaskValues`' order.
+* `task_row`: the task's counters of the cycle, in `plc_link.contract.TaskValues`' order.
 
 None is NaN here (no heartbeat seen yet, no sample yet). Each function is plain numeric Python that numba
 compiles (no objects, no lists). The bits are literals (a compiled module caches them); `service.steady` checks
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-# `plc_interface.contract.Status`, and `SENSOR_FAULTS` of `Fault`
+# `plc_link.contract.Status`, and `SENSOR_FAULTS` of `Fault`
 RUNNING, ACTIVE, FAULTED, RAMPING, SENSOR_OK, PLC_SEEN, TARE_REFUSED = 0x1, 0x2, 0x4, 0x8, 0x10, 0x20, 0x80
 SENSOR_FAULTS = 0x1F
 

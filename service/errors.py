@@ -13,12 +13,12 @@ ServiceError                      base of every error the cyclic service raises 
     ├── SensorValueError          NaN, inf or a value outside the configured range
     └── CanFrameError             a malformed CAN frame (wrong length) or an unknown identifier
 
-The PLC side has its own tree in `plc_interface.errors`; the CLI catches each root.
+The I/O side has its own tree, rooted at `io_base.errors.PlcError`; the CLI catches each root.
 """
 
 from __future__ import annotations
 
-from plc_interface.contract import Fault
+from plc_link.contract import Fault
 
 
 class ServiceError(Exception):

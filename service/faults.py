@@ -1,6 +1,6 @@
 """The latched fault word and the log line of each fault.
 
-Every fault has one bit in ``fault_word`` (`plc_interface.contract.Fault`). A fault latches: it stays
+Every fault has one bit in ``fault_word`` (`plc_link.contract.Fault`). A fault latches: it stays
 set until the PLC sends a reset (rising edge of `Command.RESET`) and, if its cause is still there,
 trips again in the next cycle. Each rising edge of a bit logs one line naming the fault and its cause.
 A sensor error names its own fault (`SensorError.fault`): no table maps error types to bits.
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 
-from plc_interface.contract import Fault
+from plc_link.contract import Fault
 
 from .errors import SensorError
 

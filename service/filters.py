@@ -54,7 +54,7 @@ class SosLowPass:
         self._coef = [(float(s[0]), float(s[1]), float(s[2]), float(s[4]), float(s[5])) for s in self.sos]
         self._zi = [(float(z[0]), float(z[1])) for z in signal.sosfilt_zi(self.sos)]   # the unit step's
         self.state = self.zero_state()
-        self.y: list[float] | None = None           # the last output (None before the first sample)
+        self.last_output: list[float] | None = None     # None before the first sample
 
     @classmethod
     def design(cls, kind: str, order: int, cutoff_hz: float, rate_hz: float) -> SosLowPass:
@@ -88,9 +88,9 @@ class SosLowPass:
         The first output is then y + b0 (x - y) per section chain, x the new sample and y the last output:
         it departs from y by a fraction of the noise, not by a step. Cheap (12 products per section): it
         runs in the cycle, between two samples."""
-        if other.y is not None:
-            self.state = self.steady_state(other.y)
-            self.y = other.y
+        if other.last_output is not None:
+            self.state = self.steady_state(other.last_output)
+            self.last_output = other.last_output
 
     def step(self, x, z: list) -> tuple[list[float], list]:
         """Filter one sample ``x`` (channels,) from state ``z``; returns (y, new state).
@@ -117,7 +117,7 @@ class SosLowPass:
     def update(self, x) -> list[float]:
         """One sample with the filter's own state (the service's hot path)."""
         y, self.state = self.step(x, self.state)
-        self.y = y
+        self.last_output = y
         return y
 
 

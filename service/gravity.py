@@ -122,8 +122,8 @@ class GravityCompensator:
     """
 
     def __init__(self, mass_kg: float, cog_m: np.ndarray, bias: np.ndarray, g: np.ndarray):
-        self.g = np.asarray(g, dtype=float)
-        self._g = self.g.tolist()
+        self.g_mps2 = np.asarray(g, dtype=float)
+        self._g = self.g_mps2.tolist()
         self._offset = [0.0] * 6
         self.gp = np.zeros(13)          # [m, m c, g, bias in use]: what the compiled cycle reads (service.kernel)
         self.carry(mass_kg, (float(mass_kg) * np.asarray(cog_m, dtype=float)).tolist(), bias)

@@ -44,7 +44,7 @@ class PredictorRamp:
     def __init__(self, old: FastPredictor, new: FastPredictor, cycles: int, on_done: Callable[[], None]):
         self.old, self.new = old, new
         self.cycles = max(int(cycles), 1)
-        self.k = 0
+        self.cycles_done = 0
         self.on_done = on_done
         self._w_sensor = [0.0] * 6
 
@@ -55,7 +55,7 @@ class PredictorRamp:
     @property
     def fraction(self) -> float:
         """How far the ramp has come, 0 .. 1."""
-        return self.k / self.cycles
+        return self.cycles_done / self.cycles
 
     def kinematics(self, q_rad: np.ndarray) -> None:
         self.old.kinematics(q_rad)
@@ -77,7 +77,7 @@ class PredictorRamp:
         """The blended deflection of one cycle (call once per cycle, after `wrench_base`)."""
         d_new = self.new.deflection(w_base, dt)
         d_old = self.old.deflection(self.old.wrench_base(self._w_sensor), dt)
-        self.k = k = min(self.k + 1, self.cycles)
+        self.cycles_done = k = min(self.cycles_done + 1, self.cycles)
         if k == self.cycles:
             self.on_done()
         return d_old + (k / self.cycles) * (d_new - d_old)

@@ -4,7 +4,7 @@ section without importing the service's schemas."""
 
 from __future__ import annotations
 
-from plc_interface.endpoints import SHIPPED_CONFIG
+from io_process.endpoints import SHIPPED_CONFIG
 
 DEFAULT_CONFIG = SHIPPED_CONFIG / "default.yaml"
 

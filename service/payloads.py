@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 
-from plc_interface.contract import Fault
+from plc_link.contract import Fault
 
 from .compensation import FastPredictor
 from .faults import FaultMonitor

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from pydantic import Field
 
-from plc_interface.contract import Fault
+from plc_link.contract import Fault
 from stiffness.files.yaml_schema import Strict
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
@@ -76,7 +76,7 @@ class Compensator:
         self.predictor = predictor
         self.dynamics = dynamics
         self.feeds = dynamics is not None and bool(dynamics.plc_values())
-        predictor.carry(gravity.mass, gravity.cog, gravity.g)      # the payload in the static torque
+        predictor.carry(gravity.mass, gravity.cog, gravity.g_mps2)     # the payload in the static torque
         self.payloads = payloads or PayloadSelector.only(gravity, predictor, faults)
         self.filter = filter
         self.spikes = spikes
@@ -279,10 +279,10 @@ class Compensator:
             self.have_sample = True
             pred.reset_history()
             self.filter.update(x)
-            k.bind(self)                        # the filtered sample too (filter.y)
+            k.bind(self)                        # the filtered sample too (filter.last_output)
         else:
-            self.filter.y = k.condition(wrench)
-        self.filtered = self.filter.y
+            self.filter.last_output = k.condition(wrench)
+        self.filtered = self.filter.last_output
         if self._tare_pending:
             self._tare_pending = False
             self._tare(self.filtered)

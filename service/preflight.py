@@ -1,8 +1,9 @@
 """What `stiffcomp run --check` checks beyond the config and the files it names: what `stiffcomp run` needs of
 this machine before its first cycle, asked of the operating system now, with nothing started.
 
-* every address the I/O process would listen on (``plc.port``, ``plc.tls.port``, ``ads.port``,
-  ``monitoring.port``, ``robot.port``): an address of this machine, the port free, no two keys on one port.
+* every address the I/O process would listen on, as its own settings declare them (``plc.port``,
+  ``plc.tls.port``, ``robot.port``, ``ads.port``, ``monitoring.port``: `io_process.server.IoSettings.listeners`,
+  the list `IoServer.start` starts from): an address of this machine, the port free, no two keys on one port.
   A refusal here is what `run` refuses at its start (`StartCheckError`, exit code 2). A port in use by a
   stiffcomp service that answers on ``monitoring.port`` (an edited file checked beside the running service,
   docs/commissioning.md) is a note: it is free once that service stops;
@@ -24,11 +25,12 @@ import os
 import threading
 from dataclasses import dataclass, field
 
-from plc_interface.endpoints import read_probe
-from plc_interface.listen import bind_error, bind_problem
-from plc_interface.scheduling import hold_cpu_latency
+from io_base.listen import Listener, bind_error, bind_problem
+from io_base.scheduling import hold_cpu_latency
+from io_process.endpoints import read_health
 
 from .errors import ServiceConfigError
+from .io_config import io_listeners
 
 
 class StartCheckError(ServiceConfigError):
@@ -44,31 +46,14 @@ class Findings:
     notes: list[str] = field(default_factory=list)
 
 
-def listeners(cfg) -> list[tuple[str, str, int, str]]:
-    """(key, host, port, transport) of every address the service's I/O process would listen on."""
-    out = []
-    p = cfg.plc
-    if p.role == "server":
-        if not p.tls.enabled or p.tls.plain:
-            out.append(("plc.port", p.host, p.port, "tcp"))
-        if p.tls.enabled:
-            out.append(("plc.tls.port", p.host, p.tls.port, "tcp"))
-    if cfg.ads.enabled:
-        out.append(("ads.port", cfg.ads.host, cfg.ads.port, "tcp"))
-    if cfg.monitoring.enabled:
-        out.append(("monitoring.port", cfg.monitoring.host, cfg.monitoring.port, "tcp"))
-    if cfg.robot.enabled:
-        out.append(("robot.port", cfg.robot.host, cfg.robot.port, "udp"))
-    return out
-
-
 def check_start(cfg) -> Findings:
     """Check what `stiffcomp run` needs of this machine for ``cfg`` (a validated `ServiceConfig`); raises
     StartCheckError naming the file, every key that fails and why (one line each)."""
     found = Findings()
-    problems = _shared_ports(cfg)
+    listeners = io_listeners(cfg)
+    problems = _shared_ports(listeners)
     running = None                      # the stiffcomp service holding this config's ports, where one answers
-    for key, host, port, transport in listeners(cfg):
+    for key, host, port, transport in listeners:
         e = bind_error(host, port, transport)
         if e is None:
             found.checked.append(f"{key} {host}:{port}/{transport} free")
@@ -95,17 +80,17 @@ def _running_service(cfg) -> str | None:
         return None
     host = {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}.get(m.host, m.host)
     try:
-        read_probe(host, m.port, "live", timeout_s=0.5)
+        read_health(host, m.port, "live", timeout_s=0.5)
     except (OSError, http.client.HTTPException, ValueError):
         return None
     return f"by the stiffcomp service answering at {host}:{m.port}"
 
 
-def _shared_ports(cfg) -> list[str]:
+def _shared_ports(listeners: list[Listener]) -> list[str]:
     """Two keys of the config on one port of one transport: the second server cannot bind it."""
     seen: dict[tuple[int, str], str] = {}
     out = []
-    for key, _, port, transport in listeners(cfg):
+    for key, _, port, transport in listeners:
         if (port, transport) in seen:
             out.append(f"{key} = {port} is {seen[port, transport]} too: give each server its own port")
         seen.setdefault((port, transport), key)

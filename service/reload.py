@@ -216,7 +216,7 @@ def _stages(new: ServiceConfig, model: StiffnessModel, changes: dict, cycle, gra
     if any(k.startswith("model.") for k in changes):
         pred = FastPredictor.from_config(new.model, model, comp.dynamics)   # ModelUnsupportedError: refused
         g = comp.gravity
-        pred.carry(g.mass, g.cog, g.g)           # the payload now; the swap takes the switch's blend of then
+        pred.carry(g.mass, g.cog, g.g_mps2)      # the payload now; the swap takes the switch's blend of then
         q_prep = comp.q_rad
         pred.kinematics(q_prep)
         if comp.kernel is not None:

@@ -12,7 +12,7 @@ reads the PLC's values (the feedforward's plan, which the glue feeds). Otherwise
 the glue runs the cycle; after each cycle of the glue the mirror is exported again (`SteadyCycle.export`).
 
 A steady cycle does what the glue would do, with the same functions compiled: the PLC's block read from the
-process image and the cycle's published into it (`plc_interface.image`'s protocol: `read_newest`,
+process image and the cycle's published into it (`plc_link.image`'s protocol: `read_newest`,
 `open_buffer`, `close_buffer`, `note_timing`), the heartbeat's bookkeeping, the safe state, the status word,
 the sample's age and the task's counters (`service.cycle_rules`), the signal path (the model's compiled `cycle`, as
 the glue's compiled path calls it), and the block packed as the glue's compiled publish packs it
@@ -29,7 +29,7 @@ from time import time_ns
 
 import numpy as np
 
-from plc_interface.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, Status, TaskValues
+from plc_link.contract import COMMAND_BITS, SENSOR_FAULTS, Fault, FromPlc, Status, TaskValues
 
 from . import cycle_rules
 from .kernel import steady_cycle as ks
@@ -73,7 +73,7 @@ class SteadyCycle:
         assert HEAD_SIZE <= values.at["task"]
         self.service = service
         self.V = V = values.V
-        self.v = v = memoryview(V).cast("B").cast("d")
+        self.store = v = memoryview(V).cast("B").cast("d")
         (in_rows, in_scales), (out_rows, out_scales) = inputs, outputs
         self.T = np.ascontiguousarray(np.concatenate([in_rows, out_rows]))
         at = values.at
@@ -100,7 +100,7 @@ class SteadyCycle:
         ready = (k is not None and pk is not None and pk is comp._pk and bool(k.bound) and comp.t_prev is not None
                  and sup.overruns == 0 and sup._q_last is not None and not cyc.stopping and p.quiet
                  and not comp.feeds)            # the feedforward's plan is fed from the PLC's values by the glue
-        v, h = self.v, H
+        v, h = self.store, H
         v[h["ready"]] = ready
         image = s.image
         self.call = (pk.mod.steady, pk.F, pk.I, k.S, self.V, self.T, image.bytes, image.in_work,
@@ -123,10 +123,10 @@ class SteadyCycle:
     def run(self, t: float, reading) -> bool:
         """One steady cycle at ``t`` with this cycle's sample (or None); False when it is not steady (nothing
         changed: the glue runs it). The compiled call reads the PLC's block from the image and publishes the
-        cycle's (`plc_interface.image`'s protocol, compiled)."""
+        cycle's (`plc_link.image`'s protocol, compiled)."""
         entry, F, I, S, V, T, mem, work, ring = self.call
         s = self.service
-        v, info, comp = self.v, s.info, s.cycle.compensator
+        v, info, comp = self.store, s.info, s.cycle.compensator
         if reading is not None:
             x = comp.kernel.x_in
             x[0], x[1], x[2], x[3], x[4], x[5] = reading.wrench

@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from pydantic import Field
 
-from plc_interface.contract import COMMAND_BITS, Command, Fault
+from plc_link.contract import COMMAND_BITS, Command, Fault
 from stiffness.files.yaml_schema import Strict
 
 from .cycle_rules import heartbeat, heartbeat_late

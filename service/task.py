@@ -1,6 +1,6 @@
 """The cyclic task: absolute deadlines, TwinCAT-style task info, the statistics of a run, and stop.
 
-The loop runs on `plc_interface.deadlines.Deadlines` (the project's one schedule and its one catch-up
+The loop runs on `io_base.deadlines.Deadlines` (the project's one schedule and its one catch-up
 rule: a cycle that ends after the next deadline has exceeded, and the deadlines it skipped count as
 exceeded too). The work function receives the time (s since start) and whether the previous cycle
 exceeded.
@@ -32,8 +32,8 @@ from collections.abc import Callable
 import numpy as np
 from pydantic import Field
 
-from plc_interface.deadlines import Deadlines
-from plc_interface.scheduling import hold_cpu_latency, set_fifo
+from io_base.deadlines import Deadlines
+from io_base.scheduling import hold_cpu_latency, set_fifo
 from stiffness.files.yaml_schema import Strict
 
 log = logging.getLogger("stiffcomp.task")
@@ -150,7 +150,7 @@ class CyclicTask:
         mlockall before the first cycle (`lock_memory`; one warning where not permitted).
     cpu_latency_us : int or None
         While the task runs, hold the CPUs' idle wake-up latency within this many µs
-        (`plc_interface.scheduling.hold_cpu_latency`; one warning where not permitted); None: the kernel's.
+        (`io_base.scheduling.hold_cpu_latency`; one warning where not permitted); None: the kernel's.
     prepare : callable () -> None, optional
         Called ``lead_s`` before each deadline, between two cycles (the sensor's request: its answer is
         then read by the cycle at that deadline); right away when the last cycle ended later than that.

@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from plc_interface.image import release
-from plc_interface.io_process import describe_exit, ignore_cycle_signals, spawn_child
-from plc_interface.log_format import configure_logging, current_format
+from io_base.log_format import configure_logging, current_format
+from io_process.process import describe_exit, ignore_cycle_signals, spawn_child
+from plc_link.image import release
 from stiffness.data.trace_file import DEFAULT_KEEP, DEFAULT_MAX_MB, TraceFile, check_path
 from stiffness.errors import StiffnessError
 
@@ -83,15 +83,15 @@ class TraceRing:
         self.rows = int(rows)
         self._owner = _name is None
         self.shm = SharedMemory(name=_name, create=self._owner, size=8 * _HEADER + _ROW.size * self.rows)
-        self.h = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
+        self.header = np.ndarray((_HEADER,), dtype=np.int64, buffer=self.shm.buf)
         self.table = np.ndarray((self.rows,), dtype=ROW_DTYPE, buffer=self.shm.buf, offset=8 * _HEADER)
         if self._owner:
-            self.h[:] = 0
+            self.header[:] = 0
             self.table.view(np.uint8)[:] = 0     # every page faulted in now, at start-up, not by the cycle's first pass
         self._pack, self._buf = _ROW.pack_into, self.shm.buf
         self._bytes = np.ndarray((self.shm.size,), dtype=np.uint8, buffer=self.shm.buf)
         self._put_count = self.shm.buf[:8].cast("q")     # the cycle's own store of its count (cheaper than NumPy's)
-        self._n = int(self.h[0])
+        self._n = int(self.header[0])
         self._release = weakref.finalize(self, release, self.shm, self._owner, (self._put_count,))
 
     def __reduce__(self):
@@ -102,7 +102,7 @@ class TraceRing:
         (`service.pipeline`); never waits. The first row stamps the wall-clock time of the cycle's time 0."""
         n = self._n
         if not n:
-            self.h[_START] = time.time_ns() - int(t * 1e9)
+            self.header[_START] = time.time_ns() - int(t * 1e9)
         self._pack(self._buf, 8 * _HEADER + 96 * (n % self.rows), t, *q_deg, *sig.wrench_base, *sig.correction,
                    sig.status_word, sig.fault_word, task_state)
         self._n = n = n + 1
@@ -113,7 +113,7 @@ class TraceRing:
         the ring's bytes (a uint8 array) at ``offset``; ``t``: the cycle's time (s)."""
         n = self._n
         if not n:
-            self.h[_START] = time.time_ns() - int(t * 1e9)
+            self.header[_START] = time.time_ns() - int(t * 1e9)
         if not write(self._bytes, 8 * _HEADER + 96 * (n % self.rows)):
             raise OverflowError("a value of the trace's row is beyond float32's range")
         self._n = n = n + 1
@@ -121,7 +121,7 @@ class TraceRing:
 
     def take(self) -> np.ndarray:
         """The writer's side: a copy of the rows put since the last take (lost rows counted, not returned)."""
-        h = self.h
+        h = self.header
         start, end = int(h[1]), int(h[0])
         if end - start > self.rows:                 # already overwritten before we came
             h[2] += end - start - self.rows
@@ -130,7 +130,7 @@ class TraceRing:
         rows = self.table[idx]
         t = rows["time"][:, None]
         cycle = np.arange(start + 1, end + 1, dtype=np.float64)[:, None]          # cycle k is the k-th row put
-        out = np.concatenate([t, t + int(self.h[_START]) * 1e-9, cycle, rows["values"].astype(np.float64),
+        out = np.concatenate([t, t + int(self.header[_START]) * 1e-9, cycle, rows["values"].astype(np.float64),
                               rows["words"].astype(np.float64)], axis=1)
         now = int(h[0])
         clobbered = max(0, now - self.rows - start)      # slots the cycle wrote again while we copied
@@ -142,11 +142,11 @@ class TraceRing:
 
     @property
     def counts(self) -> dict[str, int]:
-        return {"cycles": int(self.h[0]), "written": int(self.h[3]), "lost": int(self.h[2])}
+        return {"cycles": int(self.header[0]), "written": int(self.header[3]), "lost": int(self.header[2])}
 
     def close(self) -> None:
         """Detach (the creator also frees the memory), as `ProcessImage.close`; so also when collected without."""
-        self.h = self.table = None
+        self.header = self.table = None
         self._buf = self._bytes = self._put_count = None
         self._release()
 
@@ -168,11 +168,11 @@ def _writer_main(ring: TraceRing, options: TraceOptions, log_level: int, log_for
             done = stop.wait(DRAIN_S) or os.getppid() != parent
             rows = ring.take()
             out.write(rows)
-            ring.h[3] += len(rows)
-            if int(ring.h[2]) > lost:
+            ring.header[3] += len(rows)
+            if int(ring.header[2]) > lost:
                 log.warning("trace: %d cycle(s) lost so far: the writer fell more than %d cycles behind (a slow "
-                            "disk?)", int(ring.h[2]), ring.rows)
-                lost = int(ring.h[2])
+                            "disk?)", int(ring.header[2]), ring.rows)
+                lost = int(ring.header[2])
             if done:
                 break
     finally:

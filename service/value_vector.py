@@ -4,7 +4,7 @@
 
 * head: the steady cycle's mirror of the Python objects' state, its inputs and the offsets of the parts below
   (`service.kernel.steady_cycle.HEAD`; at most `HEAD_ROOM` places);
-* task: the task's counters of the cycle (`plc_interface.contract.TaskValues`, ``task.NAME``);
+* task: the task's counters of the cycle (`plc_link.contract.TaskValues`, ``task.NAME``);
 * signals: the cycle's Signals (`service.signals.SIGNAL_SLOTS`, ``signals.NAME`` or ``signals.NAME[k]``), the
   cycle's own vector (`Cycle.vector` is this part);
 * t: the cycle's time, and inputs: the PLC's values (`FromPlc`, ``inputs.NAME``; ``q1`` .. ``q6`` too), for
@@ -22,8 +22,8 @@ from functools import partial
 
 import numpy as np
 
-from plc_interface.contract import TO_PLC, FromPlc, TaskValues
-from plc_interface.register_map import struct_fields
+from plc_link.contract import TO_PLC, FromPlc, TaskValues
+from plc_link.register_map import struct_fields
 
 from .signals import SIGNAL_SIZE, SIGNAL_SLOTS
 from .trace import ROW_SOURCES

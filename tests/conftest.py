@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.kinematics.robot import Robot
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
 
 
 @pytest.fixture(scope="session")

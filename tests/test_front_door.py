@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import re
 
-from stiffcomp_testlib import ROOT
+from testlib.common import ROOT
 
 README = ROOT / "README.md"
 BENCHMARKS = ROOT / "docs" / "benchmarks.md"

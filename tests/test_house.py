@@ -9,9 +9,10 @@ import ast
 import re
 from pathlib import Path
 
-from stiffcomp_testlib import ROOT
+from testlib.common import ROOT
 
-PACKAGES = ("stiffness", "plc_interface", "service", "tools", "hil", "cell", "st_runtime")
+PACKAGES = ("stiffness", "io_base", "plc_link", "robot_road", "io_process", "service", "tools", "hil", "cell",
+            "st_runtime", "testlib")
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 

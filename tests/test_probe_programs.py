@@ -1,4 +1,4 @@
-"""The robot-side probe programs in robot/probe/ (issue 46, item 3) are held to the plan of the HIL's virtual probe
+"""The robot-side probe programs in cell/robot/generated/probe/ (issue 46, item 3) are held to the plan of the HIL's virtual probe
 (config/hil/circle.yaml: its probe section, the circle's radius and the tool's), to the robot's tool frame the
 HIL writes (config/robots/kr125.yaml's tcp), and to the probe log format `stiffcomp part` reads.
 
@@ -15,13 +15,13 @@ import re
 import numpy as np
 import pytest
 import yaml
-from robot_testlib import krl_log, kuka_rotation, rapid_log
-from stiffcomp_testlib import ROOT
 
 from hil.scenario import load_scenario
 from stiffness.data.probe_log import HEADER, ProbeHeader, read_probe
+from testlib.common import ROOT
+from testlib.robot_logs import krl_log, kuka_rotation, rapid_log
 
-PROBE = ROOT / "robot" / "probe"
+PROBE = ROOT / "cell" / "robot" / "generated" / "probe"
 KRL_SRC, KRL_DAT, RAPID = PROBE / "StiffCompProbe.src", PROBE / "StiffCompProbe.dat", PROBE / "StiffCompProbe.modx"
 ROBOT = ROOT / "config" / "robots" / "kr125.yaml"
 REQUIRED_KEYS = {k for k, f in ProbeHeader.model_fields.items() if f.is_required()}

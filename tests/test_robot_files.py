@@ -14,12 +14,13 @@ import defusedxml.ElementTree as DET
 import pytest
 import yaml
 from pydantic import BaseModel
-from stiffcomp_testlib import ROOT
 
-from plc_interface.robot.settings import RobotSettings
+from robot_road import registry
+from robot_road.settings import RobotSettings
 from service.config import load_config
+from testlib.common import ROOT
 
-KUKA, ABB = ROOT / "robot" / "kuka_rsi", ROOT / "robot" / "abb_egm"
+KUKA, ABB = ROOT / "cell" / "robot" / "generated" / "kuka_rsi", ROOT / "cell" / "robot" / "generated" / "abb_egm"
 CONFIGS = {"kuka_rsi": ROOT / "config" / "robot_kuka_rsi.yaml", "abb_egm": ROOT / "config" / "robot_abb_egm.yaml"}
 AXES, CARTESIAN = [f"AK.A{i}" for i in range(1, 7)], [f"RKorr.{c}" for c in "XYZABC"]
 SENSOR_MODE = {4: "IPO_FAST", 12: "IPO"}
@@ -255,8 +256,14 @@ def test_the_robot_configs_load_and_differ_from_default_only_in_plc_and_robot(in
 
 
 # -- the docs ---------------------------------------------------------------------------------------------
-def leaf_defaults(model: type[BaseModel] = RobotSettings, prefix: str = "") -> dict[str, object]:
-    """Every leaf key of the ``robot`` schema (dotted below ``robot``) and its default."""
+def leaf_defaults(model: type[BaseModel] | None = None, prefix: str = "") -> dict[str, object]:
+    """Every leaf key of the ``robot`` schema (dotted below ``robot``) and its default: the section's own fields and
+    each built-in interface's sub-section (the ones the docs document)."""
+    if model is None:
+        out = leaf_defaults(RobotSettings)
+        for name in registry.BUILT_IN:
+            out |= leaf_defaults(registry.declared(name).settings, f"{name}.")
+        return out
     out = {}
     for name, field in model.model_fields.items():
         sub = field.annotation if isinstance(field.annotation, type) and issubclass(field.annotation, BaseModel) \

@@ -3,7 +3,8 @@
 import json
 
 import pytest
-from stiffcomp_testlib import ROOT, run_cli
+
+from testlib.common import ROOT, run_cli
 
 pytestmark = pytest.mark.slow
 

@@ -1,1 +1,1 @@
-"""The `stiffcomp` command line: thin wrappers over the stiffness, service and plc_interface packages."""
+"""The `stiffcomp` command line: thin wrappers over the science, the service, the I/O process and the cell's programs."""

@@ -13,13 +13,13 @@ from pymodbus.exceptions import ModbusException
 if TYPE_CHECKING:
     import ssl
 
-    from plc_interface.register_map import RegisterMap
+    from plc_link.register_map import RegisterMap
 
 
 class BlockReader:
     """The to_plc block over Modbus, decoded into values by register name; with ``sslctx``, over
     Modbus/TCP Security (pymodbus' TLS client sends no server name: build ``sslctx`` without the name
-    check, `plc_interface.tls.client_context`)."""
+    check, `io_base.tls.client_context`)."""
 
     def __init__(self, rmap: RegisterMap, host: str, port: int, timeout_s: float = 0.5,
                  sslctx: ssl.SSLContext | None = None):
@@ -63,7 +63,7 @@ class AdsReader:
             import pyads  # noqa: F401
         except ImportError:
             raise ValueError("reading over ADS needs pyads (pip install -e '.[ads]')") from None
-        from plc_interface.ads.symbols import GVL
+        from plc_link.ads.symbols import GVL
 
         self.names = rmap.codecs["to_plc"].names
         self.symbols = [f"{GVL}.{n}" for n in self.names]
@@ -76,7 +76,7 @@ class AdsReader:
         """Values by name; ConnectionError naming the address when the service does not answer."""
         import pyads
 
-        from .ads_probe import open_ads
+        from .pyads_connection import open_ads
 
         if self.conn is None:
             self.conn, why = open_ads(*self.address)

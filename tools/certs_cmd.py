@@ -15,7 +15,7 @@ import re
 import socket
 from pathlib import Path
 
-from plc_interface.errors import PlcError
+from io_base.errors import PlcError
 
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
@@ -51,7 +51,7 @@ def _client(spec: str) -> tuple[str, str]:
 def checked(args) -> tuple[Path, list[str] | None, list[tuple[str, str]]]:
     """DIR, the hosts and the clients, every option checked before anything is written; PlcError or
     ConfigError naming the option otherwise."""
-    from plc_interface.certs import CA_DAYS
+    from io_base.certs import CA_DAYS
 
     from .common import check_number
 
@@ -72,7 +72,7 @@ def checked(args) -> tuple[Path, list[str] | None, list[tuple[str, str]]]:
 
 
 def run(args) -> int:
-    from plc_interface import certs
+    from io_base import certs
 
     folder, hosts, clients = checked(args)
     folder.mkdir(parents=True, exist_ok=True)

@@ -58,7 +58,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 def user_errors() -> tuple[type[BaseException], ...]:
     """The roots of the error trees that mean bad input, reported in one line without a traceback."""
     from hil.run import HilError
-    from plc_interface.errors import PlcError
+    from io_base.errors import PlcError
     from service.errors import ServiceError
 
     return (StiffnessError, ServiceError, PlcError, HilError)

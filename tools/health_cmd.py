@@ -1,11 +1,11 @@
 """`stiffcomp health [--live | --ready]`: ask the running service (Docker HEALTHCHECK, systemd, k8s).
 
-Three questions, one verdict each (`plc_interface.health` defines them; ready implies healthy
+Three questions, one verdict each (`io_process.health` defines them; ready implies healthy
 implies live):
 
 * ``--live``: is the task alive (the cycle count rises, the I/O process answers)? The image's
   HEALTHCHECK asks this: only a dead or stuck task is worth a restart.
-* no option: ``/health`` as it always was: running, no fault, deadlines within the bound.
+* no option: ``/health``: running, no fault, deadlines within the bound.
 * ``--ready``: healthy, and the sensor fresh and the PLC's heartbeat seen: rely on the correction.
 
 It asks the service's I/O process over HTTP (``GET /health``, ``/health/live`` or ``/health/ready`` at
@@ -17,13 +17,13 @@ not (also when nothing answers), 2 when the config is bad or offers no way to as
 printed in one line.
 
 A probe runs every few seconds, so this command stays light: it reads the ``monitoring``, ``plc`` and
-``ads`` sections with the service's own schemas (`plc_interface.endpoints.read_endpoints`), so it
+``ads`` sections with the service's own schemas (`io_process.endpoints.read_endpoints`), so it
 refuses what the service refuses there, and a top-level key the service does not know, and never
 imports NumPy, scipy or the model (tests/tools/test_health_cmd.py holds its import set). A config it has
-validated, unchanged since (its bytes and the schemas' code), is not validated again: `tools.health_memo`
-keeps the monitoring address, and that probe imports neither pydantic nor pyyaml. A site config
-copied out of the container names a model and a replay inside the image, which this command never
-opens, so it works from the host as docs/deploy.md shows it.
+validated, unchanged since (its bytes and the code the validation imported), is not validated again:
+`tools.health_memo` keeps the monitoring address, and that probe imports neither pydantic nor pyyaml. A
+site config copied out of the container names a model and a replay inside the image, which this command
+never opens, so it works from the host as docs/deploy.md shows it.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from __future__ import annotations
 import sys
 import time
 
-from plc_interface.endpoints import PROBES, Endpoints, read_endpoints, read_probe
+from io_process.endpoints import PROBES, Endpoints, read_endpoints, read_health
 from service.paths import DEFAULT_CONFIG, SECTIONS
 from stiffness.errors import ConfigError
 
@@ -89,7 +89,7 @@ def check_options(args) -> None:
         return
     from pydantic import ValidationError
 
-    from plc_interface.settings import MonitoringSettings
+    from io_process.settings import MonitoringSettings
 
     try:
         MonitoringSettings.model_validate(given)
@@ -106,7 +106,7 @@ def address(host: str, port: int, args) -> tuple[str, int]:
 def check(host: str, port: int, timeout_s: float = TIMEOUT_S, probe: str = "health") -> tuple[bool, str]:
     """(passed, reason) of ``probe`` (a key of `PROBES`) over HTTP, within ``timeout_s`` in total."""
     try:
-        answer = read_probe(host, port, probe, timeout_s)
+        answer = read_health(host, port, probe, timeout_s)
     except OSError:
         return False, f"no answer from the service's I/O process at {host}:{port}"
     except ValueError as e:
@@ -146,7 +146,7 @@ def reader_for(ep: Endpoints, args):
 def probe_context(ep: Endpoints):
     """The TLS context of the probe's client certificate (``plc.tls.probe_cert``, ``probe_key``), checking
     the server against ``plc.tls.ca``; ConfigError naming the keys when the files do not load."""
-    from plc_interface.tls import client_context
+    from io_base.tls import client_context
 
     tls = ep.plc.tls
     files = {k: str(ep.resolve(getattr(tls, k))) for k in ("ca", "probe_cert", "probe_key")}
@@ -162,7 +162,7 @@ def probe_context(ep: Endpoints):
 def check_block(ep: Endpoints, reader, probe: str = "health", gap_s: float = MODBUS_GAP_S) -> tuple[bool, str]:
     """(passed, reason) of ``probe`` from two readings of the to_plc block ``gap_s`` apart by ``reader``
     (`reader_for`), judged by the I/O process's own `HealthMonitor`."""
-    from plc_interface.health import HealthMonitor
+    from io_process.health import HealthMonitor
 
     # a count that rose between the two readings is live; one that did not has stalled for gap_s
     monitor = HealthMonitor(ep.monitoring.health_max_exceed_rate, stall_s=gap_s / 2)

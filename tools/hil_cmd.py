@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 from hil.scenario import DEFAULT_SCENARIO, load_scenario
+from robot_road import registry
 from stiffness.errors import OutputError
 
 from .common import check_count, check_number, check_output_file
@@ -38,7 +39,7 @@ def register(sub) -> None:
                         "(default 1: no repeatability)")
     c.add_argument("--extra-delay-ms", type=float, default=None, metavar="MS",
                    help="the virtual PLC applies each correction this much later (the scenario's plc.extra_delay_ms)")
-    c.add_argument("--robot-interface", choices=("kuka_rsi", "abb_egm"), default=None,
+    c.add_argument("--robot-interface", choices=registry.names(), default=None,
                    help="cut through the robot road instead of the PLC: a virtual KUKA RSI or ABB EGM robot on its "
                         "own clock, set up as the shipped config/robot_<interface>.yaml (RSI at 4 ms; EGM path "
                         "correction every 48 ms), the service without a PLC (docs/robot.md)")

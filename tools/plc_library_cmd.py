@@ -11,7 +11,7 @@ from __future__ import annotations
 import ipaddress
 import sys
 
-from plc_interface.plc_library import FORMATS, Endpoint, EndpointError, generate
+from cell.plc import FORMATS, Endpoint, EndpointError, generate
 from service.config import DEFAULT_CONFIG, load_config
 
 from .common import check_output_folder, write_output

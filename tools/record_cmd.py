@@ -19,7 +19,7 @@ import numpy as np
 
 from hil.demo_log import milling_wrench
 from hil.virtual_sensor import VirtualAtiSensor
-from plc_interface.deadlines import Deadlines
+from io_base.deadlines import Deadlines
 from service.ati import AtiProtocol
 from service.config import DEFAULT_CONFIG, load_config
 from service.sources.can_source import open_bus

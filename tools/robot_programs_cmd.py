@@ -1,5 +1,5 @@
-"""`stiffcomp robot-programs -o DIR`: write the robot controllers' programs (robot/: KUKA KRL, ABB RAPID and their
-configuration files) from their plans (docs/robot.md, docs/part.md).
+"""`stiffcomp robot-programs -o DIR`: write the robot controllers' programs (those shipped in
+cell/robot/generated/: KUKA KRL, ABB RAPID and their configuration files) from their plans (docs/robot.md, docs/part.md).
 
 Each program goes through its language's writer (cell/robot/krl.py, cell/robot/rapid.py), which refuses one that
 breaks a rule of the maker's manual and names the rule and the line; the configs are read as `stiffcomp run --check`
@@ -17,7 +17,7 @@ from .common import check_output_folder, write_output
 
 
 def register(sub) -> None:
-    p = sub.add_parser("robot-programs", help="write the KUKA and ABB programs of robot/ from their plans")
+    p = sub.add_parser("robot-programs", help="write the KUKA and ABB programs of cell/robot/generated/ from their plans")
     p.add_argument("-o", "--output", required=True, help="folder to write kuka_rsi/, abb_egm/ and probe/ into")
     p.add_argument("--config", action="append", metavar="CONFIG",
                    help="a service config with a robot section, once per interface (default: "

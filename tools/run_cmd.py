@@ -17,7 +17,7 @@ import signal
 import threading
 import time
 
-from plc_interface.log_format import FORMATTERS, configure_logging
+from io_base.log_format import FORMATTERS, configure_logging
 from service.config import DEFAULT_CONFIG, load_config
 
 from .run_file import RunFile

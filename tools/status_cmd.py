@@ -30,7 +30,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
-from plc_interface.register_map import RegisterMap
+from plc_link.register_map import RegisterMap
 from service.config import DEFAULT_CONFIG, read_sections
 
 from .block_reader import AdsReader, BlockReader

@@ -20,9 +20,9 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
-from plc_interface.contract import FAULT_BITS, Fault, Status, TaskState
+from plc_link.contract import FAULT_BITS, Fault, Status, TaskState
 
-# the bits and states as the contract names them (plc_interface.contract)
+# the bits and states as the contract names them (plc_link.contract)
 STATUS_BITS = {f.bit_length() - 1: (f.name or "").lower().replace("_", " ") for f in Status}
 FAULT_NAMES = {bit: kind for kind, bit in FAULT_BITS.items()}
 TASK_STATES = {s.value: s.name for s in TaskState}

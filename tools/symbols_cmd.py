@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from plc_interface.ads import symbols_from_map
+from plc_link.ads import symbols_from_map
 from service.config import DEFAULT_CONFIG, load_config
 
 

@@ -1,4 +1,4 @@
-"""robot/abb_egm/StiffCompEgm.modx, StiffCompMoc.cfg and StiffCompUdpuc.cfg: the ABB side of the EGM road, written
+"""cell/robot/generated/abb_egm/StiffCompEgm.modx, StiffCompMoc.cfg and StiffCompUdpuc.cfg: the ABB side of the EGM road, written
 from the service config (its ``robot``, ``limits`` and ``faults`` sections) through the RAPID writer.
 
 The settings and whose word they rest on (docs/robot.md, "ABB EGM", gives the same with what each costs):
@@ -23,7 +23,7 @@ The settings and whose word they rest on (docs/robot.md, "ABB EGM", gives the sa
 
 from __future__ import annotations
 
-from plc_interface.robot.settings import RobotSettings
+from robot_road.settings import RobotSettings
 from stiffness.errors import ConfigError
 
 from .rapid import RapidWriter, rapid_num

@@ -1,4 +1,4 @@
-"""robot/probe/StiffCompProbe.src and .dat: the KUKA robot probes the contour it has cut and writes the probe log
+"""cell/robot/generated/probe/StiffCompProbe.src and .dat: the KUKA robot probes the contour it has cut and writes the probe log
 (docs/part.md, "The robot probes its own part"), written from the probe plan through the KRL writer.
 
 What the program must do, and the maker's word for it:

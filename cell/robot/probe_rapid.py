@@ -1,4 +1,4 @@
-"""robot/probe/StiffCompProbe.modx: the ABB robot probes the contour it has cut and writes the probe log
+"""cell/robot/generated/probe/StiffCompProbe.modx: the ABB robot probes the contour it has cut and writes the probe log
 (docs/part.md, "The robot probes its own part"), written from the probe plan through the RAPID writer.
 
 What the module must do, and the maker's word for it:

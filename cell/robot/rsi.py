@@ -1,5 +1,5 @@
-"""robot/kuka_rsi/StiffCompCut.src and StiffComp.xml: the KUKA side of the RSI road, written from the service
-config's ``robot`` section (plc_interface.robot.settings.RobotSettings) through the KRL writer.
+"""cell/robot/generated/kuka_rsi/StiffCompCut.src and StiffComp.xml: the KUKA side of the RSI road, written from the service
+config's ``robot`` section (robot_road.settings.RobotSettings) through the KRL writer.
 
 Which sensor mode the cut runs in is the maker's: KUKA.RobotSensorInterface (KST RSI 3.3, "RSI_ON"; RSI 4.x the
 same) gives RSI_ON a correction mode (#ABSOLUTE, #RELATIVE) and a sensor mode: ``#IPO_FAST``, 4 ms and the default,
@@ -14,7 +14,7 @@ project's machines; #IPO corrects programmed motion in any reading (docs/robot.m
 
 from __future__ import annotations
 
-from plc_interface.robot.settings import RobotSettings
+from robot_road.settings import RobotSettings
 
 from .krl import KrlWriter
 from .probe_krl import ATTRIBUTES, RULE

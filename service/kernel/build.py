@@ -28,7 +28,7 @@ from . import template
 
 KINDS = ("axial", "history", "wrench", "twist")
 # what the generated module runs (its key): these files, the glue's formulas and the process image's protocol
-COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "../cycle_rules.py", "../../plc_interface/image.py", "steady_cycle.py",
+COMPILED_FILES = ("chain.py", "signal.py", "pack.py", "../cycle_rules.py", "../../plc_link/image.py", "steady_cycle.py",
                   "template.py", "build.py")
 _HEAD = {"axial": "(tau, p)", "history": "(s, p, tau, dt)", "wrench": "(s, p, w, dt)", "twist": "(s, p, dX, dt)"}
 _MODULES: dict[str, ModuleType] = {}

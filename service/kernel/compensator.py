@@ -42,8 +42,8 @@ class CompiledSignal:
         if s.last is not None:
             self.last[:] = s.last
         self.max_step[:] = s.max_step
-        if f.y is not None:
-            self.y[:] = f.y
+        if f.last_output is not None:
+            self.y[:] = f.last_output
         n = len(f._coef)
         if n > SECTIONS:
             raise NotCompilable(f"a low-pass of {n} second-order sections (the compiled one has room for {SECTIONS})")
@@ -75,8 +75,8 @@ class CompiledSignal:
             s.last = self.last.tolist()
         s.held, s.rejected = int(self.sp[HELD]), int(self.sp[REJECTED])
         f.state = self.z.tolist()
-        if f.y is not None:                     # the filter has seen a sample: its last output
-            f.y = comp.filtered = self.y.tolist()
+        if f.last_output is not None:           # the filter has seen a sample
+            f.last_output = comp.filtered = self.y.tolist()
         lim.out, lim.safe, lim._ramp_rate = self.out.tolist(), bool(self.lim[SAFE_BEFORE]), self.ramp_rate.tolist()
         self.bound = ()
 

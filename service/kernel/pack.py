@@ -3,7 +3,7 @@
 The compiled service keeps a cycle's values in one float vector (the task's counters, `service.pipeline`'s
 Signals, the time and the joints: `service.app`), and a table says, for each field of a packed record,
 its kind, where its value lies in the vector and where its bytes go. The tables come from the owners of the
-layouts (`plc_interface.register_map.BlockCodec.fields` for the PLC's registers, `service.trace` for the
+layouts (`plc_link.register_map.BlockCodec.fields` for the PLC's registers, `service.trace` for the
 trace's row), and the bytes are what their `struct` packing writes:
 
 * ``f`` float32, ``d`` float64: IEEE, little-endian (a finite value beyond float32's range is refused, as

@@ -3,7 +3,7 @@ word, values and packed block around the model's `cycle` (the generated module's
 `take_inputs`, `admit`, then `cycle`, then `publish`; numba, no allocation).
 
 The formulas are not written here: the glue's (`service.cycle_rules`) and the process image's protocol
-(`plc_interface.image`) are compiled from the functions the Python glue and the image run. What is here is
+(`plc_link.image`) are compiled from the functions the Python glue and the image run. What is here is
 the order, and the mirror: every place is read from the service's values ``V`` at run time, and `HEAD` names
 the leading ones (the mirror of the Python objects' state, the cycle's inputs, and the places of the other
 parts and of the image's). The Signals layout and the fault and command bits are literals here, checked
@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
-from plc_interface import image
+from plc_link import image
 
 from .. import cycle_rules
 from . import pack
@@ -40,7 +40,7 @@ def _copy_bytes(dst, src):
     return copy
 
 
-# the process image's protocol on the cycle's side (`plc_interface.image`), compiled from the image's functions
+# the process image's protocol on the cycle's side (`plc_link.image`), compiled from the image's functions
 read_newest, open_buffer, close_buffer, note_timing = (njit(f) for f in (
     image.read_newest, image.open_buffer, image.close_buffer, image.note_timing))
 
@@ -59,7 +59,7 @@ HEAD = ("ready", "prev_command", "prev_hb", "hb_change_t", "plc_seen", "hb_timeo
 
 # Signals' places (`service.signals.SIGNAL_SLOTS`): the words, the five vectors, the counters
 SIG_STATUS, SIG_WORD, SIG_VECTORS, SIG_TARES, SIG_SAMPLES, SIG_AGE, SIG_PAYLOAD, SIG_RELOADS = 0, 1, 2, 32, 33, 34, 35, 36
-# `plc_interface.contract.Fault.VALUE_INVALID` and `Command`'s defined bits (the status bits: `glue`)
+# `plc_link.contract.Fault.VALUE_INVALID` and `Command`'s defined bits (the status bits: `glue`)
 VALUE_INVALID, COMMAND_BITS = 0x8, 0x7
 # the signal path's flags (`template.cycle`) and what a steady call returns above its bits
 FRESH_FLAG, GRAVITY_FLAG, SAFE_FLAG = 2, 4, 8

@@ -111,7 +111,7 @@ class ReplaySource(FtSource):
         self.loop = loop
         gaps = [b[0] - a[0] for a, b in itertools.pairwise(frames) if b[0] > a[0]]
         self.duration = frames[-1][0] + (min(gaps) if gaps else 1e-3)
-        self.k = 0
+        self.next_frame = 0
         self.offset = 0.0
         self.exhausted = False
 
@@ -126,24 +126,24 @@ class ReplaySource(FtSource):
         rel = t - (self.t_open or 0.0)
         if not self.fast and not self.exhausted:
             # the frames whose time has come (a few per cycle): one slice, unless the log ends in it
-            k, times, offset = self.k, self._times, self.offset
+            k, times, offset = self.next_frame, self._times, self.offset
             end = k
             while end < n and times[end] + offset <= rel:
                 end += 1
             if end < n:
-                self.k = end
+                self.next_frame = end
                 return self._hook[k:end]
         out: list[Frame] = []
         # at most one pass over the log per poll: a looped log that yields no sample must not hang the cycle
         while not self.exhausted and len(out) < n:
-            ts, arb, data, err = frames[self.k]
+            ts, arb, data, err = frames[self.next_frame]
             if not self.fast and ts + self.offset > rel:
                 break
             out.append((arb, data, err))
-            self.k += 1
-            if self.k == n:
+            self.next_frame += 1
+            if self.next_frame == n:
                 if self.loop:
-                    self.k = 0
+                    self.next_frame = 0
                     self.offset += self.duration
                 else:
                     self.exhausted = True

@@ -25,6 +25,7 @@ trace says the tool went only after scaling by 25.4 or 1000 is named as inches o
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,7 @@ from pydantic import Field
 
 from ..errors import DataError, Problems
 from ..files.csv_table import given_twice, peek, read_table
-from ..files.yaml_schema import Strict, format_validation_error
+from ..files.yaml_schema import Strict
 from ..kinematics.robot import PoseConfig
 
 POINT_COLS = ("x_mm", "y_mm", "z_mm")
@@ -87,7 +88,7 @@ def read_part(path: str | Path) -> PartMeasurement:
         raise DataError(f"{path}: part file not found")
     problems = Problems()
     table = read_table(path, problems, "point,x_mm,y_mm,z_mm")
-    header = _header(path, table)
+    header = table.header(path, PartHeader, "tool_radius_mm, part_frame", partial(_refuse, path))
     cols = table.cols
     missing = [c for c in POINT_COLS if c not in cols]
     if missing:
@@ -116,20 +117,11 @@ def is_cmm_part(path: str | Path) -> bool:
     return {"x_mm", "y_mm", "z_mm"} <= peek(path)[1]
 
 
-def _header(path: Path, table) -> PartHeader:
-    """The '#' lines (`Table.header`: errors at the file's line), validated."""
-    data = table.header(path, "tool_radius_mm, part_frame")
+def _refuse(path: Path, data: dict) -> None:
+    """What a part file's '#' lines lack, in the format's words (`Table.header`)."""
     if "tool_radius_mm" not in data:
         raise DataError(f"{path}: '# tool_radius_mm: R' is missing: the surface lies the cutter's radius from "
                         "the tool's axis (docs/part_format.md)")
-    try:
-        return PartHeader.model_validate(data)
-    except Exception as e:  # pydantic's ValidationError: one readable line per problem
-        from pydantic import ValidationError
-
-        if isinstance(e, ValidationError):
-            raise DataError(format_validation_error(str(path), e)) from None
-        raise
 
 
 def write_part(path: str | Path, points_mm: np.ndarray, tool_radius_mm: float, frame: PoseConfig | None,

@@ -22,7 +22,8 @@ probing_speed_mm_s,      optional, together: the probe moved on at the probing s
 trigger_latency_ms       latency before the joints were latched; the reader takes that distance back along the
                          approach
 
-The touched point, in the robot's base, through the model's own (nominal) kinematics:
+The touched point, in the robot's base, through the model's own (nominal) kinematics
+(`stiffness.part.probe_geometry`):
 
     p = FK_probe(q_trigger) + (r_s - v tau) d        d the approach direction, r_s the stylus radius
 
@@ -35,16 +36,16 @@ by name: it would mean nothing here.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field, ValidationError
+from pydantic import Field
 
 from ..errors import DataError, Problems
 from ..files.csv_table import given_twice, peek, read_table
-from ..files.yaml_schema import Strict, format_validation_error
-from ..kinematics.robot import PoseConfig, Robot
-from .part_points import PartMeasurement
+from ..files.yaml_schema import Strict
+from ..kinematics.robot import PoseConfig
 
 JOINT_COLS = tuple(f"q{i}_deg" for i in range(1, 7))
 APPROACH_COLS = ("approach_x", "approach_y", "approach_z")
@@ -90,23 +91,6 @@ class ProbeLog:
             return 0.0
         return self.probing_speed_mm_s * self.trigger_latency_ms / 1000.0
 
-    def centres(self, robot: Robot) -> np.ndarray:
-        """The stylus ball's centre at each trigger (N, 3, m, base) through ``robot``'s kinematics."""
-        F = robot.frames(np.radians(self.q_deg))
-        return (F[:, 6] @ self.probe_frame.matrix())[:, :3, 3]
-
-    def points(self, robot: Robot) -> np.ndarray:
-        """The touched points (N, 3, m, base): each centre plus the stylus radius, less the overtravel, along
-        the approach."""
-        reach = (self.stylus_radius_mm - self.overtravel_mm) / 1000.0
-        return self.centres(robot) + reach * self.approach
-
-    def as_part(self, robot: Robot) -> PartMeasurement:
-        """The touched points as a part measured in the robot's base (its frame the identity)."""
-        return PartMeasurement(self.source, self.points(robot) * 1000.0, self.labels, self.lines,
-                               self.tool_radius_mm, np.eye(4), self.title,
-                               stylus_radius_mm=self.stylus_radius_mm)
-
     def where(self, k: int) -> str:
         return f"{self.source}: line {self.lines[k]}"
 
@@ -130,7 +114,8 @@ def read_probe(path: str | Path) -> ProbeLog:
         raise DataError(f"{path}: probe log not found")
     problems = Problems()
     table = read_table(path, problems, HEADER)
-    header = _header(path, table)
+    header = table.header(path, ProbeHeader, "tool_radius_mm, stylus_radius_mm, probe_frame",
+                          partial(_refuse, path))
     cols = table.cols
     missing = [c for c in JOINT_COLS + APPROACH_COLS if c not in cols]
     if missing:
@@ -159,18 +144,13 @@ def read_probe(path: str | Path) -> ProbeLog:
                     header.trigger_latency_ms, header.stiffcomp_probe or "")
 
 
-def _header(path: Path, table) -> ProbeHeader:
-    """The '#' lines (`Table.header`: errors at the file's line), validated."""
-    data = table.header(path, "tool_radius_mm, stylus_radius_mm, probe_frame")
+def _refuse(path: Path, data: dict) -> None:
+    """What a probe log's '#' lines hold that the format refuses, in its words (`Table.header`)."""
     if "part_frame" in data:
         raise DataError(f"{path}: part_frame: {PART_FRAME_MEANINGLESS}; remove the key")
     if (data.get("probing_speed_mm_s") is None) != (data.get("trigger_latency_ms") is None):
         raise DataError(f"{path}: probing_speed_mm_s and trigger_latency_ms go together (the probe moves on v tau "
                         "between the contact and the latch); give both or neither")
-    try:
-        return ProbeHeader.model_validate(data)
-    except ValidationError as e:
-        raise DataError(format_validation_error(str(path), e)) from None
 
 
 def write_probe(path: str | Path, q_deg: np.ndarray, approach: np.ndarray, tool_radius_mm: float,

@@ -10,7 +10,7 @@ q1_deg .. q6_deg                   the joint positions the PLC reported (what th
 fx_N .. mz_Nm                      the wrench the cycle used: filtered, gravity and bias removed, in
                                    base axes, moment about the sensor origin
 c1_deg .. c6_deg                   the joint correction the service sent (after limits)
-status_word, fault_word, task_state  the contract's words (`plc_interface.contract`)
+status_word, fault_word, task_state  the contract's words (`plc_link.contract`)
 =================================  ===============================================================
 
 The cycle counts 1, 2, ... with no gap; a gap is rows the service lost (its writer fell a ring behind):

@@ -75,7 +75,7 @@ class Stage(ABC):
         return ctx
 
     def plc_value(self) -> str | None:
-        """The contract value (`plc_interface.contract.FROM_PLC`) this part reads every cycle, or None."""
+        """The contract value (`plc_link.contract.FROM_PLC`) this part reads every cycle, or None."""
         return None
 
     def feed(self, t: float, value: float, p_tcp) -> None:

@@ -1,7 +1,8 @@
 """A CSV a person or an instrument writes: '#' lines first (kept: they may hold a header), a row of column
-names, rows of fields. The one reader of its layout: rows with the wrong number of fields become problems
-that name the file and the line; what the fields mean is the caller's (a part file, a process plan, a
-force and path record).
+names, rows of fields. The one reader of its layout and of its '# key: value' header (`Table.header`, checked
+against the format's schema): rows with the wrong number of fields become problems that name the file and the
+line; what the fields and the keys mean is the caller's (a part file, a probe log, a process plan, a force and
+path record).
 """
 
 from __future__ import annotations
@@ -9,14 +10,19 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
+from pydantic import BaseModel, ValidationError
 
 from ..errors import DataError, Problems, quote
+from .yaml_schema import format_validation_error
 from .yaml_syntax import NoAliasLoader
+
+H = TypeVar("H", bound=BaseModel)
 
 
 class _HeaderLoader(NoAliasLoader):
@@ -26,7 +32,7 @@ class _HeaderLoader(NoAliasLoader):
     def construct_mapping(self, node, deep=False):
         seen: dict[Any, int] = {}
         for key_node, _ in node.value:
-            key = str(self.construct_object(key_node, deep=True)).replace(" ", "_")   # as `Table.header` reads it
+            key = _key(self.construct_object(key_node, deep=True))
             line = key_node.start_mark.line + 1
             if key in seen:
                 raise _GivenTwice(f"line {line}: {key} is given twice (line {seen[key]} and line {line}); keep "
@@ -49,10 +55,21 @@ class Table:
     cols: list[str]
     rows: list[tuple[int, list[str]]]
 
-    def header(self, path, keys: str) -> dict[str, Any]:
-        """The '#' lines as a mapping of 'key: value' lines, spaces in keys read as '_'; DataError at the file's
-        line when they are not valid YAML, not a mapping (``keys``: the keys expected, for the message) or give
-        a key twice."""
+    def header(self, path, schema: type[H], keys: str,
+               refuse: Callable[[dict[str, Any]], None] | None = None) -> H:
+        """The '#' lines, 'key: value' lines with spaces in keys read as '_', validated as ``schema``. DataError
+        at the file's line when they are not valid YAML, not a mapping (``keys``: the keys expected, for the
+        message) or give a key twice; then whatever ``refuse`` raises of the mapping (what the format refuses
+        in words of its own); then one line for each key the schema refuses."""
+        data = self._mapping(path, keys)
+        if refuse is not None:
+            refuse(data)
+        try:
+            return schema.model_validate(data)
+        except ValidationError as e:
+            raise DataError(format_validation_error(str(path), e)) from None
+
+    def _mapping(self, path, keys: str) -> dict[str, Any]:
         try:
             data = yaml.load("\n".join(self.head), Loader=_HeaderLoader) or {}
         except _GivenTwice as e:
@@ -64,7 +81,7 @@ class Table:
                             f"{getattr(e, 'problem', e)}") from None
         if not isinstance(data, dict):
             raise DataError(f"{path}: the '#' lines must be 'key: value' lines ({keys})")
-        return {str(k).replace(" ", "_"): v for k, v in data.items()}
+        return {_key(k): v for k, v in data.items()}
 
     def numbers(self, path, names: list[str], problems: Problems, what: str, noun: str):
         """(line, fields, values) of each row whose columns ``names`` hold finite numbers; a row that does not
@@ -87,17 +104,13 @@ class Table:
 def peek(path: str | Path) -> tuple[set[str], set[str]]:
     """The keys of ``path``'s '# key: value' lines (spaces read as '_') and the names of its header row, read
     without a judgement, for telling one kind of file from another; both empty when it cannot be read."""
-    keys: set[str] = set()
     try:
         with open(path, encoding="utf-8-sig") as f:
-            for line in f:
-                if line.startswith("#"):
-                    keys.add(line[1:].split(":", 1)[0].strip().replace(" ", "_"))
-                elif line.strip():
-                    return keys, {c.strip() for c in line.split(",")}
+            head, row = _layout(f)
     except (OSError, UnicodeDecodeError):
         return set(), set()
-    return keys, set()
+    keys = {_key(line.split(":", 1)[0].strip()) for line in head if line.strip()}
+    return keys, set() if row is None else {c.strip() for c in row.split(",")}
 
 
 def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
@@ -111,12 +124,9 @@ def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
     except (OSError, UnicodeDecodeError) as e:
         raise DataError(f"{path}: cannot read: {e}") from e
     lines = text.splitlines()
-    head = []
-    k = 0
-    while k < len(lines) and (lines[k].startswith("#") or not lines[k].strip()):
-        head.append(lines[k][1:] if lines[k].startswith("#") else "")
-        k += 1
-    if k >= len(lines):
+    head, row = _layout(lines)
+    k = len(head)
+    if row is None:
         raise DataError(f"{path}: no header row after the '#' lines; expected {expected}")
     if ";" in lines[k] and "," not in lines[k]:
         raise DataError(f"{path}: line {k + 1}: the fields are separated by ';', where the format separates them by "
@@ -138,6 +148,22 @@ def read_table(path: str | Path, problems: Problems, expected: str) -> Table:
         raise DataError(f"{path}: line {wrong[0][0]}: every row has more fields than the header's {len(cols)}: "
                         "decimal commas? The format writes decimals with '.' and separates the fields by ','")
     return Table(head, k + 1, cols, rows)
+
+
+def _layout(lines: Iterable[str]) -> tuple[list[str], str | None]:
+    """The lines before the header row, each '#' line without its '#' and a blank line as '', and the header row
+    (None when there is none)."""
+    head = []
+    for line in lines:
+        if not line.startswith("#") and line.strip():
+            return head, line
+        head.append(line[1:] if line.startswith("#") else "")
+    return head, None
+
+
+def _key(name: Any) -> str:
+    """A header key as the formats name it: spaces read as '_'."""
+    return str(name).replace(" ", "_")
 
 
 def given_twice(path, labels: list[str], lines: list[int], noun: str, problems: Problems) -> None:

@@ -30,8 +30,9 @@ from ..fit.result import FitResult
 from ..model.prior import Prior, covariance_entry
 from ..model.stiffness_model import StiffnessModel
 from ..units import M_TO_MM
+from .contour import plane_basis
 from .left_out import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
-from .rows import PartRows, plane_basis
+from .rows import PartRows
 from .sanity import problems
 from .timing import when_made
 

@@ -1,12 +1,12 @@
 """A probe log read against the trace of the cut it probed: the touches checked, then read as a part's points
 in the robot's base (docs/part.md, "The robot probes its own part").
 
-Each touch's point p = FK_probe(q_trigger) + (r_s - v tau) d (`stiffness.data.probe_log`) goes through the
-same reading as a CMM's point (`stiffness.part.rows.read_against`), its frame the identity: the commanded
-tool centre c(u) = FK(q(u)) of the trace and p are both the model's forward kinematics of joints a fraction of
-a degree apart, so what the robot's geometry gets wrong, DH lengths, twists and encoder offsets, is nearly the
-same in both and leaves e = |P (p - c(u))| - r to second order (the joints' difference times the error's
-gradient: a few um for a 0.2 mm, 0.02 deg table error at 1 mm of deflection).
+Each touch's point p = FK_probe(q_trigger) + (r_s - v tau) d (`stiffness.part.probe_geometry`) goes through
+the same reading as a CMM's point, against the same cut (`stiffness.part.rows.read_cut`), its frame the
+identity: the commanded tool centre c(u) = FK(q(u)) of the trace and p are both the model's forward kinematics
+of joints a fraction of a degree apart, so what the robot's geometry gets wrong, DH lengths, twists and encoder
+offsets, is nearly the same in both and leaves e = |P (p - c(u))| - r to second order (the joints' difference
+times the error's gradient: a few um for a 0.2 mm, 0.02 deg table error at 1 mm of deflection).
 
 Before that, each touch is checked against the path the trace cut, in the plane across the tool axis, and a
 touch that cannot be a touch of this contour is refused by line, nothing used:
@@ -23,31 +23,32 @@ touch that cannot be a touch of this contour is refused by line, nothing used:
 Before those, and where the touches as a whole are not on the wall, the likelier causes are named first: joints
 outside the robot's limits, a misreading of the log that puts the touches back on the wall when undone
 (`probe_suspects`), a trace that ends before the probed contour does, and touches far off the wall's height
-along the tool axis (`rows.WALL_HEIGHT_MM`).
+along the tool axis (`contour.WALL_HEIGHT_MM`).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..data.probe_log import ProbeLog
 from ..data.trace_file import Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .probe_geometry import MAX_APPROACH_DEG, TracedCut, traced_cut, wall_offsets
+from .contour import WALL_HEIGHT_MM, TracedCut, traced_cut
+from .probe_geometry import MAX_APPROACH_DEG, Touches, touches_in_base, wall_offsets
 from .probe_suspects import explain, outside_limits
-from .rows import NEAR_MM, SMOOTH_HZ, WALL_HEIGHT_MM, PartRows, read_against
+from .rows import NEAR_MM, SMOOTH_HZ, PartRows, read_cut
 
 END_SAMPLES = 3             # a touch nearest one of the path's first or last samples lies by its end
 
 
 def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str = "part",
                        near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
-    """The touches of ``probe`` checked against ``trace`` (module docstring), then read as a part's points in
-    the robot's base (`read_against`)."""
-    check_touches(probe, trace, robot, near_mm)
-    rows = read_against(probe.as_part(robot), trace, robot, label, near_mm=near_mm, smooth_hz=smooth_hz)
+    """The touches of ``probe`` checked against the cut of ``trace`` (module docstring), then read as a part's
+    points in the robot's base against the same cut (`read_cut`)."""
+    cut = traced_cut(trace, robot, probe.source)
+    touches = check_touches(probe, cut, robot, near_mm)
+    rows = read_cut(touches.as_part(), cut, robot, label, near_mm=near_mm, smooth_hz=smooth_hz)
     taken = (f", {probe.overtravel_mm * 1000:.1f} um of overtravel (v tau) taken back along the approach"
              if probe.overtravel_mm else "")
     rows.notes.insert(0, f"{probe.source}: {len(probe)} touches of the robot's own probe (stylus radius "
@@ -60,18 +61,19 @@ def read_probe_against(probe: ProbeLog, trace: Trace, robot: Robot, label: str =
     return rows
 
 
-def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = NEAR_MM) -> np.ndarray:
-    """Each touch's deviation from the traced path, e = |P (p - c)| - r (mm), after the checks of the module's
-    docstring; DataError naming the file and every touch's line that fails one, the likeliest cause first
-    (`probe_suspects`) where the touches as a whole are not on the wall."""
-    cut = traced_cut(trace, robot, probe.source)
-    outside_limits(probe, robot, lambda: explain(probe, cut, robot, near_mm))
-    e_mm, toward, side, axial_mm = wall_offsets(probe, cut, robot)
+def check_touches(probe: ProbeLog, cut: TracedCut, robot: Robot, near_mm: float = NEAR_MM) -> Touches:
+    """The touches of ``probe`` in the robot's base, after the checks of the module's docstring against ``cut``;
+    DataError naming the file and every touch's line that fails one, the likeliest cause first (`probe_suspects`)
+    where the touches as a whole are not on the wall."""
+    trace = cut.trace
+    touches = touches_in_base(probe, robot)
+    outside_limits(probe, robot, lambda: explain(touches, cut, robot, near_mm))
+    e_mm, toward, side, axial_mm = wall_offsets(touches, cut)
     angle = np.degrees(np.arccos(np.clip(side * toward, -1.0, 1.0)))    # |d| = 1: along the tool axis is 90 deg
-    _trace_ends_first(probe, trace, cut, robot, e_mm, (np.abs(e_mm) > near_mm) | (angle > MAX_APPROACH_DEG))
+    _trace_ends_first(touches, cut, e_mm, (np.abs(e_mm) > near_mm) | (angle > MAX_APPROACH_DEG))
     mid = float(np.median(e_mm))
     if (np.abs(e_mm) > near_mm).mean() > 0.5:
-        likely = explain(probe, cut, robot, near_mm)
+        likely = explain(touches, cut, robot, near_mm)
         if likely:
             raise DataError(f"{probe.source}: the touches lie a median {mid:+.2f} mm off the wall the trace "
                             f"{trace.source} cut (tolerance {near_mm:g} mm). {likely}")
@@ -82,7 +84,7 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
                         "and not by one common distance; they do not belong together")
     height = float(np.median(axial_mm))
     if abs(height) > WALL_HEIGHT_MM:
-        likely = explain(probe, cut, robot, near_mm)
+        likely = explain(touches, cut, robot, near_mm)
         raise DataError(f"{probe.source}: the touches lie {height:+.1f} mm along the tool axis from the tool centre's "
                         f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it. "
                         + (likely or "Likely probe_frame's xyz_mm: the stylus centre in the flange frame, in mm"))
@@ -100,16 +102,15 @@ def check_touches(probe: ProbeLog, trace: Trace, robot: Robot, near_mm: float = 
     if problems:
         raise DataError(f"{probe.source}: {problems.count} touch(es) are not touches of the contour the trace "
                         "cut; nothing was used", problems)
-    return e_mm
+    return touches
 
 
-def _trace_ends_first(probe: ProbeLog, trace: Trace, cut: TracedCut, robot: Robot, e_mm: np.ndarray,
-                      off: np.ndarray) -> None:
+def _trace_ends_first(touches: Touches, cut: TracedCut, e_mm: np.ndarray, off: np.ndarray) -> None:
     """DataError when the touches that fail a check (``off``: off the wall, or approaching it slanted) lie by the
     first or last sample of the traced path (within END_SAMPLES), all but at most a fifth of them: the trace stops
     before the probed contour does (by its end, the path's normal turns and its distance grows)."""
-    x = probe.centres(robot)
-    _, j = cKDTree(cut.c2).query(np.column_stack([x @ cut.e1, x @ cut.e2]))
+    probe, trace = touches.probe, cut.trace
+    _, j = cut.tree.query(cut.in_plane(touches.centres))
     beyond = off & ((j < END_SAMPLES) | (j >= len(cut.c2) - END_SAMPLES))
     if not off.any() or beyond.sum() < 0.8 * off.sum():
         return

@@ -3,10 +3,10 @@ of the log tried, and those that put the touches on the wall named with their ev
 (as `suspects` does for a CMM's radius and frame).
 
 Each misreading is undone on a copy of the log and its touches measured again against the cut
-(`probe.wall_offsets`): it explains the log when it puts at least ON_SHARE of the touches within the tolerance
-of the wall (a third of it: a misreading that moves them by the stylus's diameter is not one), at the wall's
-height and with their approaches along its normal (a mirror of a symmetric contour puts the points back on it,
-but not the approaches); the nearest first. The misreadings tried:
+(`probe_geometry.wall_offsets`): it explains the log when it puts at least ON_SHARE of the touches within the
+tolerance of the wall (a third of it: a misreading that moves them by the stylus's diameter is not one), at the
+wall's height and with their approaches along its normal (a mirror of a symmetric contour puts the points back
+on it, but not the approaches); the nearest first. The misreadings tried:
 
 * joints in radians (every |q| below 2 pi, read as degrees);
 * one joint's sign flipped, or one joint offset from the cut's (by the difference of the medians of the
@@ -28,8 +28,8 @@ import numpy as np
 from ..data.probe_log import ProbeLog
 from ..errors import DataError, Problems
 from ..kinematics.robot import PoseConfig, Robot
-from .probe_geometry import MAX_APPROACH_DEG, TracedCut, wall_offsets
-from .rows import WALL_HEIGHT_MM
+from .contour import WALL_HEIGHT_MM, TracedCut
+from .probe_geometry import MAX_APPROACH_DEG, Touches, touches_in_base, wall_offsets
 
 ON_SHARE = 0.9       # a misreading that puts this share of the touches on the wall explains them,
 ON_TOLERANCE = 1 / 3   # each within this share of the tolerance (a third: not a reading off by the stylus)
@@ -53,14 +53,15 @@ def outside_limits(probe: ProbeLog, robot: Robot, likely: Callable[[], str]) -> 
                     f"reach{rad}; nothing was used" + (f". {why}" if why else ""), problems)
 
 
-def explain(probe: ProbeLog, cut: TracedCut, robot: Robot, near_mm: float) -> str:
-    """'Likely causes, likeliest first: (1) ...' for the misreadings that put the touches on the wall of ``cut``;
-    '' when none does."""
+def explain(touches: Touches, cut: TracedCut, robot: Robot, near_mm: float) -> str:
+    """'Likely causes, likeliest first: (1) ...' for the misreadings of the log that put its ``touches`` on the
+    wall of ``cut`` (each misreading undone, through ``robot``'s kinematics); '' when none does."""
+    probe = touches.probe
     found = []
-    _, toward, side, _ = wall_offsets(probe, cut, robot)
+    _, toward, side, _ = wall_offsets(touches, cut)
     away = side < 0 and float(np.median(toward)) < -np.cos(np.radians(MAX_APPROACH_DEG))
     for text, fixed in _misreadings(probe, cut, reversed_may=away and probe.stylus_radius_mm < probe.tool_radius_mm):
-        e_mm, toward_fixed, side_fixed, axial_mm = wall_offsets(fixed, cut, robot)
+        e_mm, toward_fixed, side_fixed, axial_mm = wall_offsets(touches_in_base(fixed, robot), cut)
         on = ((np.abs(e_mm) <= ON_TOLERANCE * near_mm) & (np.abs(axial_mm) <= WALL_HEIGHT_MM)
               & (side_fixed * toward_fixed >= np.cos(np.radians(MAX_APPROACH_DEG))))
         if on.mean() >= ON_SHARE:

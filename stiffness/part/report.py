@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from ..report.html import Report
 from ..report.plots import legend_below
 from .compare import PartComparison, at_points
-from .rows import plane_basis
+from .contour import plane_basis
 
 # one legend holds the forces and the joints: nine colours, none shared (matplotlib's ten, without its gray)
 FORCE_COLOURS = ("tab:blue", "tab:orange", "tab:green")

@@ -3,7 +3,8 @@ made each point (docs/part.md).
 
 The cutter's edge makes the surface: a point p of the wall lies the tool radius r from the tool's axis
 at the moment the tool passed it. The trace gives the commanded joints q(t) of every cycle, so the
-commanded tool centre c(t) (forward kinematics of the TCP) and the tool axis a(t). The moment a point was
+commanded tool centre c(t) (forward kinematics of the TCP) and the tool axis a(t): the trace's cut
+(`stiffness.part.contour.traced_cut`), computed once and read by all the checks. The moment a point was
 made is the one where the commanded path passes abeam of it: the closest point c(u) of the path (a
 fractional cycle index u), in the plane across the tool axis. There
 
@@ -53,25 +54,21 @@ from functools import partial
 
 import numpy as np
 from scipy import signal
-from scipy.spatial import cKDTree
 
 from ..data.measurements import Dataset
 from ..data.part_points import PartMeasurement
 from ..data.trace_file import Gap, Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .foot import foot_on_path
+from .contour import WALL_HEIGHT_MM, TracedCut, plane_basis, traced_cut
 from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
 from .suspects import causes, check_units, explain, frame_fit
 
-TASK_RUN = 1
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
                          # than an arm deflects under a cut (a few tenths of a mm to about 2 mm)
 HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
 PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
-WALL_HEIGHT_MM = 50.0    # a measured wall lies within this of the tool centre's path along the tool axis (an end
-                         # mill's flutes reach a few diameters; 250 mm is a frame in metres)
 
 
 @dataclass
@@ -156,7 +153,14 @@ class PartRows:
 
 def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str = "part",
                  best_fit: bool = False, near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
-    """Match every point of ``part`` to the moment its ``trace`` passed it (the module's docstring).
+    """Match every point of ``part`` to the moment its ``trace`` passed it (the module's docstring): `read_cut`
+    on the trace's cut."""
+    return read_cut(part, traced_cut(trace, robot, part.source), robot, label, best_fit, near_mm, smooth_hz)
+
+
+def read_cut(part: PartMeasurement, cut: TracedCut, robot: Robot, label: str = "part",
+             best_fit: bool = False, near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
+    """Match every point of ``part`` to the moment the trace of ``cut`` passed it (the module's docstring).
 
     ``best_fit``: place the part by a best fit to the traced path instead of (or, with a part frame,
     starting from) its part frame: for a part without a datum. The fit hides a constant offset of the
@@ -164,48 +168,34 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
     off the traced path a point may lie and still be on the contour (the largest deflection expected).
     ``smooth_hz``: the zero-phase low-pass of the trace's wrench (0: none).
     """
-    run = trace.column("task_state") == TASK_RUN
-    if not run.any():
-        raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
-    q_cmd = trace.commanded_q_deg
-    F = robot.frames(np.radians(q_cmd))
-    c_all, a_all = F[:, 7, :3, 3], F[:, 7, :3, 2]
-    moving = at_feed(trace.time_s, c_all) & run
-    if moving.sum() < 3:
-        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {part.source}")
-    a = np.median(a_all[moving], axis=0)
-    a /= np.linalg.norm(a)
-    e1, e2 = plane_basis(a)
-    idx = np.nonzero(moving)[0]
-    c2 = np.column_stack([c_all[idx] @ e1, c_all[idx] @ e2])
+    trace = cut.trace
     r = part.tool_radius_mm / 1000.0
-    check_units(part, c2, r, trace, np.vstack([e1, e2]), near_mm)
+    check_units(part, cut, r, near_mm)
     if best_fit or part.frame is None:
         if not best_fit:
             raise DataError(f"{part.source}: no part_frame: the points cannot be placed in the robot's base; give "
                             "the fixture's calibration as '# part_frame: {xyz_mm: [...], rpy_deg: [...]}', or "
                             "--best-fit (which hides a constant offset of the contour)")
-        frame = _best_fit(part, c_all[idx], a, r)
+        frame = _best_fit(part, cut, r)
     else:
         frame = part.frame
     p = part.in_base(frame)
-    height = 1000.0 * float(np.median(p @ a) - np.median(c_all[idx] @ a))
+    height = 1000.0 * float(np.median(p @ cut.a) - cut.height)
     if abs(height) > WALL_HEIGHT_MM:
         raise DataError(f"{part.source}: the points lie {height:+.1f} mm along the tool axis from the tool centre's "
                         f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it: the points' "
                         "coordinates or the part_frame are that far off along the tool axis (metres for mm?)")
-    blind = trace.gaps() + jumps(trace, c_all, run)         # rows lost, and joints that jumped
+    blind = trace.gaps() + jumps(trace, cut.tool, cut.run)        # rows lost, and joints that jumped
     blind.sort(key=lambda b: b.row)
     def why_far(near: np.ndarray, some: bool = False) -> str:
         """Why the points lie off the path: all of them (the refusal), or ``some`` (the causes alone)."""
-        fit = None if best_fit or part.frame is None else (
-            lambda: frame_fit(part, _best_fit(part, c_all[idx], a, r), np.vstack([e1, e2]), c2, r))
-        span = 1000.0 * (float(np.max(np.ptp(c2, axis=0))) + 2 * r)
+        fit = None if best_fit or part.frame is None else (lambda: frame_fit(part, _best_fit(part, cut, r), cut, r))
+        span = 1000.0 * (float(np.max(np.ptp(cut.c2, axis=0))) + 2 * r)
         return (causes if some else partial(explain, trace_source=trace.source))(
             part, near_m=near, path_span_mm=span, fit=fit, near_mm=near_mm)
 
-    used, u_of, left = _match(part, trace, np.column_stack([p @ e1, p @ e2]), idx, c2, r, near_mm, blind, why_far)
-    lost = gap_of(c_all, [b.row for b in blind], u_of)
+    used, u_of, left = _match(part, cut, cut.in_plane(p), r, near_mm, blind, why_far)
+    lost = gap_of(cut.tool, [b.row for b in blind], u_of)
     for k in np.nonzero(used & (lost >= 0))[0]:
         left[k] = int(lost[k])
     used &= lost < 0
@@ -221,7 +211,7 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
         notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
                      "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
                      "neither shown nor learned")
-    out = _rows(part, trace, robot, label, used, u_of[used], p[used], F, a, r, frame, notes,
+    out = _rows(part, cut, robot, label, used, u_of[used], p[used], r, frame, notes,
                 smoothed(trace, smooth_hz, blind))
     out.left_out, out.gaps = left_out, blind
     return out
@@ -231,24 +221,24 @@ def _why(blind: Gap | Jump) -> str:
     return IN_GAP if isinstance(blind, Gap) else JUMP
 
 
-def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray, c2: np.ndarray, r: float,
-           near_mm: float, blind: list[Gap | Jump], why_far=None) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
-    """Each point's fractional trace row where the path (moving rows ``idx``, in-plane ``c2``) passes abeam of
-    it (in-plane ``p2``): which points are used, their rows, and why each other one is left out (a reason, or
-    the index of the ``blind`` span it lies beside). A point far off the path where the trace is blind is left
-    out for that; far off elsewhere, it is refused by line."""
-    tree = cKDTree(c2)
+def _match(part: PartMeasurement, cut: TracedCut, p2: np.ndarray, r: float, near_mm: float,
+           blind: list[Gap | Jump], why_far=None) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
+    """Each point's fractional trace row where the path of ``cut`` passes abeam of it (in-plane ``p2``): which
+    points are used, their rows, and why each other one is left out (a reason, or the index of the ``blind`` span
+    it lies beside). A point far off the path where the trace is blind is left out for that; far off elsewhere,
+    it is refused by line."""
+    tree = cut.tree
     near, j = tree.query(p2)
     at = {row: k for k, b in enumerate(blind) for row in range(b.row - getattr(b, "still", 0), b.row + 2)}
-    beside_gap = np.isin(idx[j], list(at))
+    beside_gap = np.isin(cut.rows[j], list(at))
     far = np.abs(near - r) > near_mm / 1000.0
     if (far & ~beside_gap).mean() > 0.5:            # the causes, each with its evidence (`suspects.explain`)
         raise DataError(why_far(near) if why_far is not None else
-                        f"{part.source}: the trace {trace.source} never passes the measured contour")
+                        f"{part.source}: the trace {cut.trace.source} never passes the measured contour")
     problems, used, u_of, left = Problems(), np.zeros(len(p2), dtype=bool), np.full(len(p2), np.nan), {}
     for k in range(len(p2)):
         if far[k] and beside_gap[k]:
-            left[k] = at[int(idx[j[k]])]
+            left[k] = at[int(cut.rows[j[k]])]
         elif far[k]:
             problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
                          f"(tolerance {near_mm:g} mm): it is not on the machined contour")
@@ -257,7 +247,7 @@ def _match(part: PartMeasurement, trace: Trace, p2: np.ndarray, idx: np.ndarray,
             if _passes(np.sort(cand)) > 1:
                 left[k] = TWICE
             else:
-                u_of[k], used[k] = _abeam(idx, c2, p2[k], cand), True
+                u_of[k], used[k] = cut.abeam(p2[k], cand), True
     if problems:
         why = f". {why_far(near, some=True)}" if why_far is not None and problems.count >= max(3, 0.1 * len(p2)) else ""
         raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
@@ -281,15 +271,16 @@ def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap | Jump] | None = Non
     return w
 
 
-def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) -> PartRows:
+def _rows(part, cut: TracedCut, robot, label, used, u, p, r, frame, notes, wrench) -> PartRows:
     """The used points at their fractional trace rows ``u``: normals, deviations, and the trace between."""
+    trace, a = cut.trace, cut.a
     k0 = np.clip(np.floor(u).astype(int), 0, len(trace) - 2)
     w = (u - k0)[:, None]
 
     def at(x):
         return (1.0 - w) * x[k0] + w * x[k0 + 1]
 
-    c = at(F[:, 7, :3, 3])
+    c = at(cut.tool)
     d = (p - c) @ (np.eye(3) - np.outer(a, a))
     dist = np.linalg.norm(d, axis=1)
     n = d / dist[:, None]
@@ -298,28 +289,8 @@ def _rows(part, trace, robot, label, used, u, p, F, a, r, frame, notes, wrench) 
     shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
     e = (dist - r) * 1000.0
     return PartRows(part, trace, label, used, u, at(trace.time_s[:, None])[:, 0], p, c, n,
-                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, F[:, 7, :3, 3],
+                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, cut.tool,
                     notes)
-
-
-def at_feed(t: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Samples where the tool moves at a cutting feed: faster than a quarter of its typical speed."""
-    v = np.zeros(len(t))
-    dt = np.diff(t)
-    step = np.linalg.norm(np.diff(c, axis=0), axis=1)
-    v[1:] = np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), 0.0)
-    fast = v[v > 1e-6]
-    if not len(fast):
-        return np.zeros(len(t), dtype=bool)
-    return v > 0.25 * np.percentile(fast, 90)
-
-
-def plane_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors spanning the plane across ``a``."""
-    h = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = h - (h @ a) * a
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(a, e1)
 
 
 def _passes(positions: np.ndarray) -> int:
@@ -328,29 +299,18 @@ def _passes(positions: np.ndarray) -> int:
     return 1 + int(np.sum(np.diff(positions) > 1)) if len(positions) else 0
 
 
-def _abeam(idx: np.ndarray, c2: np.ndarray, p: np.ndarray, cand: np.ndarray) -> float:
-    """The fractional trace row where the path (moving samples ``idx``, in-plane ``c2``) passes abeam of ``p``:
-    the foot of the perpendicular from p on the polyline near its nearest sample (chords between rows that
-    follow each other)."""
-    j = int(cand[np.argmin(np.linalg.norm(c2[cand] - p, axis=1))])
-    _, s, f = foot_on_path(c2, p, j, lambda s: idx[s + 1] == idx[s] + 1)
-    return float(idx[s] + f)
-
-
-def _best_fit(part: PartMeasurement, c: np.ndarray, a: np.ndarray, r: float, iterations: int = 30) -> np.ndarray:
-    """base <- part by a fit of the points to the traced path offset by r (in-plane rotation and shift, and
-    the shift along the axis to the path's height): iterative closest points."""
-    e1, e2 = plane_basis(a)
+def _best_fit(part: PartMeasurement, cut: TracedCut, r: float, iterations: int = 30) -> np.ndarray:
+    """base <- part by a fit of the points to the traced path of ``cut`` offset by r (in-plane rotation and shift,
+    and the shift along the axis to the path's height): iterative closest points."""
+    e1, e2, a, c2 = cut.e1, cut.e2, cut.a, cut.c2
     T = np.eye(4) if part.frame is None else part.frame.copy()
     pts = part.points_mm / 1000.0
     if part.frame is None:          # start with the part's axes as the base's, its centroid on the path's
-        T[:3, 3] = c.mean(axis=0) - pts.mean(axis=0)
-    c2 = np.column_stack([c @ e1, c @ e2])
-    tree = cKDTree(c2)
+        T[:3, 3] = cut.c.mean(axis=0) - pts.mean(axis=0)
     for _ in range(iterations):
         p = pts @ T[:3, :3].T + T[:3, 3]
-        p2 = np.column_stack([p @ e1, p @ e2])
-        dist, j = tree.query(p2)
+        p2 = cut.in_plane(p)
+        dist, j = cut.tree.query(p2)
         target = c2[j] + (p2 - c2[j]) * (r / np.maximum(dist, 1e-12))[:, None]   # r from the path, abeam
         R2, t2 = _rigid_2d(p2, target)
         step = np.eye(4)

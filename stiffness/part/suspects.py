@@ -18,10 +18,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..data.part_points import PartMeasurement
 from ..errors import DataError
+from .contour import ToolPath, TracedCut
 
 INCH_MM = 25.4
 UNITS = {"inches": INCH_MM, "metres": 1000.0}
@@ -107,13 +107,11 @@ def causes(part: PartMeasurement, near_m: np.ndarray, path_span_mm: float,
     return "Likely causes, likeliest first: " + "; ".join(f"({k}) {c}" for k, c in enumerate(found, 1))
 
 
-def frame_fit(part: PartMeasurement, T: np.ndarray, plane: np.ndarray, c2: np.ndarray, r: float
-              ) -> tuple[float, float, float]:
+def frame_fit(part: PartMeasurement, T: np.ndarray, cut: ToolPath, r: float) -> tuple[float, float, float]:
     """The evidence for a part_frame that is off: how far the best fit ``T`` (base <- part, m) moves the part's own
-    frame (mm) and turns it (deg), and the points' median distance from the contour after it (mm). ``plane``
-    (2, 3): the cut's plane axes; ``c2``: the tool centre's path in them (m); ``r``: the tool radius (m)."""
-    p2 = part.in_base(T) @ plane.T
-    near, _ = cKDTree(c2).query(p2)
+    frame (mm) and turns it (deg), and the points' median distance from the contour after it (mm). ``cut``: the
+    tool centre's path; ``r``: the tool radius (m)."""
+    near, _ = cut.tree.query(cut.in_plane(part.in_base(T)))
     turn = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3].T @ part.frame[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
     return (1000.0 * float(np.linalg.norm(T[:3, 3] - part.frame[:3, 3])), float(turn),
             1000.0 * float(np.median(np.abs(near - r))))
@@ -131,18 +129,19 @@ def _radius_words(r: float, d: np.ndarray, near_mm: float) -> str:
     return ""
 
 
-def check_units(part: PartMeasurement, c2: np.ndarray, r: float, trace, plane: np.ndarray, near_mm: float) -> None:
-    """A part whose contour is 25.4 or 1000 times smaller (or larger) than the traced path's is in the wrong
+def check_units(part: PartMeasurement, cut: TracedCut, r: float, near_mm: float) -> None:
+    """A part whose contour is 25.4 or 1000 times smaller (or larger) than the path ``cut`` traced is in the wrong
     unit: DataError naming the likely one. Unless its points, placed by its frame, already lie on the wall (the
-    tool radius off the path ``c2`` in the cut's ``plane``, within ``near_mm``): a few points of a short stretch
-    span little, in any unit."""
+    tool radius ``r`` off the path, within ``near_mm``): a few points of a short stretch span little, in any
+    unit."""
+    trace = cut.trace
     pts = part.points_mm / 1000.0
     size = float(np.max(np.ptp(pts, axis=0)))
-    path = float(np.max(np.ptp(c2, axis=0))) + 2 * r
+    path = float(np.max(np.ptp(cut.c2, axis=0))) + 2 * r
     if size <= 0 or path <= 0:
         return
     if part.frame is not None:
-        near, _ = cKDTree(c2).query(part.in_base() @ plane.T)
+        near, _ = cut.tree.query(cut.in_plane(part.in_base()))
         if 1000.0 * float(np.median(np.abs(near - r))) <= near_mm:
             return
     ratio = path / size

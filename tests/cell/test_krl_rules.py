@@ -5,10 +5,10 @@ the same program mended."""
 from __future__ import annotations
 
 import pytest
-from stiffcomp_testlib import ROOT
 
 from cell.robot.krl import MAX_NAME, KrlWriter, krl_violations
 from cell.robot.rules import ProgramRuleError
+from testlib.common import ROOT
 
 OLD = ROOT / "tests" / "data" / "robot" / "old"
 

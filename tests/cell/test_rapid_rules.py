@@ -7,12 +7,12 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from robot_testlib import rapid_string
-from stiffcomp_testlib import ROOT
 
 from cell.robot.probe_rapid import BOUNDS
 from cell.robot.rapid import MAX_IDENTIFIER, RapidWriter, longest, numtostr_width, rapid_violations
 from cell.robot.rules import ProgramRuleError
+from testlib.common import ROOT
+from testlib.robot_logs import rapid_string
 
 OLD = ROOT / "tests" / "data" / "robot" / "old"
 

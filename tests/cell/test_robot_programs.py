@@ -11,19 +11,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from robot_testlib import krl_log, rapid_log
-from stiffcomp_testlib import ROOT
 from test_probe_programs import krl_data, rapid_code, rapid_env
 
 from cell.robot import egm, probe_krl, probe_rapid
 from cell.robot.plan import ProbePlan, load_probe_plan
 from cell.robot.programs import generate
-from plc_interface.robot.settings import RobotSettings
+from robot_road.settings import RobotSettings
 from stiffness.data.probe_log import read_probe
 from stiffness.errors import ConfigError
+from testlib.common import ROOT
+from testlib.robot_logs import krl_log, rapid_log
 from tools.cli import main
 
-ROBOT_DIR = ROOT / "robot"
+ROBOT_DIR = ROOT / "cell" / "robot" / "generated"
 
 
 def test_the_committed_programs_are_the_generators_output():

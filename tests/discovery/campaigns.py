@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from stiffcomp_testlib import MODELS
 
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign, CampaignSpec
+from testlib.common import MODELS
 
 
 def campaign(truth: StiffnessModel, seed: int, configs: int = 5, repeats: int = 2, step_N: float = 300,

@@ -13,7 +13,6 @@ import json
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import MODELS, ROOT
 
 from discovery.campaigns import campaign
 from service.compensation import FastPredictor
@@ -25,6 +24,7 @@ from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
+from testlib.common import MODELS, ROOT
 from tools.common import to_jsonable
 
 pytestmark = pytest.mark.slow

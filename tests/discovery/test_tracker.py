@@ -9,7 +9,6 @@ import json
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import MODELS
 
 from discovery.campaigns import campaign, start_model, tracker
 from hil.testing import truth_with
@@ -17,6 +16,7 @@ from stiffness.compare.comparison import compare
 from stiffness.data.measurements import read_measurements
 from stiffness.diagnose.discovery import diagnose
 from stiffness.fit.identify import fit
+from testlib.common import MODELS
 from tools.cli import main
 
 J6_AXIAL = "joint_spring@joint6.rz_rad_per_Nm"

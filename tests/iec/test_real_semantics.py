@@ -14,7 +14,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_values import program
 
-from plc_interface.plc_library.model import REAL, Derived, Elementary, Struct, Var
+from cell.plc.model import REAL, Derived, Elementary, Struct, Var
 from st_runtime import f32
 
 WIDTHS = {"SINT": (8, True), "INT": (16, True), "DINT": (32, True), "LINT": (64, True), "USINT": (8, False),

@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plc_interface.plc_library.model import BOOL, UDINT, Derived, Elementary, Pou, Struct, Var, VarList
-from plc_interface.plc_library.twincat import object_file
+from cell.plc.model import BOOL, UDINT, Derived, Elementary, Pou, Struct, Var, VarList
+from cell.plc.twincat import object_file
 from st_runtime import Ended, Runtime, load
 from st_runtime.requests import INVALID_SIZE, MB_ADDRESS, MB_SERVER, TIMEOUT, modbus_error
 

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from plc_interface.plc_library.model import (
+from cell.plc.model import (
     BOOL,
     DINT,
     INT,
@@ -29,7 +29,7 @@ from plc_interface.plc_library.model import (
     Var,
     VarList,
 )
-from plc_interface.plc_library.twincat import object_file
+from cell.plc.twincat import object_file
 from st_runtime import Runtime, StError, f32, load
 
 

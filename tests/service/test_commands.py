@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_faults import Driver, build
 
-from plc_interface.contract import COMMAND_BITS, Command, Fault, Status
+from plc_link.contract import COMMAND_BITS, Command, Fault, Status
 from service.faults import FaultMonitor
 from service.supervision import Supervisor
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import pose_error
 
 from hil.testing import CONFIG
 from service.compensation import FastPredictor
 from service.errors import ModelUnsupportedError
 from stiffness.data.measurements import Dataset
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import pose_error
 
 MODELS = CONFIG / "models"
 

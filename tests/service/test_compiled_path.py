@@ -21,7 +21,7 @@ import pytest
 from test_fast_effects import EXAMPLES, load_sequences
 
 from hil.testing import CONFIG, model_with
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.ati import Reading
 from service.compensation import FastPredictor
 from service.config import load_config
@@ -163,7 +163,7 @@ def test_an_effect_without_a_compiled_form_runs_on_the_python_path(caplog, monke
     svc = Service(cfg)
     try:
         with caplog.at_level(logging.INFO, "stiffcomp.service"):
-            svc._compiling.join()
+            svc.wait_compiled()
     finally:
         svc.stop()
     lines = [r.getMessage() for r in caplog.records if "Python path" in r.getMessage()]
@@ -254,7 +254,7 @@ def test_a_model_reload_ramps_alike_on_both_paths(cfg):
             for cycle in (py, cc):
                 comp = cycle.compensator
                 pred = FastPredictor.from_config(cfg.model, doubled)
-                pred.carry(comp.gravity.mass, comp.gravity.cog, comp.gravity.g)
+                pred.carry(comp.gravity.mass, comp.gravity.cog, comp.gravity.g_mps2)
                 pred.kinematics(comp.q_rad)
                 if comp.kernel is not None:
                     pred.compile()

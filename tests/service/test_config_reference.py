@@ -14,6 +14,8 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
+from robot_road import registry
+from robot_road.settings import RobotSettings
 from service.config import ServiceConfig
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "config.md"
@@ -30,13 +32,17 @@ def _model_of(annotation) -> type[BaseModel] | None:
 
 
 def schema_keys(model: type[BaseModel] = ServiceConfig, prefix: str = "") -> set[str]:
-    """Every leaf key of the schema, dotted from the top (``source.ati.base_id``)."""
+    """Every leaf key of the schema, dotted from the top (``source.ati.base_id``); under ``robot`` also each built-in
+    interface's sub-section, which its declaration's model validates (`robot_road.registry`)."""
     out = set()
     for name, field in model.model_fields.items():
         if field.exclude:
             continue
         sub = _model_of(field.annotation)
         out |= schema_keys(sub, f"{prefix}{name}.") if sub else {prefix + name}
+    if model is RobotSettings:
+        for name in registry.BUILT_IN:
+            out |= schema_keys(registry.declared(name).settings, f"{prefix}{name}.")
     return out
 
 

@@ -7,12 +7,12 @@ import re
 
 import pytest
 import yaml
-from stiffcomp_testlib import ROOT
 
 from hil.testing import CONFIG, write_config
 from service.app import Service
 from service.config import load_config
 from service.errors import ServiceConfigError
+from testlib.common import ROOT
 from tools.cli import main
 
 
@@ -50,9 +50,9 @@ def test_the_good_map_loads_through_the_config(tmp_path):
 
 def test_no_other_place_reads_the_configs_map_itself():
     """The service, the tools and the HIL read the map the config names through cfg.register_map(), the
-    health probe through its light endpoints; both end in `plc_interface.endpoints.load_register_map`."""
-    hits = [f"{p.relative_to(ROOT)}:{n}" for folder in ("service", "tools", "hil", "plc_interface")
+    health probe through its light endpoints; both end in `io_process.endpoints.load_register_map`."""
+    hits = [f"{p.relative_to(ROOT)}:{n}" for folder in ("service", "tools", "hil", "io_process", "plc_link", "robot_road", "io_base")
             for p in sorted((ROOT / folder).rglob("*.py"))
             for n, line in enumerate(p.read_text().splitlines(), 1)
-            if "RegisterMap.from_yaml(" in line and p != ROOT / "plc_interface" / "endpoints.py"]
+            if "RegisterMap.from_yaml(" in line and p != ROOT / "io_process" / "endpoints.py"]
     assert hits == []

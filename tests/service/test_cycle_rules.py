@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plc_interface.contract import SENSOR_FAULTS, Status, TaskValues
+from plc_link.contract import SENSOR_FAULTS, Status, TaskValues
 from service import cycle_rules
 from service.kernel import steady_cycle as ks
 

@@ -22,7 +22,7 @@ import pytest
 from test_compiled_path import close, drive
 
 from hil.testing import CONFIG, model_with
-from plc_interface.contract import FROM_PLC, Command, Fault, FromPlc
+from plc_link.contract import FROM_PLC, Command, Fault, FromPlc
 from service.app import Service
 from service.ati import Reading
 from service.config import ServiceConfig, load_config

@@ -23,12 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import pose_error
 
 from hil.testing import CONFIG, model_with
 from service.compensation import FastPredictor
 from stiffness.data.measurements import Dataset
 from stiffness.effects import EFFECTS, Effect
+from testlib.common import pose_error
 
 # one or more entries per library effect, sized so each matters against the springs
 EXAMPLES: dict[str, list[dict]] = {
@@ -109,7 +109,7 @@ def test_fast_path_agrees_with_the_model(name, k):
 
 def test_hysteresis_state_restarts_on_tare_and_fault_reset():
     """In the running cycle the loading state is 0 again after a tare and after a fault reset."""
-    from plc_interface.contract import Command
+    from plc_link.contract import Command
     from service.ati import Reading
     from service.config import load_config
     from service.pipeline import Cycle

@@ -14,7 +14,7 @@ import pytest
 
 from hil.demo_log import write_log
 from hil.testing import write_config
-from plc_interface.contract import Command, Fault, Status
+from plc_link.contract import Command, Fault, Status
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.pipeline import Cycle

@@ -1,4 +1,4 @@
-"""The process image's read (`plc_interface.image.read_newest`) is one implementation: the image's methods run
+"""The process image's read (`plc_link.image.read_newest`) is one implementation: the image's methods run
 it over memoryviews, the steady cycle runs it compiled over arrays (`service.kernel.steady_cycle`, where its byte
 copy is a loop). Both take the same buffer, or refuse alike, whatever the header says."""
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plc_interface import image
+from plc_link import image
 from service.kernel import steady_cycle as ks
 
 N, OFF0, HEADER = 24, 80, 80          # a block of 24 bytes; header of ten int64s; two buffers after it

@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from hil.testing import ROOT, free_port, write_config
-from plc_interface.log_format import JsonFormatter
+from io_base.log_format import JsonFormatter
 
 pytestmark = pytest.mark.realtime
 

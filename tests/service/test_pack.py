@@ -11,7 +11,7 @@ import struct
 import numpy as np
 import pytest
 
-from plc_interface.register_map import BlockCodec, Register, struct_fields
+from plc_link.register_map import BlockCodec, Register, struct_fields
 from service.kernel.pack import pack, scratch, table, unpack
 from service.trace import _ROW
 

@@ -12,18 +12,18 @@ import numpy as np
 import pyads
 import pytest
 from pymodbus.client import ModbusTcpClient
-from stiffcomp_testlib import wait_for
 
 from hil.payload import TruePayload
 from hil.testing import free_port, write_config
 from hil.virtual_sensor import VirtualAtiSensor
-from plc_interface.contract import Command, Fault
+from plc_link.contract import Command, Fault
 from service.app import Service
 from service.ati import AtiProtocol
 from service.compensation import FastPredictor
 from service.config import load_config
 from service.gravity import GravityConfig
-from tools.ads_probe import open_ads
+from testlib.common import wait_for
+from tools.pyads_connection import open_ads
 
 pytestmark = pytest.mark.realtime
 

@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import MODELS, ROOT
 
 from hil.payload import TruePayload
 from hil.testing import write_config
-from plc_interface.contract import Command, Fault
+from plc_link.contract import Command, Fault
 from service.ati import Reading
 from service.compensation import FastPredictor
 from service.config import load_config
@@ -24,6 +23,7 @@ from service.payloads import QUIET_AFTER
 from service.pipeline import Cycle
 from stiffness.kinematics.statics import PayloadConfig, statics_for
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
 
 DT = 0.001
 Q = [10.0, -80.0, 100.0, 20.0, 40.0, 30.0]

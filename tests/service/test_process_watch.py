@@ -21,8 +21,8 @@ from pymodbus.exceptions import ModbusException
 
 from hil.run import HilError, ServiceProcess
 from hil.testing import ROOT, free_port, write_config
-from plc_interface.contract import Fault, Status
-from plc_interface.register_map import RegisterMap
+from plc_link.contract import Fault, Status
+from plc_link.register_map import RegisterMap
 
 pytestmark = pytest.mark.realtime
 

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.testing import scaled_model_file, write_config
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.config import load_config
 from service.filters import SosLowPass
 from service.pipeline import Cycle

@@ -20,7 +20,7 @@ from pymodbus.client import ModbusTcpClient
 
 from hil.run import ServiceProcess
 from hil.testing import ROOT, free_port, scaled_model_file, write_config
-from plc_interface.register_map import RegisterMap
+from plc_link.register_map import RegisterMap
 from service.config import load_config
 from service.sources.replay import write_log
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml

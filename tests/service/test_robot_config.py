@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from hil.testing import write_config
-from plc_interface.robot.settings import RobotSettings
+from robot_road.settings import RobotSettings
 from service.compensation import load_model
 from service.config import load_config
 from service.errors import ServiceConfigError

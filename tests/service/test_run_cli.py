@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hil.testing import ROOT, free_port, write_config
-from plc_interface.contract import TaskState
+from plc_link.contract import TaskState
 from service.config import load_config
 from stiffness.data.trace_file import read_trace
 

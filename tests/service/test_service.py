@@ -5,16 +5,16 @@ from __future__ import annotations
 import can
 import numpy as np
 import pytest
-from stiffcomp_testlib import wait_for
 
 from hil.testing import free_port, write_config
 from hil.virtual_sensor import VirtualAtiSensor
-from plc_interface.contract import Status
-from plc_interface.register_map import RegisterMap  # noqa: F401  (the service imports it too)
+from plc_link.contract import Status
+from plc_link.register_map import RegisterMap  # noqa: F401  (the service imports it too)
 from service.app import Service
 from service.ati import AtiProtocol
 from service.config import load_config
 from service.sources.replay import ReplaySource
+from testlib.common import wait_for
 
 pytestmark = pytest.mark.realtime
 

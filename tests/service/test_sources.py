@@ -11,7 +11,7 @@ import pytest
 from hil.demo_log import write_log
 from hil.testing import free_port, write_config
 from hil.virtual_sensor import VirtualAtiSensor
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.ati import AtiProtocol
 from service.errors import SensorTimeout, SourceError
 from service.pipeline import Cycle

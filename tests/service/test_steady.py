@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hil.testing import write_config
-from plc_interface.contract import Command
+from plc_link.contract import Command
 from service.app import Service
 from service.ati import AtiProtocol
 from service.config import load_config

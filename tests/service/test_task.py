@@ -173,7 +173,7 @@ def cpu_latency_target() -> int:
 
 def test_a_task_holds_the_cpus_idle_wakeup_while_it_runs_and_lets_go_after():
     """cpu_latency_us = 0: while the task runs the kernel's target is 0 (idle CPUs poll); after it, what it was."""
-    from plc_interface.scheduling import hold_cpu_latency
+    from io_base.scheduling import hold_cpu_latency
 
     fd, why = hold_cpu_latency(0)
     if why is not None:
@@ -205,7 +205,7 @@ def test_an_idle_wakeup_not_permitted_is_one_warning_naming_the_device_and_the_t
     import logging
 
     import service.task
-    from plc_interface.scheduling import hold_cpu_latency
+    from io_base.scheduling import hold_cpu_latency
 
     monkeypatch.setattr(service.task, "hold_cpu_latency", lambda us: hold_cpu_latency(us, "/dev/no_such_qos"))
     ran = threading.Event()

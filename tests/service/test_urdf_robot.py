@@ -2,10 +2,10 @@
 
 import numpy as np
 import yaml
-from stiffcomp_testlib import MODELS, ROOT, random_dataset
 
 from service.compensation import FastPredictor
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT, random_dataset
 
 
 def model_on(robot_file: str) -> StiffnessModel:

@@ -13,12 +13,12 @@ import pytest
 import yaml
 from hypothesis import given
 from hypothesis import strategies as st
-from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError, DataError, Problems, quote
 from stiffness.files.yaml_schema import read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import DATA, MODELS, ROOT
 
 pytestmark = pytest.mark.slow
 

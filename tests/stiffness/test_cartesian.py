@@ -1,7 +1,6 @@
 """Cartesian stiffness at the TCP: W = K dX round trips, and Eq. 15 identifies K from TCP data."""
 
 import numpy as np
-from stiffcomp_testlib import with_deflection
 
 from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
@@ -11,6 +10,7 @@ from stiffness.model.cartesian import (
     tcp_stiffness,
     tcp_wrench_and_deflection,
 )
+from testlib.common import with_deflection
 
 Q = np.array([10.0, -75.0, 90.0, 0.0, 75.0, 0.0])
 
@@ -73,9 +73,9 @@ def test_eq15_refuses_wrenches_that_do_not_span_six_directions(robot, model6):
 
 def test_singular_compliance_is_refused():
     import pytest
-    from stiffcomp_testlib import MODELS
 
     from stiffness.model.stiffness_model import StiffnessModel
+    from testlib.common import MODELS
     axial = StiffnessModel.from_yaml(MODELS / "kr125_axial.yaml")
     with pytest.raises(ValueError, match="singular"):
         tcp_stiffness(axial, np.array([10.0, -75.0, 90.0, 0.0, 0.0, 0.0]))   # q5 = 0: a wrist singularity
@@ -109,7 +109,7 @@ def test_kcart_refuses_the_walks_campaign_and_says_why():
     import subprocess
     import sys
 
-    from stiffcomp_testlib import MODELS, ROOT
+    from testlib.common import MODELS, ROOT
     r = subprocess.run([sys.executable, "-m", "tools.cli", "kcart", MODELS / "kr125_6dof.yaml", "--data",
                         ROOT / "examples" / "campaign_backlash.csv"], cwd=ROOT, capture_output=True, text=True,
                        check=False, timeout=180)

@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import ROOT
 
 from stiffness.compare.comparison import by_component, compare, load_direction, r2, summary
 from stiffness.data.measurements import Dataset
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign
+from testlib.common import ROOT
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

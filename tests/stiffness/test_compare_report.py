@@ -8,11 +8,11 @@ import re
 
 import numpy as np
 import yaml
-from stiffcomp_testlib import ROOT
 
 from stiffness.compare.comparison import METRICS, compare, summary
 from stiffness.compare.report import GROUPS, build_report, component_table, group_table
 from stiffness.plan.simulate import Campaign
+from testlib.common import ROOT
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 LONG = "kr125_6dof_with_backlash_fitted_on_the_campaign_of_the_second_shift"

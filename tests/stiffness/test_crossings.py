@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from discovery.campaigns import campaign
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.data.crossings import EDGE, centre_search
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
 
 WIDTH_NM = 5.0
 BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.02, "width_Nm": WIDTH_NM}

@@ -8,13 +8,13 @@ import sys
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.data.measurements import COMPONENTS, read_measurements
 from stiffness.diagnose.discovery import diagnose
 from stiffness.diagnose.report import build_report
 from stiffness.fit.result import rms
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
 
 pytestmark = pytest.mark.slow
 

@@ -4,7 +4,8 @@ import json
 
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS, ROOT, run_cli
+
+from testlib.common import DATA, MODELS, ROOT, run_cli
 
 pytestmark = pytest.mark.slow
 

@@ -4,10 +4,10 @@ import csv
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import DATA
 
 from stiffness.data.measurements import COLUMNS, read_measurements
 from stiffness.errors import DataError
+from testlib.common import DATA
 
 REF = DATA / "reference_campaign.csv"
 

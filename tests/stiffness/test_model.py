@@ -5,12 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS, random_dataset, with_deflection
 
 from stiffness.data.measurements import read_measurements
 from stiffness.effects.joint_spring import COMPONENTS
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import DATA, MODELS, random_dataset, with_deflection
 
 
 def random_compliances(model, seed):

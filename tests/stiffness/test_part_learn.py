@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part, write_part
 from stiffness.data.trace_file import read_trace
@@ -16,6 +14,8 @@ from stiffness.part.compare import compare_part
 from stiffness.part.diagnose import diagnose_parts
 from stiffness.part.learn import learn
 from stiffness.part.rows import read_against
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"
 ELSEWHERE = [-20.0, -70.0, 100.0, 0.0, 60.0, -20.0]

@@ -10,8 +10,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part, write_part
 from stiffness.data.trace_file import COLUMNS, TraceFile, read_trace
@@ -21,6 +19,8 @@ from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part.compare import compare_part
 from stiffness.part.rows import read_against
 from stiffness.part.timing import when_made
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

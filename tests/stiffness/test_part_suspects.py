@@ -8,8 +8,6 @@ import re
 
 import numpy as np
 import pytest
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part, write_part
 from stiffness.data.trace_file import read_trace
@@ -17,6 +15,8 @@ from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.part.rows import read_against
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

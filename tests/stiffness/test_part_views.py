@@ -11,8 +11,6 @@ import warnings
 import numpy as np
 import pytest
 from matplotlib.colors import to_hex
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part
 from stiffness.data.trace_file import read_trace
@@ -25,6 +23,8 @@ from stiffness.part.diagnose import diagnose_parts
 from stiffness.part.learn import learn
 from stiffness.part.report import diagnose_report, learn_figure, load_figure
 from stiffness.part.rows import read_against
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

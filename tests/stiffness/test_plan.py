@@ -12,13 +12,13 @@ import re
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.design import Device, worst_relative
 from stiffness.plan.design import plan as make_plan
 from stiffness.plan.simulate import Campaign, random_configurations
+from testlib.common import MODELS, ROOT
 from tools.cli import main
 
 pytestmark = pytest.mark.slow

@@ -3,16 +3,18 @@ diagnose plots, the compare bar plots and the HIL circle)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
 from stiffness.diagnose.discovery import diagnose
 from stiffness.diagnose.plots import evidence, residual_vs_force, residual_vs_time
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.report.plots import rms_bars
+from testlib.common import MODELS, ROOT
 
 
 def legends_off_the_data(fig: Figure) -> int:
@@ -56,5 +58,5 @@ def test_hil_circle_plot():
     truth = StiffnessModel.from_yaml(TRUTH)
     world = World(sc, truth.robot)
     ev = evaluate_uncompensated(world, RobotStub(truth, sc.robot), sc.plc.period_ms / 1e3)
-    compensated = {**ev, "err_mm": ev["err_mm"] * 0.03}
+    compensated = dataclasses.replace(ev, err_mm=ev.err_mm * 0.03)
     assert legends_off_the_data(circle_figure(world, {"uncompensated": ev, "compensated": compensated})) == 1

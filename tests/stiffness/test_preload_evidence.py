@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import pytest
 from discovery.campaigns import campaign
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.fit.identify import fit
 from stiffness.model.edit import add_effect
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
 
 KR125 = ROOT / "config" / "robots" / "kr125.yaml"          # no masses: the prior is tau_s = 0
 BACKLASH = {"effect": "backlash", "joint": 2, "lost_motion_deg": 0.02, "width_Nm": 40.0}

@@ -8,13 +8,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
-from stiffcomp_testlib import DATA
 
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
 from stiffness.fit.identify import fit
 from stiffness.model.prior import Prior
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import DATA
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from part_testlib import STYLUS_RADIUS_MM, TOOL_RADIUS_MM, probe_touches, synthetic_cut
 
 from stiffness.data.part_points import read_part
 from stiffness.data.probe_log import is_probe_log, read_probe, write_probe
@@ -19,9 +18,11 @@ from stiffness.data.trace_file import read_trace
 from stiffness.errors import DataError
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
+from stiffness.part.contour import ToolPath
 from stiffness.part.probe import read_probe_against
-from stiffness.part.probe_geometry import _across
+from stiffness.part.probe_geometry import touches_in_base
 from stiffness.part.rows import read_against
+from testlib.part import STYLUS_RADIUS_MM, TOOL_RADIUS_MM, probe_touches, synthetic_cut
 
 ROOT = Path(__file__).resolve().parents[2]
 NOMINAL = StiffnessModel.from_yaml(ROOT / "examples" / "truth_reference.yaml")        # the datasheet's DH table
@@ -92,7 +93,7 @@ def test_the_stated_overtravel_is_taken_back_along_the_approach(probed, tmp_path
     _, q, n, _ = probed
     log = read_probe(_log(tmp_path, q, n, probing_speed_mm_s=10.0, trigger_latency_ms=2.0))
     base = read_probe(_log(tmp_path, q, n, name="plain.csv"))
-    moved = log.points(NOMINAL.robot) - base.points(NOMINAL.robot)
+    moved = touches_in_base(log, NOMINAL.robot).points - touches_in_base(base, NOMINAL.robot).points
     assert np.allclose(moved, -0.02e-3 * log.approach, atol=1e-12)
 
 
@@ -230,7 +231,7 @@ def test_the_wall_normal_is_the_paths_across_reports_that_came_late(radius_mm, s
     c2 = radius_mm * np.column_stack([np.cos(u), np.sin(u)]) / 1000.0
     radial = np.array([np.cos(phi), np.sin(phi)])
     x2 = (radius_mm + (-offset_mm if inside else offset_mm)) * radial[None, :] / 1000.0
-    dist, n = _across(c2, x2)
+    dist, n = ToolPath(np.column_stack([c2, np.zeros(len(c2))]), np.array([0.0, 0.0, 1.0])).across(x2)
     chord = float(np.diff(u).max())                   # the longest chord's angle
     tilt = np.degrees(np.arccos(np.clip(abs(n[0] @ radial), -1.0, 1.0)))
     assert tilt <= np.degrees(chord) / 2 + 1e-6, (tilt, np.degrees(chord))

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import MODELS, ROOT
 
 from stiffness.errors import ConfigError
 from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.kinematics.robot import BODIES, Robot, read_extended
 from stiffness.kinematics.statics import Statics
 from stiffness.kinematics.urdf import urdf_text
+from testlib.common import MODELS, ROOT
 from tools.cli import main
 
 ROBOTS = ROOT / "config" / "robots"

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import DATA, MODELS
-from stiffcomp_testlib import run_cli as stiffcomp
 
 from stiffness.data.measurements import read_measurements
 from stiffness.fit.identify import fit
 from stiffness.fit.sanity import duplicate_rows, noise_warning, resolve_duplicates
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import DATA, MODELS
+from testlib.common import run_cli as stiffcomp
 
 pytestmark = pytest.mark.slow
 

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS, ROOT
 
 from stiffness.data.measurements import read_measurements
 from stiffness.errors import ConfigError
@@ -11,6 +10,7 @@ from stiffness.files.yaml_schema import dump_yaml
 from stiffness.fit.identify import fit
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.plan.simulate import Campaign, simulate
+from testlib.common import DATA, MODELS, ROOT
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -7,7 +7,6 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.campaign import Context
 from stiffness.data.measurements import Dataset
@@ -16,6 +15,7 @@ from stiffness.files.yaml_schema import dump_yaml
 from stiffness.kinematics.robot import Robot, read_extended
 from stiffness.kinematics.spatial import transform, transport_wrench
 from stiffness.kinematics.statics import G_STANDARD, Statics, independent_columns
+from testlib.common import ROOT
 
 KR125 = ROOT / "config" / "robots" / "kr125_masses.yaml"
 G = np.array(G_STANDARD)

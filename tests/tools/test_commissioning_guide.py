@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import ROOT
 
 from service.config import load_config
 from service.errors import ServiceConfigError
 from stiffness.files.yaml_schema import read_yaml
+from testlib.common import ROOT
 from tools.cli import main
 
 GUIDE = ROOT / "docs" / "commissioning.md"

@@ -29,9 +29,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from stiffcomp_testlib import wait_for
 
 from hil.testing import ROOT, free_port, write_config
+from testlib.common import wait_for
 from tools.health_cmd import check
 
 pytestmark = pytest.mark.realtime

@@ -171,11 +171,11 @@ def test_a_port_option_outside_1_to_65535_is_refused_naming_it(port, capsys):
 # nothing else: so moving a schema or a helper cannot quietly pull NumPy, scipy, pinocchio, the ADS
 # server or the model code into the probe. The fallback may add pymodbus and the register map, never
 # NumPy, scipy, pinocchio or the service.
-ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "tools.health_memo", "tools.run_file", "plc_interface",
-           "plc_interface.endpoints", "plc_interface.settings", "plc_interface.ads", "plc_interface.ads.settings", "plc_interface.ads.ams",
+ALLOWED = {"tools", "tools.cli", "tools.health_cmd", "tools.health_memo", "tools.run_file", "io_process", "io_process.settings", "plc_link", "plc_link.settings", "io_base", "io_base.settings",
+           "io_process.endpoints", "plc_link.ads", "plc_link.ads.settings", "plc_link.ads.ams",
            "service", "service.paths", "stiffness", "stiffness.errors", "stiffness.files",
            "stiffness.files.yaml_syntax", "stiffness.files.yaml_schema"}
-OURS = ("tools", "hil", "service", "plc_interface", "stiffness")
+OURS = ("tools", "hil", "cell", "service", "io_process", "robot_road", "plc_link", "io_base", "stiffness")
 PYDANTIC = ("pydantic", "pydantic_core", "annotated_types", "typing_extensions", "typing_inspection")
 
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 import yaml
-from stiffcomp_testlib import wait_for
 
 from hil.testing import free_port, write_config
 from service.app import Service
 from service.config import load_config
+from testlib.common import wait_for
 from tools.cli import main
 
 pytestmark = pytest.mark.realtime

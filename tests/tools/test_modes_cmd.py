@@ -12,13 +12,13 @@ from __future__ import annotations
 import json
 
 import pytest
-from stiffcomp_testlib import ROOT
 
 from hil.dynamics import tap_record, write_record
 from hil.scenario import load_scenario
 from service.config import load_config
 from stiffness.files.yaml_schema import deep_update, dump_yaml, read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
 from tools.cli import main
 
 pytestmark = pytest.mark.slow

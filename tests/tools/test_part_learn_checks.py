@@ -12,11 +12,11 @@ import re
 
 import numpy as np
 import pytest
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from stiffness.model.prior import covariance_entry
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

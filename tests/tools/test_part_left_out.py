@@ -9,12 +9,12 @@ import json
 
 import numpy as np
 import pytest
-from part_testlib import synthetic_cut
-from stiffcomp_testlib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
 from stiffness.data.part_points import read_part, write_part
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
+from testlib.part import synthetic_cut
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -7,11 +7,11 @@ import json
 from pathlib import Path
 
 import pytest
-from part_testlib import STYLUS_RADIUS_MM, TOOL_RADIUS_MM, probe_touches, synthetic_cut
 
 from stiffness.data.probe_log import write_probe
 from stiffness.kinematics.robot import PoseConfig
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.part import STYLUS_RADIUS_MM, TOOL_RADIUS_MM, probe_touches, synthetic_cut
 from tools.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]

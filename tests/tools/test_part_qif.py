@@ -10,12 +10,12 @@ import time
 import numpy as np
 import pytest
 import yaml
-from part_testlib import TOOL_RADIUS_MM, synthetic_cut
-from qif_testlib import write_qif
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
+from testlib.part import TOOL_RADIUS_MM, synthetic_cut
+from testlib.qif import write_qif
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -9,7 +9,6 @@ import difflib
 from types import SimpleNamespace
 
 import numpy as np
-from stiffcomp_testlib import ROOT
 
 from hil.payload import TruePayload
 from hil.testing import write_config
@@ -20,6 +19,7 @@ from service.gravity import GravityConfig
 from service.pipeline import Cycle
 from stiffness.files.yaml_schema import read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
 from tools import payload_cmd
 from tools.cli import main
 

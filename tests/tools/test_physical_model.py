@@ -8,12 +8,12 @@ import json
 import numpy as np
 import pytest
 import yaml
-from stiffcomp_testlib import DATA, MODELS
-from stiffcomp_testlib import run_cli as stiffcomp
 
 from hil.testing import write_config
 from stiffness.errors import ConfigError
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import DATA, MODELS
+from testlib.common import run_cli as stiffcomp
 
 pytestmark = pytest.mark.slow
 

@@ -11,8 +11,6 @@ import uuid
 
 import numpy as np
 import pytest
-from qif_testlib import qif3_schema, write_qif
-from stiffcomp_testlib import ROOT
 
 from hil.testing import ROTATIONAL, scaled_model_file
 from stiffness.data.part_points import read_part
@@ -20,6 +18,8 @@ from stiffness.data.qif_part import read_qif, read_qif_part
 from stiffness.data.qif_write import NominalCircle, write_qif_circle
 from stiffness.errors import DataError
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
+from testlib.qif import qif3_schema, write_qif
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -9,14 +9,14 @@ import json
 
 import numpy as np
 import pytest
-from part_testlib import TOOL_RADIUS_MM, synthetic_cut
-from qif_testlib import OTHER_FORMS, write_qif
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.part_points import read_part
 from stiffness.data.qif_part import read_qif, read_qif_part
 from stiffness.errors import DataError
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import ROOT
+from testlib.part import TOOL_RADIUS_MM, synthetic_cut
+from testlib.qif import OTHER_FORMS, write_qif
 from tools.cli import main
 
 TRUTH = ROOT / "examples" / "truth_reference.yaml"

@@ -12,10 +12,10 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import ROOT
 
 from stiffness.data.qif_part import fit_circle, read_qif, read_qif_part
 from stiffness.errors import DataError
+from testlib.common import ROOT
 from tools.cli import main
 
 HERE = ROOT / "tests" / "data" / "qif_results"

@@ -21,11 +21,11 @@ import time
 import numpy as np
 import pyte
 import pytest
-from stiffcomp_testlib import wait_for
 
 from hil.testing import constant_log, free_port, wait_for_port, write_config
 from service.app import Service
 from service.config import load_config
+from testlib.common import wait_for
 from tools.cli import main
 from tools.status_cmd import reader_for
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from rich.console import Console
 
-from plc_interface.contract import Fault, Status, TaskState, to_plc
+from plc_link.contract import Fault, Status, TaskState, to_plc
 from tools.status_view import StatusView, why_zero
 
 RUNNING_OK = int(Status.RUNNING | Status.ACTIVE | Status.SENSOR_OK | Status.PLC_SEEN)

@@ -4,11 +4,11 @@ import json
 
 import numpy as np
 import pytest
-from stiffcomp_testlib import MODELS, ROOT
-from stiffcomp_testlib import run_cli as stiffcomp
 
 from stiffness.kinematics.statics import Statics
 from stiffness.model.stiffness_model import StiffnessModel
+from testlib.common import MODELS, ROOT
+from testlib.common import run_cli as stiffcomp
 from tools.cli import main
 
 Q = [10.0, -80.0, 95.0, 20.0, 50.0, -30.0]

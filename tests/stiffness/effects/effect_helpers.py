@@ -1,7 +1,8 @@
 """A small campaign and context for the effect tests."""
 
 import numpy as np
-from stiffcomp_testlib import random_dataset
+
+from testlib.common import random_dataset
 
 
 def context(robot, n=40, seed=0):

@@ -23,7 +23,7 @@ def test_equation_and_limits(robot):
 
 
 def test_moves_only_bodies_beyond_the_joint(robot):
-    from stiffcomp_testlib import random_dataset
+    from testlib.common import random_dataset
     data = random_dataset(robot, 20, 1)
     m = model_with({"effect": "backlash", "joint": 4, "lost_motion_deg": 0.05, "width_Nm": 1.0})
     theta = m.theta.copy()

@@ -1,9 +1,9 @@
 """joint_6dof: the off-axis springs added to an axial spring give the full 6-DoF spring."""
 
 import numpy as np
-from stiffcomp_testlib import random_dataset
 
 from hil.testing import model_with
+from testlib.common import random_dataset
 
 
 def test_axial_plus_6dof_equals_the_full_spring(robot, model6):

@@ -48,10 +48,10 @@ def test_link3_bends_as_the_forearm(robot):
 def test_a_link_of_no_length_does_not_bend(tmp_path):
     """A robot whose link 5 has neither a nor d (and link 6 none either): zero twist, no NaN."""
     import yaml
-    from stiffcomp_testlib import ROOT, random_dataset
 
     from stiffness.data.campaign import Context
     from stiffness.kinematics.robot import Robot
+    from testlib.common import ROOT, random_dataset
 
     d = yaml.safe_load((ROOT / "config/robots/kr125.yaml").read_text())
     d["dh"]["d_mm"][5] = 0.0

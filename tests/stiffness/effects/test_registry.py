@@ -16,7 +16,7 @@ from stiffness.effects import EFFECTS, Effect
 from stiffness.effects.base import EVIDENCE_PLOTS
 
 ROOT = Path(__file__).resolve().parents[3]
-SOURCE_FOLDERS = ("stiffness", "service", "plc_interface", "tools", "hil", "benchmarks")
+SOURCE_FOLDERS = ("stiffness", "service", "io_process", "robot_road", "plc_link", "io_base", "tools", "hil", "benchmarks")
 MODULES = sorted({cls.__module__ for cls in EFFECTS.values()})
 
 

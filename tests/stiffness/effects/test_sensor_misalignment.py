@@ -29,7 +29,7 @@ def test_a_known_rotation_turns_the_axes_the_right_way(robot):
 
 
 def test_prediction_equals_the_model_fed_the_rotated_wrench(robot):
-    from stiffcomp_testlib import random_dataset
+    from testlib.common import random_dataset
     data = random_dataset(robot, 20, 3)
     m = model_with({"effect": "sensor_misalignment", "rz_deg": 3.0}, base="kr125_6dof")
     plain = model_with(base="kr125_6dof")

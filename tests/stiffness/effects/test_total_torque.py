@@ -11,7 +11,6 @@ import pytest
 from discovery.campaigns import campaign
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from stiffcomp_testlib import MODELS, ROOT
 
 from service.compensation import FastPredictor
 from stiffness.data.measurements import Dataset
@@ -21,6 +20,7 @@ from stiffness.kinematics.statics import PayloadConfig, Statics, static_regresso
 from stiffness.model.preload_term import PreloadTerm
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import RAD_TO_DEG
+from testlib.common import MODELS, ROOT
 
 ROBOTS = ROOT / "config" / "robots"
 MASSES = ROBOTS / "kr125_masses.yaml"
