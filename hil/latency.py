@@ -31,7 +31,15 @@ from stiffness.files.yaml_schema import deep_update
 
 from .device_log import PlcLog
 from .plc_process import plc_main
-from .run import ServiceProcess, _end, _wait, free_udp_port, multicast_or_fail, write_service_config
+from .run import (
+    ServiceProcess,
+    _end,
+    _wait,
+    free_udp_port,
+    multicast_or_fail,
+    pass_program,
+    write_service_config,
+)
 from .scenario import Scenario
 from .sensor import serve_until
 
@@ -69,10 +77,10 @@ def _sensor_entry(bus_kw: dict, ati: dict, out_file: str, ready, stop) -> None:
         np.savez(out_file, k=sensor.sent_k[:sensor.n], t=sensor.sent_t[:sensor.n])
 
 
-def _plc_entry(scenario, robot_path, rmap, port, out_file, go, ready) -> None:
+def _plc_entry(scenario, robot_path, rmap, port, out_file, go, ready, program_folder) -> None:
     from stiffness.kinematics.robot import load_robot
 
-    plc_main(scenario, load_robot(robot_path), rmap, port, False, out_file, go, ready)
+    plc_main(scenario, load_robot(robot_path), rmap, port, False, out_file, go, ready, program_folder)
 
 
 def latencies(sent_t: np.ndarray, read_t: np.ndarray, read_code: np.ndarray) -> np.ndarray:
@@ -113,8 +121,9 @@ def measure(scenario: Scenario, model_path: Path, robot_path: str, seconds: floa
                "counts_per_torque": cfg.source.ati.counts_per_torque}
         bus_kw = {"interface": "udp_multicast", "channel": group, "port": can_port}
         sensor = ctx.Process(target=_sensor_entry, args=(bus_kw, ati, str(folder / "sent.npz"), s_ready, stop))
+        program = pass_program(cfg, None, folder)      # the library the cell loads, dialling this service
         plc = ctx.Process(target=_plc_entry, args=(sc, robot_path, cfg.register_map(), port,
-                                                   str(folder / "plc.npz"), go, p_ready))
+                                                   str(folder / "plc.npz"), go, p_ready, str(program.folder)))
         service = ServiceProcess(cfg_path, folder)
         try:
             sensor.start()

@@ -20,8 +20,8 @@ def plc_main(scenario, robot, rmap: RegisterMap, port: int, compensate: bool, ou
              ads_port: int | None = None) -> None:
     """Process entry: load the program, connect, report ready, wait for the start time in ``go_value``, run,
     save its log (`hil.device_log.PlcLog`) to ``out_file``. ``rmap`` is the service config's register map
-    (`ServiceConfig.register_map`); ``ads_port`` the service's ADS server (None: not served). Loads and connects below the service's priority, then runs its cycle
-as a PLC (`hil.priority`)."""
+    (`ServiceConfig.register_map`); ``ads_port`` the service's ADS server (None: not served). Loads and connects
+    below the service's priority, then runs its cycle as a PLC (`hil.priority`)."""
     below_the_service()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)    # refused connections are counted, not printed
     world = World(scenario, robot)

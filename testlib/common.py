@@ -1,6 +1,6 @@
 """Test helpers shared across directories: paths and a small synthetic-campaign generator.
 
-Imported by name (``from stiffcomp_testlib import ...``); conftest files only hold fixtures."""
+Imported as ``testlib.common``; conftest files only hold fixtures."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 HIL writes (config/robots/kr125.yaml's tcp), and to the probe log format `stiffcomp part` reads.
 
 `krl_mismatches` and `rapid_mismatches` list every value that differs; the shipped files give none, and a plan or
-a file drifted in one value is named. Each program's log is written as its controller writes it (robot_testlib:
+a file drifted in one value is named. Each program's log is written as its controller writes it (testlib.robot_logs:
 the KRL's StrClear, SWRITE and krl_fwriteln, the RAPID's Write pieces, no escape processing) and read back by the
 reader (`stiffness.data.probe_log`).
 """
