@@ -114,6 +114,30 @@ def test_no_module_over_400_lines_and_no_function_over_80():
     assert long_modules == [] and long_functions == []
 
 
+def packed(tree: ast.AST) -> list[int]:
+    """The lines where a statement starts beside another (``a; b``, ``if x: y``): a size limit met by packing is
+    not met. A function whose whole body is ``...`` (a protocol's stub) is one statement."""
+    starts: dict[int, int] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.stmt):
+            stub = (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+                    and node.value.value is Ellipsis)
+            if not stub:
+                starts[node.lineno] = starts.get(node.lineno, 0) + 1
+    return sorted(line for line, n in starts.items() if n > 1)
+
+
+def test_packed_finds_packed_statements_and_only_those():
+    assert packed(ast.parse("a = 1; b = 2\nif a:\n    b = 3\nif b: a = 4\n")) == [1, 4]
+    assert packed(ast.parse("def f(self) -> int: ...\nx = [i for i in range(3)]\n")) == []
+
+
+def test_no_statements_are_packed_onto_one_line():
+    found = [f"{name}:{line}" for name, path in modules().items() if path.name != "egm_pb2.py"
+             for line in packed(ast.parse(path.read_text()))]
+    assert found == []
+
+
 def test_the_science_keeps_its_rooms():
     """At most five modules flat in stiffness/, and at least six sub-packages."""
     flat = sorted(p.name for p in (ROOT / "stiffness").glob("*.py") if p.name != "__init__.py")
