@@ -15,6 +15,7 @@ its own model, which answers what the road asks of every robot (`RobotSection`).
 
 from __future__ import annotations
 
+import functools
 import importlib
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -84,7 +85,10 @@ def declare(declaration: Declaration) -> Declaration:
     return declaration
 
 
+@functools.cache
 def _entry_points() -> dict[str, str]:
+    """The interfaces installed packages declare (read once per process: a package installed while it runs is
+    found by the next one)."""
     return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINTS)}
 
 
