@@ -3,9 +3,9 @@
 The robot is the clock. `RobotRoad.received` runs for every datagram, in the I/O process's loop:
 
 1. a packet from an address other than ``robot.peer`` changes nothing (counted, logged once per address);
-2. the interface (`robot_road.interface`, found by ``robot.interface``) reads the packet; a malformed
-   one, a stamp (the packet's sequence number or clock) repeated or a little out of order, or programmed joints that are not finite or
-   outside the robot's limits are counted under their reason and dropped, unanswered;
+2. the interface (`robot_road.interface`, found by ``robot.interface``) reads the packet; a malformed one, a
+   stamp (the packet's sequence number or clock) repeated or a little out of order, or programmed joints that
+   are not finite or outside the robot's limits are counted under their reason and dropped, unanswered;
 3. a stamp that fell back far (the robot's program started the interface again), or the first packet after a
    silence of ``faults.plc_heartbeat_timeout_ms``, begins a new session (`session.Phase`): the robot holds no
    correction, and the answers ramp in from zero over ``limits.fault_ramp_s``;

@@ -95,8 +95,8 @@ class RobotSettings(Strict):
         if not self.enabled or self.interface in (self.__pydantic_extra__ or {}):
             return None
         return (f"robot.interface is {self.interface} but the config has no robot.{self.interface} section: its "
-                f"defaults are used ({self.section.served()}); they match the shipped robot side in cell/robot/generated/, so a "
-                f"robot set up otherwise needs robot.{self.interface} (docs/config.md)")
+                f"defaults are used ({self.section.served()}); they match the shipped robot side in "
+                f"cell/robot/generated/, so a robot set up otherwise needs robot.{self.interface} (docs/config.md)")
 
     @field_validator("peer")
     @classmethod
