@@ -42,8 +42,8 @@ class KukaController(RobotController):
     def __init__(self, settings, robot, delay_s: float = 0.0, aspos_holds_correction: bool = False,
                  extra: dict[str, int] | None = None):
         super().__init__(settings, robot, delay_s)
-        self.k = settings.section
-        self.period = self.k.cycle_ms / 1000.0
+        self.section = settings.section
+        self.period = self.section.cycle_ms / 1000.0
         self.aspos_holds = aspos_holds_correction
         self.extra = dict(extra or {})
         self.clock0 = CLOCK0_MS
@@ -75,7 +75,7 @@ class KukaController(RobotController):
             return False
         self.answer = values
         v = np.array(values)
-        relative = self.k.correction == "relative"
+        relative = self.section.correction == "relative"
         if tag == "AK":
             self._target = self._target + v if relative else v
         else:

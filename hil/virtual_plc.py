@@ -43,7 +43,7 @@ class CycleLog:
         self.q_cmd = np.zeros((n, 6))
         self.applied = np.zeros((n, 6))
         self.to_plc = np.full((n, n_out), np.nan)
-        self.k = 0
+        self.rows = 0                   # the cycles logged so far
 
 
 
@@ -100,9 +100,9 @@ class VirtualPlc:
 
     def _record(self, t: float, t_read: float) -> None:
         lg = self.log
-        if lg is None or lg.k >= len(lg.t):
+        if lg is None or lg.rows >= len(lg.t):
             return
-        k = lg.k
+        k = lg.rows
         lg.t[k], lg.t_read[k], lg.link[k] = t, t_read, self.fb.bAlive
         lg.q_ref[k] = self.main.aReferenceDeg
         lg.q_cmd[k] = self.q_cmd
@@ -110,13 +110,13 @@ class VirtualPlc:
         if self.fb.bAlive:
             raw = self.fb.stToPlc.to_bytes()[:self._words.size]
             lg.to_plc[k] = self.out_codec.decode(list(self._words.unpack(raw)))
-        lg.k += 1
+        lg.rows += 1
 
     def device_log(self, t0: float) -> PlcLog:
         """The cycles logged so far, with what the network saw (the addresses written, the failed requests, what
         was dialled) and the overruns; ``t0``: the clock time of program time 0."""
         lg, net = self.log, self.network
-        k = lg.k
+        k = lg.rows
         return PlcLog(t=lg.t[:k], q_ref=lg.q_ref[:k], q_cmd=lg.q_cmd[:k], applied=lg.applied[:k], period=self.period,
                       t0=t0, overruns=self.overruns, t_read=lg.t_read[:k], link=lg.link[:k], to_plc=lg.to_plc[:k],
                       written=np.array(sorted(net.written)), errors=net.errors, dialled=np.array(sorted(net.dialled)))

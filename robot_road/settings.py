@@ -87,7 +87,12 @@ class RobotSettings(Strict):
         except AttributeError:
             if name.startswith("_") or name not in registry.names():
                 raise
-            return registry.declared(name).settings()       # a sub-section not given: its defaults
+            return self.section_of(name)                        # a sub-section not given: its defaults
+
+    def section_of(self, name: str) -> RobotSection:
+        """Interface ``name``'s sub-section (``robot.<name>``): as given, or its model's defaults."""
+        given = (self.__pydantic_extra__ or {}).get(name)
+        return given if given is not None else registry.declared(name).settings()
 
     def defaults_warning(self) -> str | None:
         """The warning for an interface named without its own sub-section (it runs on that section's defaults,
@@ -115,8 +120,7 @@ class RobotSettings(Strict):
     @property
     def section(self) -> RobotSection:
         """The sub-section of the interface in use (``robot.<interface>``): given, or its model's defaults."""
-        given = (self.__pydantic_extra__ or {}).get(self.interface)
-        return given if given is not None else self.declaration.settings()
+        return self.section_of(self.interface)
 
     @property
     def cycle_ms(self) -> int:
