@@ -65,6 +65,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--mode-error", type=float, nargs="+", default=[0.0, 0.2, -0.2])
     ap.add_argument("--added-damping", type=float, nargs="+", default=[0.0, 0.1])
     ap.add_argument("--feedforward", action="store_true", help="each variant also with the feedforward")
+    ap.add_argument("--observer", action="store_true",
+                    help="each variant also with the accelerometer's observer (dynamics.observer)")
+    ap.add_argument("--observer-horizon-ms", type=float, default=None,
+                    help="dynamics.observer.horizon_ms (default: 4 PLC cycles plus the extra delay)")
+    ap.add_argument("--observer-band-hz", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                    help="dynamics.observer.band_hz (default: the observer's own)")
     ap.add_argument("--commissioning", choices=("tap", "cut"), default="tap")
     ap.add_argument("--predictor-hz", type=float, default=None, help="dynamics.predictor.bandwidth_hz")
     ap.add_argument("--realtime", action="store_true", help="the passes in real time, not in lock step")
@@ -77,7 +83,10 @@ def main(argv: list[str] | None = None) -> dict:
     if args.plc_period_ms is not None:
         sc.plc.period_ms = args.plc_period_ms
     truth = StiffnessModel.from_yaml(Path(args.truth))
-    variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz)
+    variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz,
+                               observer=obs, observer_horizon_ms=args.observer_horizon_ms,
+                               observer_band_hz=args.observer_band_hz)
+                for obs in ([False, True] if args.observer else [False])
                 for ff in ([False, True] if args.feedforward else [False])
                 for zeta in args.added_damping for err in args.mode_error]
     result = compare(sc, truth, Path(args.model) if args.model else sc.resolve(sc.model),

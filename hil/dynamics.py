@@ -54,6 +54,9 @@ class DynamicOptions:
     predictor: bool = True
     predictor_hz: float | None = None    # dynamics.predictor.bandwidth_hz (None: its default)
     delay_ms: float | None = None        # dynamics.delay_ms (None: measured on the static pass, `service_delay_ms`)
+    observer: bool = False               # the accelerometer at the tool and dynamics.observer with the modes
+    observer_horizon_ms: float | None = None     # dynamics.observer.horizon_ms (None: `observer_horizon_ms`)
+    observer_band_hz: tuple[float, float] | None = None     # dynamics.observer.band_hz (None: its default)
 
 
 def service_delay_ms(opts: DynamicOptions, world: World, static_log: Track) -> float:
@@ -141,6 +144,11 @@ def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, s
     if opts.predictor:
         section["predictor"] = {} if opts.predictor_hz is None else {"bandwidth_hz": opts.predictor_hz}
     out = {"dynamics": section}
+    if opts.observer:
+        h = opts.observer_horizon_ms if opts.observer_horizon_ms is not None else observer_horizon_ms(scenario)
+        section["observer"] = {"modes": section["structure"]["modes"], "horizon_ms": round(h, 2)}
+        if opts.observer_band_hz is not None:
+            section["observer"]["band_hz"] = list(opts.observer_band_hz)
     if opts.feedforward:
         folder.mkdir(parents=True, exist_ok=True)
         write_plan(world, folder / "plan.csv")
@@ -149,6 +157,13 @@ def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, s
                                   "output_delay_ms": 1.5 * scenario.plc.period_ms + scenario.plc.extra_delay_ms}
         out["plc"] = {"register_map": str(plan_register_map(SHIPPED_CONFIG / "registers.yaml", folder))}
     return out
+
+
+def observer_horizon_ms(scenario: Scenario) -> float:
+    """From the box's value to the correction at the joints: the PLC passes the value it read at its cycle's
+    start, its write lands a cycle later and the service reads it at its next cycle (2.5 PLC cycles), and the
+    correction reaches the joints 1.5 PLC cycles after the service's output, plus the extra delay."""
+    return 4.0 * scenario.plc.period_ms + scenario.plc.extra_delay_ms
 
 
 def structure_section(found: Identified, opts: DynamicOptions) -> dict:
@@ -224,6 +239,7 @@ def compare(scenario: Scenario, truth: StiffnessModel, model_path: Path,
             sc = scenario.model_copy(deep=True)
             sc.path = scenario.path
             sc.plc.extra_delay_ms = extra
+            sc.accelerometer.enabled |= any(v.observer for v in variants)     # the static pass measures it too
             static_pass, static = one(sc, f"static_{extra:g}", True)
             delay_ms = service_delay_ms(DynamicOptions(), world, static_pass.log)   # measured
             case = {"extra_delay_ms": extra, "delay_ms": delay_ms, "static": figures(world, static), "dynamic": []}

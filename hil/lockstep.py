@@ -23,6 +23,7 @@ import random
 from pathlib import Path
 
 import can
+import numpy as np
 
 from service.app import Service
 from service.config import load_config
@@ -31,6 +32,7 @@ from service.trace import TraceOptions
 from stiffness.data.trace_file import TraceFile
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .accelerometer import VirtualAccelerometer, reference_motion
 from .cell_network import ImageNetwork
 from .device_log import PlcLog
 from .run import PassResult, pass_program, write_service_config
@@ -88,7 +90,11 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
     out_file = TraceFile(trace) if trace is not None else None
     program = pass_program(cfg, plc_program, folder)
     try:
-        log = _loop(scenario, world, service, cfg, compensate, out_file, program)
+        box = None
+        if scenario.accelerometer.enabled:
+            box = VirtualAccelerometer(scenario.accelerometer, truth.robot, *reference_motion(scenario, truth, world),
+                                       world.path.q_ref_deg, scenario.payload.g_mps2, scenario.plc.period_ms / 1000.0)
+        log = _loop(scenario, world, service, cfg, compensate, out_file, program, box)
     finally:
         service.stop()
         sensor.bus.shutdown()
@@ -96,8 +102,11 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
             out_file.close()
     stats = service.info.stats()
     stats["status"] = "stopped"
-    return PassResult(log, [stats], "", compensate, {"unmapped_nonzero": [], "lockstep": True,
-                                                     "plc_program": program.summary(log.dialled)})
+    extra = {"unmapped_nonzero": [], "lockstep": True, "plc_program": program.summary(log.dialled)}
+    if box is not None:                 # what the box measured, low-passed, in base axes: the truth of its values
+        extra["accelerometer"] = {"t": np.array([s[0] for s in box.true]), "a": np.array([s[1] for s in box.true]),
+                                  "rate_hz": box.rate}
+    return PassResult(log, [stats], "", compensate, extra)
 
 
 def _protocol(cfg):
@@ -107,13 +116,13 @@ def _protocol(cfg):
 
 
 def _loop(scenario: Scenario, world: World, service: Service, cfg, compensate: bool, out: TraceFile | None,
-          program) -> PlcLog:
+          program, box=None) -> PlcLog:
     """Step the service every cycle and the PLC every PLC period from WARM_UP_S before the lead to the end."""
     rmap = cfg.register_map()
     c = scenario.plc
     network = ImageNetwork(service.image, rmap, delay_ms=c.extra_delay_ms)
     plc = VirtualPlc(program, network, rmap, world.path.q_ref_deg, compensate, c.period_ms / 1000.0, world.plan,
-                     {"service_timeout_ms": c.service_timeout_ms, "max_rate_deg_s": c.max_rate_deg_s})
+                     {"service_timeout_ms": c.service_timeout_ms, "max_rate_deg_s": c.max_rate_deg_s}, box)
     period = cfg.cycle.period_ms / 1000.0
     plc_every = max(1, round(plc.period / period))
     t_first = world.t_start - WARM_UP_S

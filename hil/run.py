@@ -37,6 +37,7 @@ from stiffness.files.yaml_schema import deep_update
 from stiffness.kinematics.robot import load_robot
 from stiffness.model.stiffness_model import StiffnessModel
 
+from .accelerometer import reference_motion, register_map_with_accelerometer, sampling_rate
 from .device_log import PlcLog, RobotLog
 from .errors import HilError
 from .multicast import MulticastError, check_multicast
@@ -45,6 +46,7 @@ from .plc_program import PlcProgram, generate_program
 from .priority import ROAD_IO_FIFO
 from .scenario import ROOT, Scenario
 from .sensor import sensor_main
+from .world import World
 
 START_TIMEOUT_S = 90.0
 
@@ -81,7 +83,17 @@ def write_service_config(scenario: Scenario, model_path: Path, folder: Path, gro
     ``overrides``."""
     run = {"model": {"file": str(Path(model_path).resolve())}, "plc": {"port": modbus_port}, "ads": {"port": free_port()},
            "source": {"can": {"channel": group, "options": {"port": can_port}}}}
-    return write_config(folder, deep_update(run, overrides or {}), source=scenario.resolve(scenario.service))
+    merged = deep_update(run, overrides or {})
+    path = write_config(folder, merged, source=scenario.resolve(scenario.service))
+    box = scenario.accelerometer
+    if not box.enabled:
+        return path
+    cfg = load_config(path)          # the box's values bound in the map the pass uses, and the service reading them
+    merged = deep_update(merged, {
+        "plc": {"register_map": str(register_map_with_accelerometer(cfg, folder))},
+        "accelerometer": {"enabled": True, "mount": {"rpy_deg": list(box.mount_rpy_deg)},
+                          "timeout_ms": max(20.0, 4000.0 / sampling_rate(box, scenario.plc.period_ms / 1000.0))}})
+    return write_config(folder, merged, source=scenario.resolve(scenario.service))
 
 
 class ServiceProcess:
@@ -181,9 +193,10 @@ def run_pass(scenario: Scenario, truth: StiffnessModel, model_path: Path, compen
     program = None
     if robot_interface is None:
         program = pass_program(cfg, plc_program, folder)
+        motion = reference_motion(scenario, truth, World(scenario, truth.robot)) if scenario.accelerometer.enabled else None
         plc = ctx.Process(target=_plc_entry, name="hil-plc", args=(
             scenario, robot_path, cfg.register_map(), modbus_port, compensate, str(out_file), go,
-            plc_ready, str(program.folder), faults.plc, cfg.ads.port if cfg.ads.enabled else None))
+            plc_ready, str(program.folder), faults.plc, cfg.ads.port if cfg.ads.enabled else None, motion))
     else:
         plc = ctx.Process(target=_robot_entry, name="hil-robot", args=(
             scenario, robot_path, cfg.robot, cfg.robot.port, str(out_file), go, plc_ready))
@@ -296,6 +309,7 @@ def _robot_entry(scenario, robot_path, settings, port, out_file, go, ready) -> N
     robot_main(scenario, load_robot(robot_path), settings, port, out_file, go, ready)
 
 
-def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, program, faults, ads_port) -> None:
+def _plc_entry(scenario, robot_path, rmap, port, compensate, out_file, go, ready, program, faults, ads_port,
+               motion) -> None:
     plc_main(scenario, load_robot(robot_path), rmap, port, compensate, out_file, go, ready, program, faults,
-             ads_port=ads_port)
+             ads_port=ads_port, motion=motion)

@@ -11,6 +11,7 @@ from service.gravity import GravityConfig
 from stiffness.files.yaml_schema import Strict, read_yaml, validate
 from stiffness.kinematics.robot import PoseConfig
 
+from .accelerometer import AccelerometerConfig
 from .structure import StructureConfig
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -97,6 +98,7 @@ class Scenario(Strict):
     payload: GravityConfig = Field(default_factory=GravityConfig)     # the truth: what the sensor carries
     cmm: CmmConfig = Field(default_factory=CmmConfig)
     probe: ProbeConfig = Field(default_factory=ProbeConfig)
+    accelerometer: AccelerometerConfig = Field(default_factory=AccelerometerConfig)
 
     path: Path = Field(default=Path("<scenario>"), exclude=True)
 

@@ -60,11 +60,14 @@ class VirtualPlc:
     period_s : the PLC's cycle (whole milliseconds: the runtime's clock counts ms)
     plan : callable t -> (program time (s), engagement planned ahead), for MAIN's plan inputs where it has them
     settings : the scenario's ``service_timeout_ms`` and ``max_rate_deg_s`` (`PlcProgram.start`)
+    accelerometer : the box at the tool (`hil.accelerometer.VirtualAccelerometer`), for MAIN's box inputs where
+        it has them (a map that binds the accelerometer); None: none
     """
 
     def __init__(self, program: PlcProgram, network: CellNetwork, rmap: RegisterMap,
                  reference: Callable[[float], list[float]], compensate: bool, period_s: float,
-                 plan: Callable[[float], tuple[float, float]] | None = None, settings: dict | None = None):
+                 plan: Callable[[float], tuple[float, float]] | None = None, settings: dict | None = None,
+                 accelerometer=None):
         self.cycle_ms = round(period_s * 1000.0)
         self.period = self.cycle_ms / 1000.0
         self.network = network
@@ -73,6 +76,9 @@ class VirtualPlc:
         self.fb = self.main.fbStiffComp
         self.reference = reference
         self.plan = plan
+        self.accelerometer = accelerometer if hasattr(self.main, "nAccX") else None
+        self._tare_from: float | None = None
+        self._alive_from: float | None = None
         self.out_codec = rmap.codecs["to_plc"]
         self._words = struct.Struct(f"<{self.out_codec.words}H")
         self.q_cmd: list[float] | None = None
@@ -93,10 +99,25 @@ class VirtualPlc:
         if self.plan is not None and hasattr(m, "fPlanTimeS"):
             program_t, engagement = self.plan(t)
             m.fPlanTimeS, m.fPlanEngagement = f32(program_t), f32(engagement)
+        if self.accelerometer is not None:          # the box's process data, as EtherCAT brings them
+            for name, value in self.accelerometer.sample(t, list(m.aJointsDeg)).items():
+                setattr(m, name, value)
+            m.bTare = self._tare_at(t)
         m.body()
         self.q_cmd = list(m.aCommandDeg)
         self._record(t, done())
         return self.q_cmd
+
+    def _tare_at(self, t: float) -> bool:
+        """With an accelerometer, MAIN's tare input: one rising edge while the arm stands at the start of the lead,
+        0.1 s after the service is first alive (the correction's first ramp is over by then) and at least 0.2 s
+        before the cut (program time 0), held 50 ms, as a cell tares its sensors at rest before a cut; the wrench
+        is tared with it."""
+        if self.fb.bAlive and self._alive_from is None:
+            self._alive_from = t
+        if self._tare_from is None and self._alive_from is not None and t - self._alive_from >= 0.1 and t < -0.2:
+            self._tare_from = t
+        return self._tare_from is not None and t - self._tare_from < 0.05
 
     def _record(self, t: float, t_read: float) -> None:
         lg = self.log

@@ -55,6 +55,8 @@ class Status(enum.IntFlag):
     STOPPED = 0x40      # the service stopped (the last value it publishes)
     TARE_REFUSED = 0x80  # the last tare request was refused (load above tare.max_force_N); cleared by a
                          # tare that is done or by a reset
+    ACCELEROMETER_OK = 0x100  # the flange accelerometer's samples arrive (acc_samples moved within
+                              # accelerometer.timeout_ms); clear: none configured, missing or frozen
 
 
 class Fault(enum.IntFlag):
@@ -180,7 +182,14 @@ FROM_PLC: tuple[Value, ...] = (
           "(dynamics.feedforward, source file); negative: no program running", required=False),
     Value("plan_engagement", "float32", "", "the engagement (0..1) the PLC program plans "
           "dynamics.feedforward.lookahead_ms ahead (source plc)", required=False),
+    *(Value(f"acc_{a}", "float32", "m/s2", f"the flange accelerometer along its {a} axis as it measures (the specific "
+            "force: gravity and its bias in it), scaled by the PLC from the box's process data", required=False)
+      for a in "xyz"),
+    Value("acc_samples", "uint16", "", "the accelerometer's new, valid samples the PLC has seen (wraps at 65535); "
+          "unchanged past accelerometer.timeout_ms: frozen or missing", required=False),
 )
+
+ACCELEROMETER = ("acc_x", "acc_y", "acc_z", "acc_samples")    # bound all together or not at all
 
 VALUES: dict[str, dict[str, Value]] = {"to_plc": {v.name: v for v in TO_PLC},
                                        "from_plc": {v.name: v for v in FROM_PLC}}

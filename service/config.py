@@ -34,6 +34,7 @@ from stiffness.errors import StiffnessError, quote
 from stiffness.files.kinds import looks_like
 from stiffness.files.yaml_schema import Strict, format_validation_error, read_yaml
 
+from .accelerometer import AccelerometerConfig
 from .compensation import ModelConfig
 from .dynamics import DynamicsConfig
 from .errors import ServiceConfigError
@@ -59,6 +60,7 @@ class ServiceConfig(Strict):
     faults: FaultsConfig = Field(default_factory=FaultsConfig)
     tare: TareConfig = Field(default_factory=TareConfig)
     dynamics: DynamicsConfig = Field(default_factory=DynamicsConfig)
+    accelerometer: AccelerometerConfig = Field(default_factory=AccelerometerConfig)
     plc: PlcSettings = Field(default_factory=PlcSettings)
     ads: AdsSettings = Field(default_factory=AdsSettings)
     monitoring: MonitoringSettings = Field(default_factory=MonitoringSettings)

@@ -90,6 +90,17 @@ class Dynamics:
             if name is not None:
                 p.feed(t, float(getattr(inputs, name)), p_tcp)
 
+    @property
+    def reads_motion(self) -> bool:
+        """A part reads the accelerometer (`feed_motion`)."""
+        return any(p.reads_motion for p in self.stages)
+
+    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
+        """The accelerometer's acceleration and state, and the nominal TCP, into the parts that read them."""
+        for p in self.stages:
+            if p.reads_motion:
+                p.feed_motion(acceleration, ok, p_tcp)
+
     def describe(self) -> str:
         if not self.stages:
             return "dynamic compensation off"

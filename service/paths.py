@@ -9,5 +9,5 @@ from io_process.endpoints import SHIPPED_CONFIG
 DEFAULT_CONFIG = SHIPPED_CONFIG / "default.yaml"
 
 # the service config's top-level sections: `service.config.ServiceConfig`'s fields (a test holds them equal)
-SECTIONS = ("cycle", "model", "source", "filter", "gravity", "limits", "faults", "tare", "dynamics", "plc", "ads",
-            "monitoring", "robot")
+SECTIONS = ("cycle", "model", "source", "filter", "gravity", "limits", "faults", "tare", "dynamics", "accelerometer",
+            "plc", "ads", "monitoring", "robot")

@@ -17,11 +17,12 @@ import math
 import numpy as np
 from pydantic import Field
 
-from plc_link.contract import Fault
+from plc_link.contract import Fault, Status
 from stiffness.files.yaml_schema import Strict
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import DEG_TO_RAD, M_TO_MM, RAD_TO_DEG
 
+from .accelerometer import Accelerometer
 from .ati import Reading
 from .compensation import FastPredictor, ModelConfig
 from .cycle_rules import safe_state, sample_age_ms, status_word
@@ -40,7 +41,7 @@ log = logging.getLogger("stiffcomp.service")
 _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO_DEG])
 _MOVED, _FRESH, _GRAVITY, _SAFE = 1, 2, 4, 8      # the compiled cycle's flags (`service.kernel.template.cycle`)
 # the scalars' places in `Cycle.vector`
-_STATUS, _FAULT, _TARES, _SAMPLES, _AGE, _PAYLOAD, _RELOADS = (SCALAR_AT[n] for n in SCALARS)
+_STATUS, _FAULT, _TARES, _SAMPLES, _AGE, _PAYLOAD, _RELOADS, _ACC = (SCALAR_AT[n] for n in SCALARS[:8])
 
 
 class TareConfig(Strict):
@@ -67,15 +68,18 @@ class Compensator:
     dynamics : Dynamics, optional
         The dynamic compensation (`service.dynamics`), whose terms ``predictor`` already runs; the cycle feeds
         its parts the PLC's values they read (the feedforward's plan) before the prediction.
+    accelerometer : Accelerometer, optional
+        The flange accelerometer (`service.accelerometer`), read from the PLC's values after the signal path.
     """
 
     def __init__(self, predictor: FastPredictor, filter: SosLowPass, spikes: SpikeRejector,
                  gravity: GravityCompensator, limiter: CorrectionLimiter, faults: FaultMonitor,
                  tare_max_force_N: float = math.inf, payloads: PayloadSelector | None = None,
-                 dynamics: Dynamics | None = None):
+                 dynamics: Dynamics | None = None, accelerometer: Accelerometer | None = None):
         self.predictor = predictor
         self.dynamics = dynamics
-        self.feeds = dynamics is not None and bool(dynamics.plc_values())
+        self.accelerometer = accelerometer if accelerometer is not None and accelerometer.enabled else None
+        self.feeds = dynamics is not None and bool(dynamics.plc_values()) or self.accelerometer is not None
         predictor.carry(gravity.mass, gravity.cog, gravity.g_mps2)     # the payload in the static torque
         self.payloads = payloads or PayloadSelector.only(gravity, predictor, faults)
         self.filter = filter
@@ -131,15 +135,16 @@ class Compensator:
     @classmethod
     def from_config(cls, model_section: ModelConfig, filter_section: FilterConfig, gravity: GravityConfig,
                     limits: LimitsConfig, tare: TareConfig, period_s: float, model: StiffnessModel,
-                    faults: FaultMonitor, dynamics: Dynamics | None = None) -> Compensator:
+                    faults: FaultMonitor, dynamics: Dynamics | None = None,
+                    accelerometer: Accelerometer | None = None) -> Compensator:
         """Each part from its own section: ``model``, ``filter``, ``gravity``, ``limits``, ``tare`` (and the
-        dynamic compensation built from ``dynamics``)."""
+        dynamic compensation built from ``dynamics``, the accelerometer from ``accelerometer``)."""
         predictor = FastPredictor.from_config(model_section, model, dynamics)
         compensator = GravityCompensator.from_config(gravity)
         return cls(predictor, SosLowPass.from_config(filter_section, period_s),
                    SpikeRejector.from_config(filter_section.spike), compensator,
                    CorrectionLimiter.from_config(limits, period_s), faults, tare.max_force_N,
-                   PayloadSelector.from_config(gravity, compensator, predictor, faults), dynamics)
+                   PayloadSelector.from_config(gravity, compensator, predictor, faults), dynamics, accelerometer)
 
     def _tare(self, filtered: list[float]) -> None:
         """The tare edge's work on a sample: refused under load, else the current wrench becomes zero."""
@@ -176,7 +181,7 @@ class Compensator:
         if self.t_first is None:
             self.t_first = t
         pred = self.predictor
-        if self.feeds and inputs is not None:
+        if self.dynamics is not None and self.feeds and inputs is not None:
             self.dynamics.feed(t, inputs, pred.p_tcp)
         k = self.kernel
         pk = None if k is None else pred.kernel
@@ -203,6 +208,11 @@ class Compensator:
             self._cycle_python(pred, dt, reading, hold, payload_moved)
         else:
             self._cycle_compiled(k, pk, pred, dt, reading, hold, moved, payload_moved)
+        acc = self.accelerometer
+        if acc is not None and inputs is not None:       # the sensor's axes at these joints now
+            acc.update(t, inputs, pred.R_s, tare)
+            if self.dynamics is not None:                 # for the next cycle's observer
+                self.dynamics.feed_motion(acc.acceleration, acc.ok, pred.p_tcp)
 
     def _cycle_compiled(self, k, pk, pred, dt: float, reading: Reading | None, hold: bool, moved: bool,
                         payload_moved: bool) -> None:
@@ -334,7 +344,8 @@ class Cycle:
             log.info("%s", dynamics.describe())
         return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.cycle_enables_on_start),
                    Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare, period,
-                                           model, faults, dynamics if dynamics.active else None), vector)
+                                           model, faults, dynamics if dynamics.active else None,
+                                           Accelerometer(cfg.accelerometer, cfg.gravity.g_mps2)), vector)
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
              plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0,
@@ -355,16 +366,21 @@ class Cycle:
         status = status_word(word, comp.limiter.safe, comp.ramping, comp.have_sample, self.supervisor.plc_seen,
                              comp.tare_refused)
         age = sample_age_ms(comp.t_prev, math.nan if comp.sample_t is None else comp.sample_t, comp.t_first)
+        acc = comp.accelerometer
+        if acc is not None and acc.ok:
+            status |= int(Status.ACCELEROMETER_OK)
         v = self._scalars
         v[_STATUS], v[_FAULT], v[_TARES], v[_SAMPLES] = status, word, comp.tares, comp.samples
         v[_AGE], v[_PAYLOAD], v[_RELOADS] = age, comp.payloads.active.index, self.reloads & 0xFFFF
+        if acc is not None:
+            v[_ACC], v[_ACC + 1], v[_ACC + 2] = acc.acceleration
 
     def signals(self) -> Signals:
         """The record of the last cycle."""
         c = self.compensator
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
                        c.wrench_sensor, c.deflection, c.tares, c.samples, float(self.vector[_AGE]),
-                       c.payloads.active.index, self.reloads & 0xFFFF)
+                       c.payloads.active.index, self.reloads & 0xFFFF, *(float(a) for a in self.vector[_ACC:_ACC + 3]))
 
     @property
     def status_word(self) -> int:

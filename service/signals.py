@@ -26,6 +26,9 @@ class Signals(NamedTuple):
     sample_age_ms: float            # age of the newest good sample (ms; since start before the first)
     payload_active: int             # the payload set in use (service.payloads)
     reload_count: int               # accepted reloads of the config (service.reload)
+    acc_x: float                    # the arm's acceleration at the tool, base axes, m/s^2, gravity and bias
+    acc_y: float                    # removed (service.accelerometer); 0 without an accelerometer or while
+    acc_z: float                    # its samples do not arrive
 
 
 # Signals as one float vector, field by field in their order (a list takes six places): what the compiled
@@ -41,7 +44,7 @@ assert [SIGNAL_SLOTS[n][0] for n in VECTORS] == list(range(VECTORS_START, VECTOR
 # each vector's place in the signal path's own view of the five (`Compensator.vector`)
 VECTOR_AT = {name: SIGNAL_SLOTS[name][0] - VECTORS_START for name in VECTORS}
 SCALARS = ("status_word", "fault_word", "tare_count", "sensor_samples", "sample_age_ms", "payload_active",
-           "reload_count")
+           "reload_count", "acc_x", "acc_y", "acc_z")
 SCALAR_AT = {name: SIGNAL_SLOTS[name][0] for name in SCALARS}
 
 

@@ -12,15 +12,26 @@ import logging
 import threading
 import time
 
+from plc_link.contract import ACCELEROMETER
+
 from .errors import ServiceConfigError
 
 log = logging.getLogger("stiffcomp.service")
 
 
 def check_plc_values(cfg, cycle, rmap) -> None:
-    """ServiceConfigError naming the register when ``dynamics.feedforward`` reads a value from the PLC that
-    ``plc.register_map`` (``rmap``) does not have."""
+    """ServiceConfigError naming the register when ``dynamics.feedforward`` or ``accelerometer`` reads a value
+    from the PLC that ``plc.register_map`` (``rmap``) does not have."""
+    if cfg.accelerometer.enabled:
+        missing = [n for n in ACCELEROMETER if n not in rmap.codecs["from_plc"].index]
+        if missing:
+            raise ServiceConfigError(f"{cfg.path}: accelerometer.enabled reads {', '.join(ACCELEROMETER)} from the "
+                                     f"PLC, but plc.register_map = {cfg.plc.register_map} has no register "
+                                     f"{', '.join(missing)} (docs/register_map.md, \"The accelerometer\")")
     dyn = cycle.compensator.dynamics
+    if dyn is not None and dyn.reads_motion and not cfg.accelerometer.enabled:
+        raise ServiceConfigError(f"{cfg.path}: dynamics.observer reads the accelerometer, but accelerometer.enabled "
+                                 "is false (docs/accelerometer.md)")
     for name in (dyn.plc_values() if dyn is not None else []):
         if name not in rmap.codecs["from_plc"].index:
             raise ServiceConfigError(f"{cfg.path}: dynamics.feedforward reads {name} from the PLC, but "

@@ -7,7 +7,8 @@ Both blocks do the same each call, in this order (docs/plc.md, "The block's stat
 1. build the from_plc record: the command word (enable as a level; tare and reset each a pulse from its
    input's rising edge, held until a write that carried it has ended without an error, then clear as
    long: `COMMAND_BIT_BODY`), the PLC heartbeat (+1 every call), the joints, the payload index and whatever
-   else the map binds, each scaled as its register says;
+   else the map binds, each scaled as its register says; where the map binds the accelerometer, the box's
+   values (`cell.plc.accelerometer`);
 2. write it (one request covering the block; a new one starts when the last has ended);
 3. read the to_plc record, keeping the last good copy; the call that takes an answer starts the next request;
 4. note whether the service's heartbeat *and* cycle count moved since the last good read (the first good
@@ -24,11 +25,12 @@ built as statements (`statements`) and rendered into it. Only the requests diffe
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from plc_link.contract import Fault, Status, TaskState
 from plc_link.register_map import Register, RegisterMap
 
+from .accelerometer import BOX_INPUTS, SCALE, box_state, box_statements, has_accelerometer
 from .declarations import (
     CONTRACT,
     FAULT_BITS,
@@ -243,7 +245,7 @@ def _from_plc(rmap: RegisterMap) -> list:
     out += [Assign(f"stFromPlc.q{i}", encode(by[f"q{i}"], f"aJointsDeg[{i}]")) for i in JOINTS]
     out += [Assign(f"stFromPlc.{i.register}", encode(by[i.register], i.var)) for i in OPTIONAL_INPUTS
             if i.register in by]
-    return out
+    return out + box_statements(rmap)
 
 
 def _command_bits() -> list:
@@ -267,6 +269,9 @@ def _decode(rmap: RegisterMap) -> list:
 def _interface(rmap: RegisterMap, req: Requests) -> tuple[VarList, ...]:
     by = rmap.by_name
     optional = [Var(i.var, plc_type(by[i.register]), comment=i.comment) for i in OPTIONAL_INPUTS if i.register in by]
+    acc = has_accelerometer(rmap)
+    if acc:
+        optional += [*BOX_INPUTS, SCALE]
     inputs = (Var("bEnable", BOOL, comment="apply the correction (level)"),
               Var("bTare", BOOL, comment="rising edge: tare the sensor"),
               Var("bReset", BOOL, comment="rising edge: reset the latched faults whose cause is gone"),
@@ -296,7 +301,8 @@ def _interface(rmap: RegisterMap, req: Requests) -> tuple[VarList, ...]:
              Var("bWriteStarted", BOOL, comment="a write request starts this cycle"),
              Var("bWriteEnded", BOOL, comment="the write request ended this cycle"),
              Var("aServiceDeg", JOINTS_REAL, comment="the service's correction, deg (scaled back)"),
-             Var("i", Elementary("INT")))
+             Var("i", Elementary("INT")),
+             *(box_state(rmap) if acc else ()))
     return (VarList("VAR_INPUT", inputs), VarList("VAR_OUTPUT", outputs), VarList("VAR", local))
 
 
@@ -346,12 +352,14 @@ def main_program(rmap: RegisterMap, transport: str = "ads") -> Pou:
     """The example task's program: the block of ``transport`` (`MAIN_BLOCKS`) and the inputs the map binds."""
     by = rmap.by_name
     optional = [i for i in OPTIONAL_INPUTS if i.register in by]
+    acc = BOX_INPUTS if has_accelerometer(rmap) else ()
     local = (Var("fbStiffComp", Derived(MAIN_BLOCKS[transport])), Var("bEnable", BOOL), Var("bTare", BOOL),
              Var("bReset", BOOL),
              Var("bResetOnRecovery", BOOL, "TRUE", "reset the service's faults once each time the link comes back"),
              Var("rtAlive", Derived("R_TRIG")),
              Var("aJointsDeg", JOINTS_REAL, comment="from the axes, deg"),
              *(Var(i.var, plc_type(by[i.register]), comment=i.comment) for i in optional),
+             *(replace(v, at="%I*") for v in acc),
              Var("aReferenceDeg", JOINTS_REAL, comment="the axes' references before correction, deg"),
              Var("aCommandDeg", JOINTS_REAL, comment="the references with the correction, deg"),
              Var("aAppliedDeg", JOINTS_REAL, comment="the correction applied, after the rate limit"),
@@ -360,7 +368,7 @@ def main_program(rmap: RegisterMap, transport: str = "ads") -> Pou:
              Var("fStep", REAL), Var("fTarget", REAL), Var("i", Elementary("INT")))
     pins = (Pin("bEnable", "bEnable"), Pin("bTare", "bTare"),
             Pin("bReset", "bReset OR (bResetOnRecovery AND rtAlive.Q)"), Pin("aJointsDeg", "aJointsDeg"),
-            *(Pin(i.var, i.var) for i in optional))
+            *(Pin(i.var, i.var) for i in optional), *(Pin(v.name, v.name) for v in acc))
     body = MAIN_BODY.format(call=render([Call("fbStiffComp", pins)]))
     return Pou(TASK.program, "PROGRAM", (VarList("VAR", local),), body,
                f"Example: {MAIN_BLOCKS[transport]} in a cyclic task, its correction rate-limited onto the axes' "

@@ -27,7 +27,7 @@ import numpy as np
 from io_base.errors import PlcError
 from plc_link.ads.area import MB_GROUP, TASKINFO, TASKINFO_FIELDS, TASKINFO_GROUP, Layout
 from plc_link.ads.symbols import IEC_TYPES
-from plc_link.contract import VALUES, Command, Fault, Status, TaskState
+from plc_link.contract import ACCELEROMETER, VALUES, Command, Fault, Status, TaskState
 from plc_link.errors import RegisterMapError
 from plc_link.register_map import INT_RANGE, TYPES, Register, RegisterMap, struct_fields
 
@@ -226,7 +226,13 @@ def task_state_enum() -> Enum:
 
 
 def check_map(rmap: RegisterMap) -> None:
-    """RegisterMapError where the map cannot be read or written as one block by the library's blocks."""
+    """RegisterMapError where the map cannot be read or written as one block by the library's blocks, or binds
+    the accelerometer's values only in part."""
+    bound = [n for n in ACCELEROMETER if n in rmap.by_name]
+    if bound and len(bound) < len(ACCELEROMETER):
+        raise RegisterMapError(f"{rmap.source}: from_plc binds {', '.join(bound)} but not "
+                               f"{', '.join(n for n in ACCELEROMETER if n not in bound)}: the accelerometer's values "
+                               "go together (docs/register_map.md, \"The accelerometer\")")
     regs = [r for r in rmap.registers if r.direction == "from_plc"]
     for a, b in itertools.pairwise(regs):
         if b.address != a.address + a.count:

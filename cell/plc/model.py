@@ -68,17 +68,21 @@ JOINTS_REAL = ArrayType(1, 6, REAL)
 
 @dataclass(frozen=True)
 class Var:
-    """One declaration: name, type, initial value (structured text, "" for none), comment."""
+    """One declaration: name, type, initial value (structured text, "" for none), comment, and where the
+    variable is located (``%I*``: an input the I/O configuration links to a device's process data; "" for
+    none)."""
 
     name: str
     type: Type
     init: str = ""
     comment: str = ""
+    at: str = ""
 
     def line(self) -> str:
         init = f" := {self.init}" if self.init else ""
         comment = f" // {self.comment}" if self.comment else ""
-        return f"    {self.name} : {self.type.st}{init};{comment}"
+        at = f" AT {self.at}" if self.at else ""
+        return f"    {self.name}{at} : {self.type.st}{init};{comment}"
 
 
 @dataclass(frozen=True)

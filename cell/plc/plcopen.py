@@ -57,7 +57,8 @@ def type_xml(t: Type) -> str:
 def variable(v: Var) -> str:
     init = f"<initialValue><simpleValue value={quoteattr(v.init)}/></initialValue>" if v.init else ""
     doc = _text(v.comment) if v.comment else ""
-    return f"<variable name={quoteattr(v.name)}><type>{type_xml(v.type)}</type>{init}{doc}</variable>"
+    at = f" address={quoteattr(v.at)}" if v.at else ""         # TC6 XML's located variable
+    return f"<variable name={quoteattr(v.name)}{at}><type>{type_xml(v.type)}</type>{init}{doc}</variable>"
 
 
 def _var_list(vl: VarList, tag: str) -> str:

@@ -10,6 +10,9 @@ q1_deg .. q6_deg                   the joint positions the PLC reported (what th
 fx_N .. mz_Nm                      the wrench the cycle used: filtered, gravity and bias removed, in
                                    base axes, moment about the sensor origin
 c1_deg .. c6_deg                   the joint correction the service sent (after limits)
+acc_x_mps2 .. acc_z_mps2           the arm's acceleration at the tool, base axes, gravity and bias removed
+                                   (0 without an accelerometer, or while its samples do not arrive; a
+                                   trace written before it had none, and reads NaN there)
 status_word, fault_word, task_state  the contract's words (`plc_link.contract`)
 =================================  ===============================================================
 
@@ -36,6 +39,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Self
@@ -50,8 +54,10 @@ log = logging.getLogger("stiffcomp.trace")
 Q = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
 CORRECTION = tuple(f"c{i}_deg" for i in range(1, 7))
+ACCELERATION = ("acc_x_mps2", "acc_y_mps2", "acc_z_mps2")
 WORDS = ("status_word", "fault_word", "task_state")
-COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *CORRECTION, *WORDS)
+COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *CORRECTION, *ACCELERATION, *WORDS)
+OPTIONAL = set(ACCELERATION)          # a trace of an older service has none: NaN
 INTEGER = {"cycle", *WORDS}
 SUFFIXES = (".csv", ".parquet")
 DEFAULT_MAX_MB = 200.0
@@ -261,26 +267,27 @@ def read_trace(path: str | Path) -> Trace:
         raise DataError(f"{path}: trace file not found")
     if path.suffix.lower() == ".parquet":
         t = read_parquet(path)
-        missing = [c for c in COLUMNS if c not in t.column_names]
+        missing = [c for c in COLUMNS if c not in t.column_names and c not in OPTIONAL]
         if missing:
             raise DataError(f"{path}: not a stiffcomp trace: column(s) {', '.join(missing)} missing")
-        table = np.column_stack([t.column(c).to_numpy().astype(float) for c in COLUMNS]) if t.num_rows else \
+        table = np.column_stack([t.column(c).to_numpy().astype(float) if c in t.column_names else
+                                 np.full(t.num_rows, np.nan) for c in COLUMNS]) if t.num_rows else \
             np.zeros((0, len(COLUMNS)))
         return _checked(path, table, None)
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             reader = csv.reader(fh)
             header = [h.strip() for h in next(reader, [])]
-            missing = [c for c in COLUMNS if c not in header]
+            missing = [c for c in COLUMNS if c not in header and c not in OPTIONAL]
             if missing:
                 raise DataError(f"{path}: line 1: not a stiffcomp trace: column(s) {', '.join(missing)} missing")
-            idx = [header.index(c) for c in COLUMNS]
+            idx = [header.index(c) if c in header else None for c in COLUMNS]
             rows, lines = [], []
             for row in reader:
                 if not row:
                     continue
                 try:
-                    rows.append([float(row[k]) for k in idx])
+                    rows.append([math.nan if k is None else float(row[k]) for k in idx])
                 except (ValueError, IndexError):
                     raise DataError(f"{path}: line {reader.line_num}: not {len(header)} numbers") from None
                 lines.append(reader.line_num)

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from .base import DynamicsContext, Stage
 from .feedforward import Feedforward
+from .observer import Observer
 from .predictor import Predictor
 from .structure import Structure
 
-STAGES: dict[str, type[Stage]] = {cls.name: cls for cls in (Predictor, Feedforward, Structure)}
+STAGES: dict[str, type[Stage]] = {cls.name: cls for cls in (Predictor, Feedforward, Structure, Observer)}
 
 __all__ = ["STAGES", "DynamicsContext", "Stage"]

@@ -82,6 +82,12 @@ class Stage(ABC):
         """This cycle's `plc_value` (read at the cycle's time ``t``, s; the tool at ``p_tcp``, m) into the
         part's terms, before the cycle runs them."""
 
+    reads_motion: ClassVar[bool] = False     # the part reads the accelerometer (`feed_motion`)
+
+    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
+        """The arm's acceleration at the tool (base axes, m/s^2; `service.accelerometer`), whether its samples
+        arrive, and the nominal TCP of the joints the PLC reported (m, base), into the part's terms."""
+
     def describe(self) -> str:
         return self.name
 
@@ -94,6 +100,7 @@ def biquad(b: list[float], a: list[float], period_s: float, prewarp_hz: float = 
         w = 2.0 * np.pi * prewarp_hz
         fs = w / (2.0 * np.tan(w / (2.0 * fs)))
     bz, az = signal.bilinear(b, a, fs)
-    bz = np.concatenate([np.zeros(3 - len(bz)), bz]) if len(bz) < 3 else bz
-    az = np.concatenate([az, np.zeros(3 - len(az))]) if len(az) < 3 else az
+    n = max(len(bz), len(az))               # both in powers of 1/z: a lower order leaves the last ones zero
+    bz = np.concatenate([np.zeros(n - len(bz)), bz])
+    bz, az = (np.concatenate([c, np.zeros(3 - len(c))]) for c in (bz, az))
     return np.array([bz[0], bz[1], bz[2], az[1], az[2]]) / az[0]

@@ -55,6 +55,21 @@ def scaled_map(tmp_path: Path) -> Path:
     return path
 
 
+ACC_REGISTERS = ({"name": "acc_x", "address": 0x800F, "type": "float32", "unit": "m/s2"},
+                 {"name": "acc_y", "address": 0x8011, "type": "float32", "unit": "m/s2"},
+                 {"name": "acc_z", "address": 0x8013, "type": "float32", "unit": "m/s2"},
+                 {"name": "acc_samples", "address": 0x8015, "type": "uint16"})
+
+
+def accelerometer_map(tmp_path: Path) -> Path:
+    """The shipped map with the accelerometer's four values bound (docs/register_map.md)."""
+    data = yaml.safe_load(SHIPPED_MAP.read_text())
+    data["from_plc"]["registers"] += [dict(r) for r in ACC_REGISTERS]
+    path = tmp_path / "accelerometer.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
 class Service:
     """The service's side: the process image, and a 1 ms cycle that reads the PLC's block (counting the rising
     edges of tare and reset, as the service acts on them) and publishes its record."""
@@ -146,7 +161,12 @@ def libraries(tmp_path_factory) -> dict[str, tuple[RegisterMap, list[Path]]]:
     for rel, data in generate(rmap, Endpoint(), ("twincat",)).items():
         (folder / Path(rel).name).write_bytes(data)
     files = [p for p in folder.iterdir() if p.stem not in ("FB_StiffComp", "MAIN")]
-    return {"shipped": (RegisterMap.from_yaml(SHIPPED_MAP), sorted(COMMITTED.iterdir())), "scaled": (rmap, files)}
+    acc_folder = tmp_path_factory.mktemp("accelerometer")
+    acc_map = RegisterMap.from_yaml(accelerometer_map(tmp_path_factory.mktemp("acc_map")))
+    for rel, data in generate(acc_map, Endpoint(), ("twincat",)).items():
+        (acc_folder / Path(rel).name).write_bytes(data)
+    return {"shipped": (RegisterMap.from_yaml(SHIPPED_MAP), sorted(COMMITTED.iterdir())), "scaled": (rmap, files),
+            "accelerometer": (acc_map, sorted(acc_folder.iterdir()))}
 
 
 class Cell:
@@ -374,3 +394,48 @@ def test_writes_the_service_refuses_are_errors_and_hold_the_bit(libraries, cells
     assert cell.fb.bError and cell.fb.nErrorId == 0x8002
     assert cell.service.edges[Command.TARE] == 0 and cell.fb.fbTare.bBusy
     assert cell.service.image.refused_writes > 40
+
+
+def test_the_accelerometers_new_valid_samples_cross_scaled_and_counted(libraries, cells):
+    """MAIN's box inputs (linked AT %I* to the EP3751's process data) reach the service: each new value (its
+    toggle inverted) scaled from mg per LSB to m/s^2 and counted; a value the box marks invalid (TxPDO State, a
+    self test) neither counted nor passed; a toggle that stands still counts nothing (a frozen box)."""
+    cell = Cell(libraries, "accelerometer", "FB_StiffComp", fixed(1), task="MAIN")
+    cells.append(cell)
+    main, f32 = cell.program, cell.machine.namespace["f32"]
+    counts = {"nAccX": 120, "nAccY": -1000, "nAccZ": 1000}        # mg: gravity along z
+    sent: list[tuple[int, ...]] = []
+    during_test: list[float] = []
+
+    def box(now_ms: int) -> None:
+        if now_ms == 59:
+            during_test.append(cell.service.image.inputs().acc_x)
+        if now_ms < 100:                        # a new value every 2 ms
+            if now_ms % 2 == 0:
+                main.bAccToggle = not main.bAccToggle
+                for k, name in enumerate(counts):
+                    setattr(main, name, counts[name] + now_ms * (k + 1))
+                sent.append(tuple(getattr(main, n) for n in counts))
+            main.bAccStateY = 40 <= now_ms < 60     # a self test: 10 values invalid
+
+    cell.run(100, box)
+    cell.run(20)                                # the box frozen
+    got = cell.service.image.inputs()
+    valid = [v for k, v in enumerate(sent) if not 40 <= 2 * k < 60]
+    assert int(got.acc_samples) == len(valid) == 40
+    scale = f32(0.00980665)
+    last = valid[-1]
+    for axis, count in zip("xyz", last):
+        assert getattr(got, f"acc_{axis}") == f32(f32(count) * scale), axis
+    assert during_test == [f32(f32(sent[19][0]) * scale)]     # the last valid value (38 ms) held through the test
+
+
+def test_a_map_that_binds_part_of_the_accelerometer_is_refused(tmp_path):
+    from plc_link.errors import RegisterMapError
+
+    data = yaml.safe_load(SHIPPED_MAP.read_text())
+    data["from_plc"]["registers"] += [dict(r) for r in ACC_REGISTERS[:3]]
+    path = tmp_path / "part.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(RegisterMapError, match="binds acc_x, acc_y, acc_z but not acc_samples"):
+        generate(RegisterMap.from_yaml(path), Endpoint(), ("twincat",))

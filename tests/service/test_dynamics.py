@@ -7,6 +7,7 @@
   as it runs), each part with its parameters 20 % off (the modes' frequencies, the horizon, the plan's force):
   no fault, and the correction does not grow (the last 20 s's RMS within 1.3 x the first 20 s's, no second's
   above 2 x), its RMS within 1.5 x what its own filters' gain allows over the static path's (`noise_gain`);
+  the accelerometer's observer, with the box's noise too, within 1.5 x the same modes' RMS without it;
 * the ramps and the faults: with the enable bit off the correction ramps to zero as the static one does; a
   correction that is not finite trips value_invalid and ramps; a fault reset restarts every state;
 * the config: a feedforward whose value the register map lacks refuses to start, naming both; a reload
@@ -40,7 +41,9 @@ PARTS = {
     "feedforward": {"feedforward": {"source": "file", "file": "PLAN"}},
     "all": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 4.0},
             "feedforward": {"source": "file", "file": "PLAN"}},
+    "observer": {"structure": {"modes": MODES, "lag_ms": 4.0}, "observer": {"modes": MODES, "horizon_ms": 5.0}},
 }
+BOUNDED_BY_THE_FORCE = sorted(set(PARTS) - {"observer"})     # the observer is driven by the acceleration too
 
 
 def plan_file(folder, scale: float = 1.0):
@@ -64,6 +67,8 @@ def config_with(folder, part: str, scale: float = 1.0) -> ServiceConfig:
             sub["horizon_ms"] *= scale
     data = cfg.model_dump()
     data["dynamics"] = {"enabled": True, "delay_ms": 8.0, **section}
+    if "observer" in section:
+        data["accelerometer"] = {"enabled": True}
     out = ServiceConfig.model_validate(data)
     out.path = cfg.path
     out.tare.max_force_N = 2500.0
@@ -71,7 +76,12 @@ def config_with(folder, part: str, scale: float = 1.0) -> ServiceConfig:
 
 
 def inputs(t: float) -> FromPlc:
-    return FromPlc(**{v.name: 0.0 for v in FROM_PLC})._replace(plan_time_s=t)
+    """The PLC's record at ``t``: the plan's time, and a new accelerometer value each cycle (1 mg of noise about
+    gravity along the box's z, the same at the same t)."""
+    k = round(t * 1000.0)
+    acc = np.random.default_rng(k).normal(0.0, 9.80665e-3, 3) + [0.0, 0.0, 9.81]
+    return FromPlc(**{v.name: 0.0 for v in FROM_PLC})._replace(plan_time_s=t, acc_x=acc[0], acc_y=acc[1],
+                                                               acc_z=acc[2], acc_samples=k % 65536)
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +125,7 @@ def white_noise_run(cycle: Cycle, seconds: float = 60.0, seed: int = 4) -> np.nd
     return out
 
 
-@pytest.mark.parametrize("part", sorted(PARTS))
+@pytest.mark.parametrize("part", BOUNDED_BY_THE_FORCE)
 def test_a_part_with_its_parameters_20_percent_off_stays_bounded_under_60_s_of_white_noise(tmp_path, model, part):
     cfg = config_with(tmp_path, part, scale=1.2)
     dyn, static = Cycle.from_config(cfg, model), Cycle.from_config(load_config(CONFIG / "default.yaml"), model)
@@ -131,6 +141,21 @@ def test_a_part_with_its_parameters_20_percent_off_stays_bounded_under_60_s_of_w
     # the bound treats the six channels alike (the modes act on the translation only, the predictor on all
     # six, the plan adds its own changes): a margin of 1.5 on it
     assert np.sqrt((blocks ** 2).mean()) <= 1.5 * bound, (blocks, bound)
+
+
+def test_the_observer_with_its_modes_20_percent_off_stays_bounded_under_60_s_of_noise(tmp_path, model):
+    """White-noise force and the box's noise (1 mg) together: no growth, and within 1.5 x the RMS of the same
+    modes without the observer (the force-only path it corrects)."""
+    runs = {}
+    for part in ("observer", "structure"):
+        cycle = Cycle.from_config(config_with(tmp_path, part, scale=1.2), model)
+        cycle.compensator.compile()
+        runs[part] = white_noise_run(cycle)
+        assert cycle.faults.word == 0 and np.isfinite(runs[part]).all()
+    blocks = {p: np.sqrt((dq[1000:].reshape(59, 1000, 6) ** 2).mean(axis=(1, 2))) for p, dq in runs.items()}
+    b = blocks["observer"]
+    assert b[-20:].mean() <= 1.3 * b[:20].mean() and b.max() <= 2.0 * b[:20].mean(), b
+    assert np.sqrt((b ** 2).mean()) <= 1.5 * np.sqrt((blocks["structure"] ** 2).mean()), blocks
 
 
 def noise_gain(cycle: Cycle) -> float:

@@ -33,7 +33,8 @@ def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
                 n += 1
                 q = [float(n), 0.0, 0.0, 0.0, 0.0, float(-n)]
                 zeros = [0.0] * 6
-                sig = Signals(n & 0xFFFF, 0, [0.5 * n] * 6, zeros, [float(n)] * 6, zeros, zeros, 0, n, 0.0, 0, 0)
+                sig = Signals(n & 0xFFFF, 0, [0.5 * n] * 6, zeros, [float(n)] * 6, zeros, zeros, 0, n, 0.0, 0, 0,
+                              0.25 * n, 0.0, -0.5 * n)
                 ring.put_cycle(n * 0.001, q, sig, 1)
             if k % 2 == 0 or k == len(batches) - 1:
                 got.append(ring.take())
@@ -47,6 +48,8 @@ def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
         np.testing.assert_array_equal(rows[:, COLUMNS.index("q1_deg")], cycle)
         np.testing.assert_array_equal(rows[:, COLUMNS.index("fz_N")], cycle)
         np.testing.assert_array_equal(rows[:, COLUMNS.index("c6_deg")], 0.5 * cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("acc_x_mps2")], 0.25 * cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("acc_z_mps2")], -0.5 * cycle)
         np.testing.assert_array_equal(rows[:, COLUMNS.index("status_word")], cycle % 65536)
     finally:
         ring.close()

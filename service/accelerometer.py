@@ -1,0 +1,108 @@
+"""The flange accelerometer: the arm's acceleration at the tool, in base axes, gravity and bias removed
+(docs/accelerometer.md).
+
+A cell reads the box (Beckhoff EP3751: a 3-axis accelerometer on EtherCAT) in its PLC; the generated library
+scales its process data and passes it through the contract (`plc_link.contract.ACCELEROMETER`): ``acc_x``,
+``acc_y``, ``acc_z`` in m/s^2 along the box's axes, and ``acc_samples``, the new valid samples the PLC saw. A
+MEMS accelerometer measures the specific force f = R^T (a - g) (R: the box's axes in the base, g: gravity,
+``gravity.g_mps2``), plus its bias b, so the arm's acceleration is
+
+    a = R (f - b) + g,      R = R_s R_m
+
+with R_s the force sensor's axes in the base at the joints the PLC sent (the pose is known, as for the
+wrench's gravity) and R_m the box's axes in the sensor's (``accelerometer.mount``). The bias is taken as the
+wrench's is: a tare (the arm at rest) sets b = f + R^T g, with f the readings through a low-pass of
+``TARE_TAU_S`` (as the wrench's tare takes the filtered wrench: a servo holding its joints still moves by
+micrometres, and one value would carry that), so the acceleration reads zero on average then. The lever arm
+between the box and the TCP is left out: the arm's low modes translate the tool (docs/accelerometer.md).
+
+A configured accelerometer is supervised: ``acc_samples`` unchanged for ``timeout_ms`` (the box silent, its
+values invalid, or the PLC no longer passing them) or a value not finite is the named condition
+``accelerometer_frozen`` (``accelerometer_missing`` before the first sample), logged once when it starts and
+once when it ends, and the status bit ``accelerometer_ok`` is clear. It is not a latched fault: the correction
+goes on without the acceleration (the parts that use it fall back to the force alone), and the acceleration
+reads zero meanwhile.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+from pydantic import Field
+
+from stiffness.files.yaml_schema import Strict
+from stiffness.kinematics.robot import PoseConfig
+
+log = logging.getLogger("stiffcomp.service")
+
+FROZEN, MISSING = "accelerometer_frozen", "accelerometer_missing"
+TARE_TAU_S = 0.05        # the readings' low-pass for the tare
+
+
+class AccelerometerConfig(Strict):
+    """``accelerometer``: the flange accelerometer (module docstring)."""
+
+    enabled: bool = False
+    mount: PoseConfig = Field(default_factory=PoseConfig)      # the box's axes in the force sensor's frame
+    timeout_ms: float = Field(20.0, gt=0.0, le=1000.0)
+
+
+class Accelerometer:
+    """The accelerometer of one ``accelerometer`` section; `update` each cycle with the PLC's record."""
+
+    def __init__(self, section: AccelerometerConfig, g_mps2):
+        self.enabled = section.enabled
+        self.R_m = np.asarray(section.mount.matrix())[:3, :3]
+        self.timeout_s = section.timeout_ms / 1000.0
+        self.g = np.asarray(g_mps2, dtype=float)
+        self.bias = np.zeros(3)
+        self.f = np.zeros(3)                 # the last good reading, box axes
+        self.f_lp = None                     # ... through a low-pass of TARE_TAU_S (the tare's)
+        self.acceleration = np.zeros(3)      # base axes, m/s^2: zero while not ok
+        self.ok = False
+        self.condition: str | None = None    # FROZEN or MISSING while not ok, None otherwise
+        self._count: float | None = None
+        self._moved_t: float | None = None
+        self._t_first: float | None = None
+
+    def update(self, t: float, inputs, R_sensor, tare: bool) -> None:
+        """The cycle at ``t`` (s): the PLC's `FromPlc` record ``inputs``, the force sensor's axes in the base
+        ``R_sensor`` (3, 3) at its joints; ``tare``: take the bias now (the arm at rest)."""
+        if not self.enabled:
+            return
+        if self._t_first is None:
+            self._t_first = t
+        count = inputs.acc_samples
+        f = (inputs.acc_x, inputs.acc_y, inputs.acc_z)
+        finite = all(math.isfinite(v) for v in f)
+        if self._count is None:                      # the first cycle: where the count stands
+            self._count = count
+        elif count != self._count and finite:        # a new sample
+            self.f = np.array(f)
+            w = 1.0 - math.exp(-(t - (self._moved_t if self._moved_t is not None else t)) / TARE_TAU_S)
+            self.f_lp = self.f.copy() if self.f_lp is None else self.f_lp + w * (self.f - self.f_lp)
+            self._count, self._moved_t = count, t
+        R = np.asarray(R_sensor) @ self.R_m
+        if tare and self.f_lp is not None:
+            self.bias = self.f_lp + R.T @ self.g
+            log.info("accelerometer tared: bias %s m/s^2 (box axes)", np.array2string(self.bias, precision=3))
+        since = t - (self._t_first if self._moved_t is None else self._moved_t)
+        ok = self._moved_t is not None and finite and since <= self.timeout_s
+        condition = None if ok or since <= self.timeout_s and finite else MISSING if self._moved_t is None else FROZEN
+        if condition != self.condition:
+            self._say(condition, since, finite)
+        self.ok = ok
+        self.acceleration = R @ (self.f - self.bias) + self.g if ok else np.zeros(3)
+
+    def _say(self, condition: str | None, since: float, finite: bool) -> None:
+        """Log the condition's start (named, with why) or its end, once each."""
+        if condition is None:
+            log.info("%s ended: the accelerometer's samples arrive again", self.condition)
+        else:
+            why = ("a value is not finite" if not finite else
+                   f"acc_samples has not moved for {1000 * since:.0f} ms (accelerometer.timeout_ms = "
+                   f"{1000 * self.timeout_s:g})")
+            log.warning("%s: %s; the correction goes on from the force alone", condition, why)
+        self.condition = condition

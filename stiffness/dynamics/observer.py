@@ -1,0 +1,195 @@
+"""The arm's modes as the accelerometer sees them: the deflection the stages before predict, corrected by what
+the arm actually does in the modes' band (docs/accelerometer.md, "The observer").
+
+The force alone cannot tell the ringing's phase once a mode's frequency is off (docs/dynamics.md). The flange
+accelerometer measures the tool's acceleration a = s^2 P (base axes, gravity and bias removed,
+`service.accelerometer`), P = FK(q) + d the actual TCP: the joints' nominal TCP and the arm's deflection d.
+Through a band-pass B around the modes (second-order high-pass at band_hz[0], a first-order one there too,
+second-order low-pass at band_hz[1]) and the box's own low-pass L (second-order at box_lowpass_hz, modelled
+Butterworth), both sides of
+
+    e = (B / s^2) a_measured - B L (FK(q) + dX(t - h))  =  B L (d - dX(t - h))
+
+are computable every cycle: the acceleration through B / s^2 (proper: B has four zeros at 0), the nominal TCP
+FK(q) of the joints the PLC reported and the deflection dX the stages before predicted h ago (``horizon_ms``,
+a delay line), which was their prediction for the instant the acceleration describes. So e is the model's error
+in the band, without integrating the accelerometer's bias or noise below it (B's fourth-order zero at 0: a bias
+left after the tare decays with the high-pass's time constant).
+
+Each mode k (frequency f_k, damping zeta_k, direction phi_k) carries e's share e_k = phi_k . e forward to the
+instant the correction reaches the joints, h later, as its own free oscillation, and undoes the band-pass's
+gain and phase at f_k (|F|, arg F of the discrete filters):
+
+    o_k = exp(-zeta_k w_k h) / |F(w_k)| (e_k cos th_k + (de_k / w_k) sin th_k),   th_k = w_k h - arg F(w_k)
+    dX <- dX + g sum_k phi_k o_k
+
+so what decides the result is the acceleration measured, not f_k: a frequency 20 % off moves th_k by 0.2 w_k h
+and F's phase by its slope over the band, small where h and the band's phase are. The gain g ramps between 0 and
+1 over ``ramp_ms``: up when the accelerometer's samples arrive (its states started afresh: the positions' at
+their steady state, the acceleration's at rest), down while they do not, holding the last o (the force-only path then; no jump either way).
+
+Real-time term: a `TwistTerm` whose law is `observer_law` (seven biquads an axis, the delay line, the modes),
+on the Python and the compiled path; `feed_motion` writes the acceleration, the nominal TCP and whether the
+samples arrive into its state each cycle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+from scipy import signal
+
+from ..effects.terms import TwistTerm
+from ..files.yaml_schema import Strict
+from .base import DynamicsContext, Stage, biquad
+from .structure import ModeConfig, orthogonal
+
+H_MAX = 100             # the delay line's length, cycles (horizon_ms up to 100 at 1 ms)
+N_BIQUADS = 7           # the acceleration's path: B / s^2 as [1 / (s^2 + ...), high-pass 1, low-pass 2]; the
+                        # nominal TCP's and the model's: L, high-pass 2, high-pass 1, low-pass 2
+RING, BIQ = 19, 19 + 3 * H_MAX
+STATE_SIZE = BIQ + 3 * 2 * N_BIQUADS
+PER_MODE = 5            # phi (3), the cosine's and the sine's factor
+
+
+def observer_law(s, p, dX, dt):
+    """dX (6,) += g sum_k phi_k o_k in place (module docstring). p = [K, h (cycles), ramp step, 7 x (b0, b1, b2,
+    a1, a2), K x (phi (3), c_k, s_k / w_k)]; s = [a (3), FK(q) (3), ok, started, g, ring position, o (3),
+    e last (3), de (3), ring (3 H_MAX), 3 x 7 x (z0, z1)]."""
+    n = int(p[0])
+    h = int(p[1])
+    if s[6] > 0.5:
+        if s[7] == 0.0:                          # (re)start: the line full of this dX, the filters steady
+            for k in range(H_MAX):
+                for i in range(3):
+                    s[RING + 3 * k + i] = dX[i]
+            for i in range(3):                   # the acceleration's path at rest (its mean is 0, not
+                for j in range(3):               # this value); the positions' at their steady state
+                    s[BIQ + 14 * i + 2 * j] = 0.0
+                    s[BIQ + 14 * i + 2 * j + 1] = 0.0
+                u = s[3 + i] + dX[i]
+                for j in range(3, N_BIQUADS):
+                    o, z = 3 + 5 * j, BIQ + 14 * i + 2 * j
+                    b0, b1, b2, a1, a2 = p[o], p[o + 1], p[o + 2], p[o + 3], p[o + 4]
+                    y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
+                    s[z + 1] = b2 * u - a2 * y
+                    s[z] = b1 * u - a1 * y + s[z + 1]
+                    u = y
+                s[13 + i] = 0.0
+            s[7] = 1.0
+            s[9] = 0.0
+        pos = int(s[9])
+        back = (pos - h) % H_MAX
+        for i in range(3):
+            old = s[RING + 3 * back + i]
+            s[RING + 3 * pos + i] = dX[i]
+            e = 0.0
+            for path in range(2):
+                u = s[i] if path == 0 else s[3 + i] + old
+                for j in range(3 * path, 3 + 4 * path):
+                    o, z = 3 + 5 * j, BIQ + 14 * i + 2 * j
+                    y = p[o] * u + s[z]
+                    s[z] = p[o + 1] * u - p[o + 3] * y + s[z + 1]
+                    s[z + 1] = p[o + 2] * u - p[o + 4] * y
+                    u = y
+                e = u if path == 0 else e - u
+            s[16 + i] = (e - s[13 + i]) / dt if dt > 0.0 else 0.0
+            s[13 + i] = e
+        s[9] = float((pos + 1) % H_MAX)
+        for i in range(3):
+            s[10 + i] = 0.0
+        for k in range(n):
+            o = 3 + 5 * N_BIQUADS + PER_MODE * k
+            ek = p[o] * s[13] + p[o + 1] * s[14] + p[o + 2] * s[15]
+            dek = p[o] * s[16] + p[o + 1] * s[17] + p[o + 2] * s[18]
+            out = p[o + 3] * ek + p[o + 4] * dek
+            for i in range(3):
+                s[10 + i] += p[o + i] * out
+        s[8] = min(1.0, s[8] + p[2])
+    else:
+        s[7] = 0.0
+        s[8] = max(0.0, s[8] - p[2])
+    for i in range(3):
+        dX[i] += s[8] * s[10 + i]
+
+
+class Observer(Stage):
+    """``dynamics.observer``: the modes corrected by the accelerometer (module docstring)."""
+
+    name = "observer"
+
+    class Config(Strict):
+        modes: list[ModeConfig] = Field(min_length=1, max_length=6)
+        horizon_ms: float = Field(10.0, ge=0.0, le=float(H_MAX - 1))
+        band_hz: list[float] = Field(default_factory=lambda: [2.5, 40.0], min_length=2, max_length=2)
+        box_lowpass_hz: float = Field(62.5, ge=0.0, le=5000.0)
+        ramp_ms: float = Field(100.0, gt=0.0, le=10_000.0)
+
+        _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))
+
+        @model_validator(mode="after")
+        def _band(self):
+            lo, hi = self.band_hz
+            if not (0.0 < lo < min(m.hz for m in self.modes) and max(m.hz for m in self.modes) < hi):
+                raise ValueError(f"band_hz [{lo:g}, {hi:g}] must hold every mode's frequency, above 0")
+            return self
+
+    reads_motion = True
+
+    def __init__(self, cfg):
+        super().__init__(cfg)
+        self.fed: list[TwistTerm] = []
+
+    def filters(self, period_s: float) -> np.ndarray:
+        """(7, 5) the biquads [b0, b1, b2, a1, a2] at ``period_s`` (`N_BIQUADS`' order), prewarped at the band's
+        centre."""
+        lo, hi = self.cfg.band_hz
+        centre = math.sqrt(lo * hi)
+        wl, wh = 2.0 * math.pi * lo, 2.0 * math.pi * hi
+        q = math.sqrt(2.0)
+        low2 = biquad([wh * wh], [1.0, q * wh, wh * wh], period_s, centre)
+        high1 = biquad([1.0, 0.0], [1.0, wl], period_s, centre)
+        high2 = biquad([1.0, 0.0, 0.0], [1.0, q * wl, wl * wl], period_s, centre)
+        over_s2 = biquad([1.0], [1.0, q * wl, wl * wl], period_s, centre)
+        fb = self.cfg.box_lowpass_hz
+        if fb > 0.0:
+            wb = 2.0 * math.pi * min(fb, 0.45 / period_s)
+            box = biquad([wb * wb], [1.0, q * wb, wb * wb], period_s)
+        else:
+            box = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
+        return np.array([over_s2, high1, low2, box, high2, high1, low2])
+
+    def params(self, period_s: float) -> np.ndarray:
+        f = self.filters(period_s)
+        sos = np.column_stack([f[3:, :3], np.ones(4), f[3:, 3:]])       # the model's side: L B
+        h = round(self.cfg.horizon_ms / 1000.0 / period_s)
+        rows = []
+        for m in self.cfg.modes:
+            w = 2.0 * math.pi * m.hz
+            _, resp = signal.sosfreqz(sos, worN=[m.hz], fs=1.0 / period_s)
+            gain, lag = abs(resp[0]), -float(np.angle(resp[0]))
+            th = w * h * period_s + lag
+            a = math.exp(-m.damping * w * h * period_s) / gain
+            rows.append([*m.direction, a * math.cos(th), a * math.sin(th) / w])
+        step = period_s / (self.cfg.ramp_ms / 1000.0)
+        return np.array([len(rows), h, step, *np.ravel(f), *np.ravel(rows)])
+
+    def terms(self, ctx: DynamicsContext) -> list[TwistTerm]:
+        self.fed.append(TwistTerm(observer_law, self.params(ctx.period_s), [0.0] * STATE_SIZE))
+        return [self.fed[-1]]
+
+    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
+        """This cycle's acceleration (base, m/s^2), whether the accelerometer's samples arrive, and the nominal
+        TCP of the joints the PLC reported (m, base), into the term's state."""
+        for term in self.fed:
+            s = term.state
+            s[0], s[1], s[2] = acceleration
+            s[3], s[4], s[5] = p_tcp
+            s[6] = 1.0 if ok else 0.0
+
+    def describe(self) -> str:
+        modes = ", ".join(f"{m.hz:g} Hz" for m in self.cfg.modes)
+        lo, hi = self.cfg.band_hz
+        return f"observer ({modes}; band {lo:g}-{hi:g} Hz, horizon {self.cfg.horizon_ms:g} ms)"

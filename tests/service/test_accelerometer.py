@@ -1,0 +1,146 @@
+"""The flange accelerometer in the service (`service.accelerometer`, docs/accelerometer.md).
+
+* the arm's acceleration comes back in base axes for any mounting, pose, gravity and bias: a box that reads
+  f = R^T (a - g) + b, tared at rest, gives a (hypothesis);
+* a box whose count stands still is ``accelerometer_frozen`` after ``timeout_ms`` (``accelerometer_missing``
+  when it never moved), logged by name once, the acceleration 0 and status bit 8 clear, and the correction
+  unchanged (the force alone); the samples coming again end it;
+* through the cycle: the signals and the status word carry it, on the Python and the compiled path alike;
+* the config: enabled with a register map that lacks its values refuses to start, naming them.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from hil.testing import CONFIG, model_with
+from plc_link.contract import FROM_PLC, Command, FromPlc, Status
+from service.accelerometer import FROZEN, MISSING, Accelerometer, AccelerometerConfig
+from service.app import Service
+from service.ati import Reading
+from service.config import ServiceConfig, load_config
+from service.errors import ServiceConfigError
+from service.pipeline import Cycle
+
+G = np.array([0.0, 0.0, -9.81])
+Q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
+W = [300.0, -200.0, 150.0, 5.0, 2.0, 1.0]
+
+
+def record(f, count: int) -> FromPlc:
+    return FromPlc(**{v.name: 0.0 for v in FROM_PLC})._replace(acc_x=f[0], acc_y=f[1], acc_z=f[2], acc_samples=count)
+
+
+def box(R: np.ndarray, a: np.ndarray, bias: np.ndarray, g: np.ndarray = G) -> np.ndarray:
+    """What the box reads: the specific force along its axes, plus its bias."""
+    return R.T @ (a - g) + bias
+
+
+angles = st.lists(st.floats(-180.0, 180.0), min_size=3, max_size=3)
+vectors = st.lists(st.floats(-20.0, 20.0), min_size=3, max_size=3)
+
+
+@settings(max_examples=60, deadline=None)
+@given(mount=angles, pose=angles, bias=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), a=vectors)
+def test_the_arms_acceleration_comes_back_for_any_mounting_pose_and_bias(mount, pose, bias, a):
+    acc = Accelerometer(AccelerometerConfig(enabled=True, mount={"rpy_deg": mount}), G)
+    R_s = Rotation.from_euler("xyz", pose, degrees=True).as_matrix()
+    R = R_s @ acc.R_m
+    b = np.array(bias)
+    acc.update(0.0, record(box(R, np.zeros(3), b), 0), R_s, False)
+    acc.update(0.001, record(box(R, np.zeros(3), b), 1), R_s, True)           # at rest: the tare takes the bias
+    assert np.allclose(acc.acceleration, 0.0, atol=1e-9)
+    acc.update(0.002, record(box(R, np.array(a), b), 2), R_s, False)
+    assert acc.ok and np.allclose(acc.acceleration, a, atol=1e-9)
+
+
+def test_a_frozen_box_is_named_once_reads_zero_and_recovers(caplog):
+    acc = Accelerometer(AccelerometerConfig(enabled=True, timeout_ms=20.0), G)
+    R = np.eye(3)
+    moving = box(R, np.array([0.5, 0.0, 0.0]), np.zeros(3))
+    caplog.set_level(logging.INFO, logger="stiffcomp.service")
+    states = []
+    for k in range(200):
+        count = k if k < 50 or k >= 150 else 50             # frozen from 50 ms to 150 ms
+        acc.update(0.001 * k, record(moving, count), R, False)
+        states.append((acc.ok, acc.condition, acc.acceleration[0]))
+    ok = np.array([s[0] for s in states])
+    assert ok[1:50].all() and not ok[71:150].any() and ok[150:].all()
+    assert ok[50:70].all()                                  # within timeout_ms the last value stands
+    assert {s[1] for s in states[71:150]} == {FROZEN} and all(s[2] == 0.0 for s in states[71:150])
+    assert all(abs(s[2] - 0.5) < 1e-12 for s in states[150:])
+    named = [r.getMessage() for r in caplog.records if FROZEN in r.getMessage()]
+    assert len(named) == 2 and "has not moved for 2" in named[0] and "ended" in named[1]
+
+
+def test_a_box_that_never_delivers_is_missing_and_a_value_not_finite_is_frozen(caplog):
+    acc = Accelerometer(AccelerometerConfig(enabled=True, timeout_ms=10.0), G)
+    caplog.set_level(logging.WARNING, logger="stiffcomp.service")
+    for k in range(30):
+        acc.update(0.001 * k, record([0.0, 0.0, 9.81], 7), np.eye(3), False)
+    assert not acc.ok and acc.condition == MISSING
+    for k in range(30, 40):
+        acc.update(0.001 * k, record([0.0, 0.0, 9.81], k), np.eye(3), False)
+    assert acc.ok and acc.condition is None
+    for k in range(40, 60):
+        acc.update(0.001 * k, record([float("nan"), 0.0, 9.81], k), np.eye(3), False)
+        assert not acc.ok and acc.condition == FROZEN and not np.isnan(acc.acceleration).any()
+    assert any("not finite" in r.getMessage() for r in caplog.records)
+
+
+def config_with_accelerometer(tmp_path, rmap: bool = True) -> ServiceConfig:
+    cfg = load_config(CONFIG / "default.yaml")
+    data = cfg.model_dump()
+    data["accelerometer"] = {"enabled": True, "timeout_ms": 20.0}
+    if rmap:
+        import yaml
+
+        regs = yaml.safe_load((CONFIG / "registers.yaml").read_text())
+        regs["from_plc"]["registers"] += [
+            {"name": "acc_x", "address": 0x800F, "type": "float32"}, {"name": "acc_y", "address": 0x8011, "type": "float32"},
+            {"name": "acc_z", "address": 0x8013, "type": "float32"}, {"name": "acc_samples", "address": 0x8015, "type": "uint16"}]
+        (tmp_path / "registers.yaml").write_text(yaml.safe_dump(regs))
+        data["plc"]["register_map"] = str(tmp_path / "registers.yaml")
+    out = ServiceConfig.model_validate(data)
+    out.path = cfg.path
+    return out
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_cycle_publishes_the_acceleration_and_the_correction_does_not_depend_on_it(tmp_path, compiled):
+    model = model_with()
+    cycles = {"with": Cycle.from_config(config_with_accelerometer(tmp_path), model),
+              "without": Cycle.from_config(load_config(CONFIG / "default.yaml"), model)}
+    seen = {}
+    for name, c in cycles.items():
+        if compiled:
+            c.compensator.compile()
+        rows = []
+        for k in range(1, 400):
+            count = min(200, k)                    # the box freezes at 200 ms
+            f = [0.1 * np.sin(k / 10.0), 0.0, 9.81]
+            c.step(0.001 * k, Reading(W, 0, k, False), [], int(Command.ENABLE) | (int(Command.TARE) if k == 5 else 0),
+                   k, Q, inputs=record(f, count))
+            s = c.signals()
+            rows.append((s.status_word, s.acc_x, s.acc_y, s.acc_z, *c.correction))
+        seen[name] = np.array(rows)
+    got, ref = seen["with"], seen["without"]
+    assert np.array_equal(got[:, 4:], ref[:, 4:])            # the correction: the force alone, either way
+    ok = (got[:, 0].astype(int) & int(Status.ACCELEROMETER_OK)) != 0
+    assert ok[10:199].all() and not ok[225:].any() and not (ref[:, 0].astype(int) & int(Status.ACCELEROMETER_OK)).any()
+    moving = np.linalg.norm(got[10:199, 1:4], axis=1)
+    assert moving.max() > 0.05 and np.all(got[225:, 1:4] == 0.0) and np.all(ref[:, 1:4] == 0.0)
+
+
+def test_an_accelerometer_whose_values_the_map_lacks_refuses_to_start(tmp_path):
+    cfg = config_with_accelerometer(tmp_path, rmap=False)
+    cfg.plc.role, cfg.ads.enabled, cfg.monitoring.enabled = "none", False, False
+    with pytest.raises(ServiceConfigError, match=r"accelerometer.enabled reads acc_x.*no register acc_x, acc_y, acc_z, "
+                                                 "acc_samples"):
+        Service(cfg)
