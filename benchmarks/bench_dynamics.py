@@ -5,11 +5,14 @@ On the paper's circle (config/hil/circle.yaml) with the ringing robot stub (10 H
 delay of the PLC: the uncompensated and the static pass once, the modes identified from the uncompensated
 pass (`hil.dynamics`, as `stiffcomp modes` does) and the delay measured on the static one; then one dynamic
 pass per variant: the modes as identified or with their frequencies off by ``--mode-error``, the modal
-filter exact or with ``--added-damping``, with and without the feedforward. Printed per variant: the peak
-path error in the entry and exit windows and the steady mean, against the static pass's (ratios).
+filter exact or with ``--added-damping``, with and without the feedforward, with and without the
+accelerometer's observer (``--observer``: the virtual box on in every pass, docs/accelerometer.md). Printed per
+variant: the peak path error in the entry and exit windows and the steady mean, against the static pass's
+(ratios).
 
     .venv/bin/python benchmarks/bench_dynamics.py [--extra-delay-ms 0 8] [--mode-error 0 0.2 -0.2]
-                                                  [--added-damping 0 0.3] [--feedforward] [--realtime] [--json FILE]
+                                                  [--added-damping 0 0.3] [--feedforward] [--observer]
+                                                  [--realtime] [--json FILE]
 
 Lock step by default (deterministic: one run is the figure); ``--realtime`` runs the passes as processes in real
 time (then repeat it: the figures vary with the host's load).
@@ -46,11 +49,12 @@ def table(result: dict) -> None:
         print(f"\nextra delay {case['extra_delay_ms']:g} ms: measured end-to-end delay {case['delay_ms']:.2f} ms; "
               f"static: entry {s['entry_peak_mm']:.4f}, exit {s['exit_peak_mm']:.4f}, steady mean "
               f"{s['steady_mean_mm']:.4f}, mean {s['mean_error_mm']:.4f} mm")
-        print(f"{'mode error':>10} {'damping+':>8} {'ff':>3} | {'entry mm':>8} {'ratio':>6} | {'exit mm':>8} "
+        print(f"{'mode error':>10} {'damping+':>8} {'ff':>3} {'obs':>3} | {'entry mm':>8} {'ratio':>6} | {'exit mm':>8} "
               f"{'ratio':>6} | {'steady':>7} {'static':>7} | {'mean':>7}")
         for row in case["dynamic"]:
             o, f = row["options"], row["figures"]
-            print(f"{o.mode_error:>+10.2f} {o.added_damping:>8.2f} {'yes' if o.feedforward else 'no':>3} | "
+            print(f"{o.mode_error:>+10.2f} {o.added_damping:>8.2f} {'yes' if o.feedforward else 'no':>3} "
+                  f"{'yes' if o.observer else 'no':>3} | "
                   f"{f['entry_peak_mm']:8.4f} {row['entry_ratio']:6.0%} | {f['exit_peak_mm']:8.4f} "
                   f"{row['exit_ratio']:6.0%} | {f['steady_mean_mm']:7.4f} {s['steady_mean_mm']:7.4f} | "
                   f"{f['mean_error_mm']:7.4f}")

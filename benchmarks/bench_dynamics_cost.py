@@ -3,7 +3,9 @@
 One whole `service.pipeline.Cycle.step` per cycle as `bench_effects.py` drives it (a moving robot under a
 milling load, a new sample and new joints every cycle), on config/models/kr125_6dof.yaml: the static path
 (``dynamics`` off), each part of the dynamic compensation alone (the predictor, the structure's two modes,
-the feedforward from a plan file, the PLC's program time fed every cycle) and all three. Each runs on the
+the feedforward from a plan file, the PLC's program time fed every cycle), all three, and the structure's
+modes with the accelerometer's observer (a new value every cycle; against "structure", the force-only
+dynamic path it corrects). Each runs on the
 Python path and on the compiled one, in alternating blocks of cycles in one process (the machine's drift
 falls on all alike); the figure is the ratio of the medians of the per-block mean cycle times to the static
 path's on the same path.
@@ -40,7 +42,8 @@ def sections(plan: Path) -> dict[str, dict | None]:
     ff = {"source": "file", "file": str(plan)}
     return {"static": None, "predictor": {"predictor": {}}, "structure": {"structure": {"modes": MODES, "lag_ms": 8.0}},
             "feedforward": {"feedforward": ff},
-            "all three": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 8.0}, "feedforward": ff}}
+            "all three": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 8.0}, "feedforward": ff},
+            "observer": {"structure": {"modes": MODES, "lag_ms": 8.0}, "observer": {"modes": MODES, "horizon_ms": 4.0}}}
 
 
 def config(section: dict | None) -> ServiceConfig:
@@ -49,6 +52,8 @@ def config(section: dict | None) -> ServiceConfig:
         return cfg
     data = cfg.model_dump()
     data["dynamics"] = {"enabled": True, "delay_ms": 16.0, **section}
+    if "observer" in section:                       # the accelerometer it reads, a new value every cycle
+        data["accelerometer"] = {"enabled": True}
     out = ServiceConfig.model_validate(data)
     out.path = cfg.path
     return out
@@ -75,7 +80,7 @@ class Runner:
             self.k += 1
             i = self.k & 4095
             step(self.t, Reading(self.w[i], 0, self.k, False), [], enable, self.k, self.q[i], inputs=inp._replace(
-                plan_time_s=self.t % 60.0))
+                plan_time_s=self.t % 60.0, acc_x=0.01 * self.w[i][0], acc_z=9.81, acc_samples=self.k & 0xFFFF))
         return (clock() - t0) / cycles
 
 

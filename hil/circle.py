@@ -77,28 +77,27 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
                plc_program: Path | None = None) -> CircleResult:
     """Run the passes (uncompensated, then compensated unless ``compensation`` is False) and summarise.
 
-    ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only
-    one) writes the service's ``trace`` (`stiffcomp run --trace`) and the virtual CMM's points of the part
-    it cut to ``cmm`` (`hil.cmm`); the summary's ``part_error_mm`` is that part's mean error. ``lockstep``:
-    each pass in one process as fast as the host runs it (`hil.lockstep`), not in real time. ``dynamic``: a
-    third pass with the dynamic compensation (`hil.dynamics`): the modes identified from a tap test the
-    stub answers, the delay measured on the static one (or ``dynamic.delay_ms``); the summary's figures are then the dynamic pass's, with the
-    static pass's as ``*_static`` twins. ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through
-    the robot road, a virtual robot of that interface in the PLC's place (`hil.robot_process`), set up as
-    ``robot_section`` says (default: the shipped config/robot_<interface>.yaml's; EGM in path mode at 48 ms, its
-    joint mode refused: position guidance runs no RAPID path, ABB's EGM manual). ``repeat``:
-    each pass cut that many times (ISO 9283's n cycles) for its path accuracy and repeatability (`hil.iso9283`);
-    the first cut of each is the one every other figure, the trace and the part come from. ``probe_log``: after
-    the last pass the robot probes the part it cut (`hil.probe`) and the log is written there. ``plc_program``:
-    the virtual PLC's TwinCAT program (`hil.run.pass_program`); the summary names its files and their sha256.
+    ``faults`` are injected in the compensated pass only. The last pass (the compensated one, or the only one)
+    writes the service's ``trace`` (`stiffcomp run --trace`) and the virtual CMM's points of the part it cut to
+    ``cmm`` (`hil.cmm`); the summary's ``part_error_mm`` is that part's mean error. ``lockstep``: each pass in one
+    process as fast as the host runs it (`hil.lockstep`), not in real time. ``dynamic``: a third pass with the
+    dynamic compensation (`hil.dynamics`): the modes identified from a tap test the stub answers (or a file's),
+    the delay measured on the static one (or ``dynamic.delay_ms``), with its observer the accelerometer on in
+    every pass; the summary's figures are then the dynamic pass's, with the static pass's as ``*_static`` twins.
+    ``robot_interface`` (``kuka_rsi``, ``abb_egm``): each pass through the robot road, a virtual robot of that
+    interface in the PLC's place (`hil.robot_process`), set up as ``robot_section`` says (default: the shipped
+    config/robot_<interface>.yaml's; EGM in path mode at 48 ms, its joint mode refused: position guidance runs
+    no RAPID path, ABB's EGM manual). ``repeat``: each pass cut that many times (ISO 9283's n cycles) for its
+    path accuracy and repeatability (`hil.iso9283`); the first cut of each is the one every other figure, the
+    trace and the part come from. ``probe_log``: after the last pass the robot probes the part it cut
+    (`hil.probe`) and the log is written there. ``plc_program``: the virtual PLC's TwinCAT program
+    (`hil.run.pass_program`); the summary names its files and their sha256.
     """
+    scenario = dynamic.measured_by(scenario) if dynamic is not None else scenario
     truth = StiffnessModel.from_yaml(truth_path or scenario.resolve(scenario.truth))
     model_path = Path(model_path or scenario.resolve(scenario.model))
     StiffnessModel.from_yaml(model_path)               # a bad model fails here, before any process starts
-    if lockstep and faults is not None:
-        raise HilError("faults are injected in real time only: run without --lockstep")
-    if lockstep and robot_interface is not None:
-        raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+    _real_time_only(lockstep, faults, robot_interface)
     robot_section = check_robot_section(robot_interface, robot_section)
     found = identify_from_pass(scenario, truth, dynamic) if dynamic is not None and compensation else None
     names = ["uncompensated", *(["compensated"] if compensation else []), *(["dynamic"] if found else [])]
@@ -150,11 +149,23 @@ def run_circle(scenario: Scenario, truth_path: Path | None = None, model_path: P
     return CircleResult(summary, passes, evals, world, parts)
 
 
+def _real_time_only(lockstep: bool, faults, robot_interface) -> None:
+    """HilError for what runs in real time only, asked in lock step: injected faults, the robot road."""
+    if lockstep and faults is not None:
+        raise HilError("faults are injected in real time only: run without --lockstep")
+    if lockstep and robot_interface is not None:
+        raise HilError("the robot road runs on the robot's clock, in real time only: run without --lockstep")
+
+
 def dynamics_summary(found, dynamic: DynamicOptions) -> dict:
-    """The summary's ``dynamics``: the modes the dynamic pass identified and how it was set up."""
+    """The summary's ``dynamics``: the modes the dynamic pass identified (or the file gave) and how it was set
+    up; what the tap test's modes explain (null for a file's)."""
+    given = dynamic.modes_file is not None
     return {"structure": structure_section(found, dynamic), "mode_error": dynamic.mode_error,
+            "observer": dynamic.observer, "modes_file": str(dynamic.modes_file) if given else None,
             "predictor": dynamic.predictor, "feedforward": dynamic.feedforward,
-            "explained": round(found.explained, 5), "explained_static": round(found.explained_static, 5)}
+            "explained": None if given else round(found.explained, 5),
+            "explained_static": None if given else round(found.explained_static, 5)}
 
 
 def summarise(world: World, passes: dict[str, PassResult], evals: dict[str, Evaluation],

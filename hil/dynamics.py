@@ -57,6 +57,16 @@ class DynamicOptions:
     observer: bool = False               # the accelerometer at the tool and dynamics.observer with the modes
     observer_horizon_ms: float | None = None     # dynamics.observer.horizon_ms (None: `observer_horizon_ms`)
     observer_band_hz: tuple[float, float] | None = None     # dynamics.observer.band_hz (None: its default)
+    modes_file: Path | None = None       # the modes (and lag) of this file's dynamics.structure, not the tap test's
+
+    def measured_by(self, scenario: Scenario) -> Scenario:
+        """``scenario`` with the accelerometer on where the observer reads it (a copy): in every pass, so that
+        the static and the dynamic pass compare alike."""
+        if not self.observer or scenario.accelerometer.enabled:
+            return scenario
+        out = scenario.model_copy(deep=True)
+        out.accelerometer.enabled = True
+        return out
 
 
 def service_delay_ms(opts: DynamicOptions, world: World, static_log: Track) -> float:
@@ -136,7 +146,7 @@ def plan_register_map(source: Path, folder: Path) -> Path:
     return path
 
 
-def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, scenario: Scenario,
+def service_dynamics(found: Identified | GivenModes, delay_ms: float, opts: DynamicOptions, scenario: Scenario,
                      world: World, folder: Path) -> dict:
     """The service config's overrides: ``dynamics`` with the identified modes (scaled by 1 + mode_error), the
     measured delay and, with the feedforward, the plan and a register map that carries it."""
@@ -162,11 +172,14 @@ def service_dynamics(found: Identified, delay_ms: float, opts: DynamicOptions, s
 def observer_horizon_ms(scenario: Scenario) -> float:
     """From the box's value to the correction at the joints: the PLC passes the value it read at its cycle's
     start, its write lands a cycle later and the service reads it at its next cycle (2.5 PLC cycles), and the
-    correction reaches the joints 1.5 PLC cycles after the service's output, plus the extra delay."""
-    return 4.0 * scenario.plc.period_ms + scenario.plc.extra_delay_ms
+    correction reaches the joints 1.5 PLC cycles after the service's output, plus the extra delay; at most
+    the observer's `MAX_HORIZON_MS`."""
+    from stiffness.dynamics.observer import MAX_HORIZON_MS
+
+    return min(4.0 * scenario.plc.period_ms + scenario.plc.extra_delay_ms, MAX_HORIZON_MS)
 
 
-def structure_section(found: Identified, opts: DynamicOptions) -> dict:
+def structure_section(found: Identified | GivenModes, opts: DynamicOptions) -> dict:
     """``dynamics.structure`` of the identified modes, their frequencies scaled by 1 + ``opts.mode_error``."""
     structure = found.to_config()
     for m in structure["modes"]:
@@ -175,19 +188,56 @@ def structure_section(found: Identified, opts: DynamicOptions) -> dict:
     return structure
 
 
-def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicOptions) -> Identified:
-    """Steps 1 and 2: the record (written to ``opts.record`` when given) and the modes found in it; HilError
-    when the modes, their frequencies scaled by 1 + ``opts.mode_error``, are not a structure the service takes
-    (found before any pass starts, not when the service refuses its config)."""
+@dataclass
+class GivenModes:
+    """The structure a file gives (``dynamics.structure``, as `stiffcomp modes -o` writes it), where the pass
+    takes it instead of the tap test's identification."""
+
+    structure: dict
+
+    @classmethod
+    def read(cls, path: Path) -> GivenModes:
+        """HilError naming the file when it holds no ``dynamics.structure`` the service takes."""
+        from pydantic import ValidationError
+
+        from stiffness.dynamics.structure import Structure
+        from stiffness.errors import StiffnessError
+        from stiffness.files.yaml_schema import format_validation_error
+
+        try:
+            data = read_yaml(path)
+        except StiffnessError as e:
+            raise HilError(f"--modes {path}: {e}") from e
+        section = (data.get("dynamics") or {}).get("structure") if isinstance(data, dict) else None
+        if not isinstance(section, dict):
+            raise HilError(f"--modes {path}: no dynamics.structure in it (what `stiffcomp modes -o` writes)")
+        try:
+            Structure.Config.model_validate(section)
+        except ValidationError as e:
+            raise HilError(format_validation_error(str(path), e, prefix="dynamics.structure")) from e
+        return cls(section)
+
+    def to_config(self) -> dict:
+        return {"modes": [dict(m) for m in self.structure["modes"]], "lag_ms": self.structure.get("lag_ms", 0.0)}
+
+
+def identify_from_pass(scenario: Scenario, truth: StiffnessModel, opts: DynamicOptions) -> Identified | GivenModes:
+    """Steps 1 and 2: the record (written to ``opts.record`` when given) and the modes found in it, or the modes
+    ``opts.modes_file`` gives; HilError when the modes, their frequencies scaled by 1 + ``opts.mode_error``, are
+    not a structure the service takes (found before any pass starts, not when the service refuses its
+    config)."""
     from pydantic import ValidationError
 
     from stiffness.dynamics.structure import Structure
     from stiffness.files.yaml_schema import format_validation_error
 
-    rec = tap_record(scenario, truth) if opts.commissioning == "tap" else commissioning_record(scenario, truth)
-    if opts.record is not None:
-        write_record(rec, Path(opts.record))
-    found = identify(rec, opts.n_modes)
+    if opts.modes_file is not None:
+        found = GivenModes.read(Path(opts.modes_file))
+    else:
+        rec = tap_record(scenario, truth) if opts.commissioning == "tap" else commissioning_record(scenario, truth)
+        if opts.record is not None:
+            write_record(rec, Path(opts.record))
+        found = identify(rec, opts.n_modes)
     try:
         Structure.Config.model_validate(structure_section(found, opts))
     except ValidationError as e:

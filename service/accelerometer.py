@@ -39,6 +39,7 @@ log = logging.getLogger("stiffcomp.service")
 
 FROZEN, MISSING = "accelerometer_frozen", "accelerometer_missing"
 TARE_TAU_S = 0.05        # the readings' low-pass for the tare
+PERIOD_TAU_S = 0.1       # the time between new values is averaged over about this
 
 
 class AccelerometerConfig(Strict):
@@ -63,6 +64,7 @@ class Accelerometer:
         self.acceleration = np.zeros(3)      # base axes, m/s^2: zero while not ok
         self.ok = False
         self.condition: str | None = None    # FROZEN or MISSING while not ok, None otherwise
+        self.sample_period_s = math.inf      # the time between new values, averaged (PERIOD_TAU_S)
         self._count: float | None = None
         self._moved_t: float | None = None
         self._t_first: float | None = None
@@ -81,8 +83,12 @@ class Accelerometer:
             self._count = count
         elif count != self._count and finite:        # a new sample
             self.f = np.array(f)
-            w = 1.0 - math.exp(-(t - (self._moved_t if self._moved_t is not None else t)) / TARE_TAU_S)
+            since = t - (self._moved_t if self._moved_t is not None else t)
+            w = 1.0 - math.exp(-since / TARE_TAU_S)
             self.f_lp = self.f.copy() if self.f_lp is None else self.f_lp + w * (self.f - self.f_lp)
+            if self._moved_t is not None:
+                p = self.sample_period_s
+                self.sample_period_s = since if math.isinf(p) else p + (since - p) * min(1.0, since / PERIOD_TAU_S)
             self._count, self._moved_t = count, t
         R = np.asarray(R_sensor) @ self.R_m
         if tare and self.f_lp is not None:

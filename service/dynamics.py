@@ -20,6 +20,7 @@ import logging
 from pydantic import Field, create_model
 
 from stiffness.dynamics import STAGES, DynamicsContext, Stage
+from stiffness.dynamics.observer import MAX_SAMPLE_MS
 from stiffness.effects.terms import Term
 from stiffness.errors import StiffnessError
 from stiffness.files.yaml_schema import Strict
@@ -95,11 +96,18 @@ class Dynamics:
         """A part reads the accelerometer (`feed_motion`)."""
         return any(p.reads_motion for p in self.stages)
 
-    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
-        """The accelerometer's acceleration and state, and the nominal TCP, into the parts that read them."""
+    def feed_motion(self, acceleration, ok: bool, p_tcp, sample_period_s: float) -> None:
+        """The accelerometer's acceleration and state, the nominal TCP and the time between the accelerometer's
+        values, into the parts that read them; a part held off by values too far apart says so once."""
         for p in self.stages:
             if p.reads_motion:
-                p.feed_motion(acceleration, ok, p_tcp)
+                was = getattr(p, "too_slow", False)
+                p.feed_motion(acceleration, ok, p_tcp, sample_period_s)
+                if getattr(p, "too_slow", False) and not was and ok:
+                    log.warning("dynamics.%s: the accelerometer's values come every %.1f ms; it needs one every "
+                                "%.1f ms at most (the box at 1000 Hz or more, the PLC's task at 1 ms): off, the "
+                                "correction goes on from the force alone (docs/accelerometer.md)", p.name,
+                                1000.0 * sample_period_s, MAX_SAMPLE_MS)
 
     def describe(self) -> str:
         if not self.stages:

@@ -212,7 +212,7 @@ class Compensator:
         if acc is not None and inputs is not None:       # the sensor's axes at these joints now
             acc.update(t, inputs, pred.R_s, tare)
             if self.dynamics is not None:                 # for the next cycle's observer
-                self.dynamics.feed_motion(acc.acceleration, acc.ok, pred.p_tcp)
+                self.dynamics.feed_motion(acc.acceleration, acc.ok, pred.p_tcp, acc.sample_period_s)
 
     def _cycle_compiled(self, k, pk, pred, dt: float, reading: Reading | None, hold: bool, moved: bool,
                         payload_moved: bool) -> None:

@@ -50,6 +50,9 @@ def register(sub) -> None:
                    help="the TwinCAT program the virtual PLC runs (a folder of .TcPOU/.TcDUT/.TcGVL, or one with "
                         "twincat/ in it); default: the library `stiffcomp plc-library --main-block modbus` writes for "
                         "each pass's config")
+    c.add_argument("--accelerometer", action="store_true",
+                   help="a virtual EP3751 at the tool, read by the PLC and the service (the scenario's "
+                        "accelerometer section; docs/accelerometer.md): the trace carries the arm's acceleration")
     c.add_argument("--lockstep", action="store_true",
                    help="step the service, sensor and PLC together in one process, as fast as the host runs "
                         "them (deterministic; no real time, no protocols' transport)")
@@ -68,6 +71,11 @@ def register(sub) -> None:
     d.add_argument("--no-predictor", action="store_true", help="the dynamic pass without the wrench predictor")
     d.add_argument("--delay-ms", type=float, default=None, metavar="MS",
                    help="the service's dynamics.delay_ms (default: the end-to-end delay measured on the static pass)")
+    d.add_argument("--modes", default=None, metavar="FILE.yaml",
+                   help="the dynamic pass with the modes (and lag) of this file's dynamics.structure, as `stiffcomp "
+                        "modes -o` writes it (from a tap test or a cut's trace), instead of the stub's tap test")
+    d.add_argument("--observer", action="store_true",
+                   help="also the accelerometer's observer (dynamics.observer; the virtual box on in every pass)")
     d.add_argument("--modes-data", default=None, metavar="FILE.csv",
                    help="write the commissioning record (the tap test's force and the stub's deflection) for `stiffcomp modes`")
     c.set_defaults(func=run)
@@ -90,7 +98,8 @@ def _validated(section, name: str, key: str, value, option: str):
 # the options of the dynamic pass, and whether each was given
 _DYNAMIC = {"--mode-error": lambda a: a.mode_error != 0.0, "--added-damping": lambda a: a.added_damping != 0.0,
             "--feedforward": lambda a: a.feedforward, "--no-predictor": lambda a: a.no_predictor,
-            "--delay-ms": lambda a: a.delay_ms is not None, "--modes-data": lambda a: a.modes_data is not None}
+            "--delay-ms": lambda a: a.delay_ms is not None, "--modes-data": lambda a: a.modes_data is not None,
+            "--modes": lambda a: a.modes is not None, "--observer": lambda a: a.observer}
 
 
 def _service_value(option: str, schema, key: str, value, prefix: str):
@@ -123,6 +132,8 @@ def _check_dynamic_options(args) -> None:
         raise ConfigError(f"{', '.join(given)}: only with --dynamic-compensation")
     if args.dynamic_compensation and args.no_compensation:
         raise ConfigError("--dynamic-compensation builds on the compensated pass (its delay): drop --no-compensation")
+    if args.modes is not None and args.modes_data is not None:
+        raise ConfigError("--modes-data writes the stub's tap test, which --modes replaces: give one of them")
     if args.delay_ms is not None:
         _service_value("--delay-ms", DynamicsConfig, "delay_ms", args.delay_ms, "dynamics")
     _service_value("--added-damping", Structure.Config, "added_damping", args.added_damping, "dynamics.structure")
@@ -198,6 +209,8 @@ def run(args) -> int:
         scenario.circle = _validated(scenario.circle, "circle", "center_q_deg", list(args.center_q), "--center-q")
     if args.extra_delay_ms is not None:
         scenario.plc = _validated(scenario.plc, "plc", "extra_delay_ms", args.extra_delay_ms, "--extra-delay-ms")
+    if args.accelerometer:
+        scenario.accelerometer.enabled = True
     _check_dynamic_options(args)
     repeat = check_count("--repeat", args.repeat)
     if args.trace is not None:
@@ -212,7 +225,8 @@ def run(args) -> int:
 
         dynamic = DynamicOptions(args.mode_error, args.added_damping, args.feedforward,
                                  record=Path(args.modes_data) if args.modes_data else None,
-                                 predictor=not args.no_predictor, delay_ms=args.delay_ms)
+                                 predictor=not args.no_predictor, delay_ms=args.delay_ms, observer=args.observer,
+                                 modes_file=Path(args.modes) if args.modes else None)
     res = run_circle(scenario, Path(args.truth) if args.truth else None, Path(args.model) if args.model else None,
                      compensation=not args.no_compensation, report=Path(args.report) if args.report else None,
                      trace=Path(args.trace) if args.trace else None, cmm=Path(args.cmm) if args.cmm else None,

@@ -1,8 +1,14 @@
-"""`stiffcomp modes DATA`: the structure's modes identified from a recorded force and path (commissioning).
+"""`stiffcomp modes DATA`: the structure's modes identified from a recorded force and path (commissioning), or
+from a cut's trace with the accelerometer.
 
 DATA is a CSV: t_s, fx_N, fy_N, fz_N (the force at the tool, base axes) and dx_mm, dy_mm, dz_mm (the TCP's
 deflection from its path, base axes): a tap test, a dynamometer and a laser tracker on a test cut, or the
-HIL's (`stiffcomp hil circle --dynamic-compensation --modes-data FILE`). It prints which force directions the
+HIL's (`stiffcomp hil circle --dynamic-compensation --modes-data FILE`). Or DATA is the trace of a cut
+(`stiffcomp run --trace`, CSV or Parquet) whose service read the flange accelerometer: no path measured, the
+deflection seen through the accelerometer's band (`stiffness.dynamics.from_cut`); ``--config`` then names the
+service config the cut ran with: its model's robot turns the joints into the tool's path, its
+``dynamics.observer`` gives the band (else the observer's default), and its ``dynamics.structure.lag_ms`` is
+kept (a trace's lag is not the arm's: its wrench is filtered, its acceleration late). It prints which force directions the
 record excites, the modes (a mode the record does not show is refused, `stiffness.dynamics.excitation`), the
 arm's own lag and how much of the deflection they explain against a static fit alone; ``-o`` writes the
 ``dynamics`` section for the service config, ``--plot`` the identified response over the measured one
@@ -18,7 +24,10 @@ from .common import check_number, check_output_file, print_json
 
 def register(sub) -> None:
     p = sub.add_parser("modes", help="identify the structure's modes from a recorded force and path")
-    p.add_argument("data", help="CSV: t_s, fx_N, fy_N, fz_N, dx_mm, dy_mm, dz_mm (base axes)")
+    p.add_argument("data", help="CSV: t_s, fx_N, fy_N, fz_N, dx_mm, dy_mm, dz_mm (base axes); or a cut's trace "
+                                "with the accelerometer's columns (give --config)")
+    p.add_argument("--config", default=None, metavar="SERVICE.yaml",
+                   help="a trace's: the service config the cut ran with (its robot, band and lag)")
     p.add_argument("--modes", type=int, default=2, choices=(1, 2, 3), help="how many modes (default 2)")
     p.add_argument("--max-lag-ms", type=float, default=30.0,
                    help="the longest lag of the arm tried, ms (above 0, at most the config's 100)")
@@ -55,14 +64,40 @@ def check_options(args) -> None:
         check_output_file("--plot", args.plot)
 
 
+def read_data(args):
+    """(the record, the lag to keep: None for a tap test's record, the config's for a trace's)."""
+    from stiffness.data.trace_file import looks_like_trace
+    from stiffness.dynamics.modes import read_record
+
+    if not looks_like_trace(args.data):
+        return read_record(args.data), None
+    from service.config import load_config
+    from stiffness.data.trace_file import read_trace
+    from stiffness.dynamics.from_cut import BAND_HZ, BOX_LOWPASS_HZ, record_from_trace
+    from stiffness.errors import DataError
+    from stiffness.model.stiffness_model import StiffnessModel
+
+    if args.config is None:
+        raise DataError(f"{args.data}: a cut's trace: give --config SERVICE.yaml, the service config the cut ran "
+                        "with (its model's robot turns the joints into the tool's path)")
+    cfg = load_config(args.config)
+    robot = StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)).robot
+    obs, st = cfg.dynamics.observer, cfg.dynamics.structure
+    band = (obs.band_hz, obs.box_lowpass_hz) if obs is not None else (BAND_HZ, BOX_LOWPASS_HZ)
+    rec = record_from_trace(read_trace(args.data), robot, *band)
+    return rec, (st.lag_ms if st is not None else 0.0)
+
+
 def run(args) -> int:
-    from stiffness.dynamics.modes import figure, identify, read_record
+    from stiffness.dynamics.modes import figure, identify
     from stiffness.errors import OutputError
     from stiffness.files.yaml_schema import dump_yaml
 
     check_options(args)
-    rec = read_record(args.data)
+    rec, kept_lag = read_data(args)
     found = identify(rec, args.modes, args.max_lag_ms)
+    if kept_lag is not None:
+        found.structure.cfg.lag_ms = kept_lag
     out = {"modes": found.to_config()["modes"], "lag_ms": found.to_config()["lag_ms"],
            "explained": round(found.explained, 5), "explained_static": round(found.explained_static, 5),
            "residual_rms_mm": round(found.rms_mm, 5),
@@ -89,7 +124,8 @@ def run(args) -> int:
     for k, m in enumerate(out["modes"]):
         print(f"mode {k + 1}: {m['hz']:.3f} Hz, damping {100 * m['damping']:.2f} %, direction "
               f"[{', '.join(f'{x:+.3f}' for x in m['direction'])}] (base axes); explains {found.evidence[k]:.3g} P")
-    print(f"the arm's own lag: {out['lag_ms']:.2f} ms")
+    print(f"the arm's own lag: {out['lag_ms']:.2f} ms" + (" (kept from --config: a trace's lag is not the arm's)"
+                                                          if kept_lag is not None else ""))
     print(f"explains {100 * found.explained:.2f} % of the deflection (a static fit alone: "
           f"{100 * found.explained_static:.2f} %); residual RMS {found.rms_mm:.4f} mm")
     if args.output:

@@ -260,6 +260,20 @@ class Trace:
                 for k in np.nonzero(np.diff(c) > 1)[0]]
 
 
+def looks_like_trace(path: str | Path) -> bool:
+    """A trace by its suffix (Parquet: only traces and campaigns are) or its CSV header: the cycle count and
+    the joints, as `COLUMNS` has them. False where the file cannot be read: its own reader says why."""
+    path = Path(path)
+    if path.suffix.lower() == ".parquet":
+        return True
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            header = [h.strip() for h in next(csv.reader(fh), [])]
+    except (OSError, csv.Error, UnicodeDecodeError):
+        return False
+    return "cycle" in header and Q[0] in header
+
+
 def read_trace(path: str | Path) -> Trace:
     """Read a trace file (CSV or Parquet); DataError names the file, the line and the column."""
     path = Path(path)

@@ -84,9 +84,10 @@ class Stage(ABC):
 
     reads_motion: ClassVar[bool] = False     # the part reads the accelerometer (`feed_motion`)
 
-    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
+    def feed_motion(self, acceleration, ok: bool, p_tcp, sample_period_s: float = 0.0) -> None:
         """The arm's acceleration at the tool (base axes, m/s^2; `service.accelerometer`), whether its samples
-        arrive, and the nominal TCP of the joints the PLC reported (m, base), into the part's terms."""
+        arrive, the nominal TCP of the joints the PLC reported (m, base) and the time between new values (s),
+        into the part's terms."""
 
     def describe(self) -> str:
         return self.name

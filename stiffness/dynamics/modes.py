@@ -57,16 +57,28 @@ MIN_SAMPLES = 200
 
 @dataclass
 class Record:
-    """A force and a path on a uniform time grid: t (s), force (N, 3; N), deflection (N, 3; m)."""
+    """A force and a path on a uniform time grid: t (s), force (N, 3; N), deflection (N, 3; m).
+
+    ``band``: the deflection was measured through these second-order sections (a cut's trace: the
+    accelerometer's band, `stiffness.dynamics.from_cut`), so the model's response is taken through them too
+    (`filtered`); None: the deflection itself (a tap test's)."""
 
     t: np.ndarray
     force: np.ndarray
     deflection: np.ndarray
     source: str = "<record>"
+    band: np.ndarray | None = None
 
     @property
     def period(self) -> float:
         return float(self.t[1] - self.t[0])
+
+    def filtered(self, x: np.ndarray) -> np.ndarray:
+        """A response ``x`` (N, 3) as the record's deflection saw it: through ``band`` from its steady state."""
+        if self.band is None:
+            return x
+        zi = signal.sosfilt_zi(self.band)[:, :, None] * x[:1][None, :, :]
+        return signal.sosfilt(self.band, x, axis=0, zi=zi)[0]
 
 
 def read_record(path: str | Path) -> Record:
@@ -153,11 +165,11 @@ def _design(rec: Record, st: Structure, lag_s: float) -> np.ndarray:
         for j in range(3):
             x = np.zeros((n, 3))
             x[:, i] = late[:, j]
-            cols.append(st.respond(x, rec.period).ravel())
+            cols.append(rec.filtered(st.respond(x, rec.period)).ravel())
     for i in range(3):
         e = np.zeros((n, 3))
         e[:, i] = 1.0
-        cols.append(e.ravel())
+        cols.append(rec.filtered(e).ravel())
     return np.column_stack(cols)
 
 
@@ -170,8 +182,17 @@ def _lstsq(A: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def _static(rec: Record, lag_s: float) -> np.ndarray:
     """What the static part (C F_L + b, least squares) leaves of the deflection (N, 3)."""
-    X = np.column_stack([_late(rec, lag_s), np.ones(len(rec.t))])
+    X = _static_columns(rec, lag_s)
     return rec.deflection - X @ np.linalg.lstsq(X, rec.deflection, rcond=None)[0]
+
+
+def _static_columns(rec: Record, lag_s: float) -> np.ndarray:
+    """The static part's columns (N, 4): the force through the lag, and a constant, as the record saw them."""
+    late = _late(rec, lag_s)
+    cols = np.column_stack([late, np.ones(len(rec.t))])
+    if rec.band is None:
+        return cols
+    return np.column_stack([rec.filtered(np.repeat(c[:, None], 3, axis=1))[:, 0] for c in cols.T])
 
 
 def _start(rec: Record, n_modes: int, max_lag_ms: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -214,8 +235,8 @@ def identify(rec: Record, n_modes: int = 2, max_lag_ms: float = 30.0) -> Identif
     unseen = [k for k, e in enumerate(evidence) if not e > threshold]
     if unseen:
         raise DataError(_unseen(rec, st, exc, evidence, unseen))
-    static = rec.force @ np.linalg.lstsq(np.column_stack([rec.force, np.ones(len(rec.t))]), rec.deflection,
-                                          rcond=None)[0][:3]
+    X = _static_columns(rec, 0.0)
+    static = X[:, :3] @ np.linalg.lstsq(X, rec.deflection, rcond=None)[0][:3]
     static = static + (rec.deflection - static).mean(axis=0)
     var = np.sum((rec.deflection - rec.deflection.mean(0)) ** 2)
     return Identified(st, C, b, 1.0 - np.sum((rec.deflection - model) ** 2) / var,

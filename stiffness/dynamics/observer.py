@@ -46,7 +46,11 @@ from ..files.yaml_schema import Strict
 from .base import DynamicsContext, Stage, biquad
 from .structure import ModeConfig, orthogonal
 
-H_MAX = 100             # the delay line's length, cycles (horizon_ms up to 100 at 1 ms)
+H_MAX = 100             # the delay line's length, cycles
+MAX_HORIZON_MS = 7.0    # measured in the HIL (docs/accelerometer.md): 3-7 ms help, 12 ms and more made the exit worse
+MAX_SAMPLE_MS = 3.0     # new values at least this often: measured good with one every 2 ms (a 1000 Hz box, a 1 ms
+                        # task writing every other cycle); every 4-5 ms (a 200 Hz box, a 2 ms task) made the
+                        # correction's error 4-10 x the static one's
 N_BIQUADS = 7           # the acceleration's path: B / s^2 as [1 / (s^2 + ...), high-pass 1, low-pass 2]; the
                         # nominal TCP's and the model's: L, high-pass 2, high-pass 1, low-pass 2
 RING, BIQ = 19, 19 + 3 * H_MAX
@@ -115,6 +119,33 @@ def observer_law(s, p, dX, dt):
         dX[i] += s[8] * s[10 + i]
 
 
+def band_filters(band_hz, box_lowpass_hz: float, period_s: float) -> np.ndarray:
+    """(7, 5) the biquads [b0, b1, b2, a1, a2] of B / s^2 (three) and of L B (four) at ``period_s``, prewarped at
+    the band's centre (module docstring; `band_sos` gives them as two cascades)."""
+    lo, hi = band_hz
+    centre = math.sqrt(lo * hi)
+    wl, wh = 2.0 * math.pi * lo, 2.0 * math.pi * hi
+    q = math.sqrt(2.0)
+    low2 = biquad([wh * wh], [1.0, q * wh, wh * wh], period_s, centre)
+    high1 = biquad([1.0, 0.0], [1.0, wl], period_s, centre)
+    high2 = biquad([1.0, 0.0, 0.0], [1.0, q * wl, wl * wl], period_s, centre)
+    over_s2 = biquad([1.0], [1.0, q * wl, wl * wl], period_s, centre)
+    if box_lowpass_hz > 0.0:
+        wb = 2.0 * math.pi * min(box_lowpass_hz, 0.45 / period_s)
+        box = biquad([wb * wb], [1.0, q * wb, wb * wb], period_s)
+    else:
+        box = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
+    return np.array([over_s2, high1, low2, box, high2, high1, low2])
+
+
+def band_sos(band_hz, box_lowpass_hz: float, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(B / s^2, L B) as scipy's second-order sections: what turns a measured acceleration and a position into
+    the band's deflection, e = (B / s^2) a - L B p."""
+    f = band_filters(band_hz, box_lowpass_hz, period_s)
+    sos = np.column_stack([f[:, :3], np.ones(len(f)), f[:, 3:]])
+    return sos[:3], sos[3:]
+
+
 class Observer(Stage):
     """``dynamics.observer``: the modes corrected by the accelerometer (module docstring)."""
 
@@ -122,7 +153,7 @@ class Observer(Stage):
 
     class Config(Strict):
         modes: list[ModeConfig] = Field(min_length=1, max_length=6)
-        horizon_ms: float = Field(10.0, ge=0.0, le=float(H_MAX - 1))
+        horizon_ms: float = Field(4.0, ge=0.0, le=MAX_HORIZON_MS)
         band_hz: list[float] = Field(default_factory=lambda: [2.5, 40.0], min_length=2, max_length=2)
         box_lowpass_hz: float = Field(62.5, ge=0.0, le=5000.0)
         ramp_ms: float = Field(100.0, gt=0.0, le=10_000.0)
@@ -141,29 +172,15 @@ class Observer(Stage):
     def __init__(self, cfg):
         super().__init__(cfg)
         self.fed: list[TwistTerm] = []
+        self.too_slow = False
 
     def filters(self, period_s: float) -> np.ndarray:
-        """(7, 5) the biquads [b0, b1, b2, a1, a2] at ``period_s`` (`N_BIQUADS`' order), prewarped at the band's
-        centre."""
-        lo, hi = self.cfg.band_hz
-        centre = math.sqrt(lo * hi)
-        wl, wh = 2.0 * math.pi * lo, 2.0 * math.pi * hi
-        q = math.sqrt(2.0)
-        low2 = biquad([wh * wh], [1.0, q * wh, wh * wh], period_s, centre)
-        high1 = biquad([1.0, 0.0], [1.0, wl], period_s, centre)
-        high2 = biquad([1.0, 0.0, 0.0], [1.0, q * wl, wl * wl], period_s, centre)
-        over_s2 = biquad([1.0], [1.0, q * wl, wl * wl], period_s, centre)
-        fb = self.cfg.box_lowpass_hz
-        if fb > 0.0:
-            wb = 2.0 * math.pi * min(fb, 0.45 / period_s)
-            box = biquad([wb * wb], [1.0, q * wb, wb * wb], period_s)
-        else:
-            box = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
-        return np.array([over_s2, high1, low2, box, high2, high1, low2])
+        """(7, 5) the biquads [b0, b1, b2, a1, a2] at ``period_s`` (`N_BIQUADS`' order; `band_filters`)."""
+        return band_filters(self.cfg.band_hz, self.cfg.box_lowpass_hz, period_s)
 
     def params(self, period_s: float) -> np.ndarray:
         f = self.filters(period_s)
-        sos = np.column_stack([f[3:, :3], np.ones(4), f[3:, 3:]])       # the model's side: L B
+        sos = band_sos(self.cfg.band_hz, self.cfg.box_lowpass_hz, period_s)[1]       # the model's side: L B
         h = round(self.cfg.horizon_ms / 1000.0 / period_s)
         rows = []
         for m in self.cfg.modes:
@@ -180,9 +197,12 @@ class Observer(Stage):
         self.fed.append(TwistTerm(observer_law, self.params(ctx.period_s), [0.0] * STATE_SIZE))
         return [self.fed[-1]]
 
-    def feed_motion(self, acceleration, ok: bool, p_tcp) -> None:
+    def feed_motion(self, acceleration, ok: bool, p_tcp, sample_period_s: float = 0.0) -> None:
         """This cycle's acceleration (base, m/s^2), whether the accelerometer's samples arrive, and the nominal
-        TCP of the joints the PLC reported (m, base), into the term's state."""
+        TCP of the joints the PLC reported (m, base), into the term's state; values that come less often than
+        every `MAX_SAMPLE_MS` count as not arriving (the force-only path; `too_slow` says so)."""
+        self.too_slow = sample_period_s > MAX_SAMPLE_MS / 1000.0
+        ok = ok and not self.too_slow
         for term in self.fed:
             s = term.state
             s[0], s[1], s[2] = acceleration

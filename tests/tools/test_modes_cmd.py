@@ -146,3 +146,32 @@ def test_a_bad_record_is_a_user_error_naming_the_line(record, tmp_path, capsys):
     assert f"{bad}: line 6: fx_N = 'x0.000' is not a number" in err and "1 problem" in err and "Traceback" not in err
     assert main(["modes", str(tmp_path / "missing.csv")]) == 2
     assert "missing.csv: file not found" in capsys.readouterr().err
+
+
+def quiet_trace(path, acceleration: bool = True):
+    """A trace of 2 s at 1 ms whose accelerometer never delivered (status bit 8 clear); without the
+    accelerometer's columns, a trace of a service from before them."""
+    import numpy as np
+
+    from stiffness.data.trace_file import ACCELERATION, COLUMNS, TraceFile
+
+    table = np.zeros((2000, len(COLUMNS)))
+    table[:, COLUMNS.index("time_s")] = np.arange(2000) * 0.001
+    table[:, COLUMNS.index("cycle")] = np.arange(1, 2001)
+    table[:, COLUMNS.index("status_word")] = 1
+    with TraceFile(path) as f:
+        f.write(table)
+    if not acceleration:
+        lines = path.read_text().splitlines()
+        keep = [k for k, c in enumerate(lines[0].split(",")) if c not in ACCELERATION]
+        path.write_text("\n".join(",".join(row.split(",")[k] for k in keep) for row in lines) + "\n")
+    return path
+
+
+def test_a_trace_is_read_with_the_config_the_cut_ran_with_and_refused_without_acceleration(tmp_path, capsys):
+    trace = quiet_trace(tmp_path / "cut.csv")
+    assert "give --config SERVICE.yaml" in refused([str(trace)], capsys)
+    config = str(ROOT / "config" / "hil" / "service.yaml")
+    assert "never marked as arriving" in refused([str(trace), "--config", config], capsys)
+    old = quiet_trace(tmp_path / "old.csv", acceleration=False)
+    assert "its accelerometer columns are missing" in refused([str(old), "--config", config], capsys)

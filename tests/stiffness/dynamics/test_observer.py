@@ -18,7 +18,7 @@ from scipy import signal
 
 from hil.structure import oscillate
 from stiffness.dynamics.base import DynamicsContext
-from stiffness.dynamics.observer import Observer, observer_law
+from stiffness.dynamics.observer import Observer
 
 DT = 0.001
 OUTPUT_S, AGE_S = 0.0015, 0.0035
@@ -83,7 +83,7 @@ def test_with_the_mode_right_it_adds_next_to_nothing():
 
 def test_samples_that_stop_mid_cut_ramp_it_to_the_force_only_path_without_a_jump():
     f_model = TRUE_HZ * 1.2
-    t, ahead, target, acc = arm(f_model)
+    t, ahead, _, acc = arm(f_model)
     ok = ~((t >= 0.56) & (t < 1.0))                            # the box silent from 60 ms into the cut
     out = observe(f_model, np.where(ok, acc, 0.0), ahead, ok)
     share = out - ahead
