@@ -17,11 +17,11 @@ micrometres, and one value would carry that), so the acceleration reads zero on 
 between the box and the TCP is left out: the arm's low modes translate the tool (docs/accelerometer.md).
 
 A configured accelerometer is supervised: ``acc_samples`` unchanged for ``timeout_ms`` (the box silent, its
-values invalid, or the PLC no longer passing them) or a value not finite is the named condition
-``accelerometer_frozen`` (``accelerometer_missing`` before the first sample), logged once when it starts and
-once when it ends, and the status bit ``accelerometer_ok`` is clear. It is not a latched fault: the correction
-goes on without the acceleration (the parts that use it fall back to the force alone), and the acceleration
-reads zero meanwhile.
+values invalid, or the PLC no longer passing them) or a value not finite or beyond any box's range
+(`MAX_MPS2`) is the named condition ``accelerometer_frozen`` (``accelerometer_missing`` before the first
+sample), logged once when it starts and once when it ends, and the status bit ``accelerometer_ok`` is clear.
+It is not a latched fault: the correction goes on without the acceleration (the parts that use it fall back to
+the force alone), and the acceleration reads zero meanwhile. A tare while it is not ok keeps the bias.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ log = logging.getLogger("stiffcomp.service")
 FROZEN, MISSING = "accelerometer_frozen", "accelerometer_missing"
 TARE_TAU_S = 0.05        # the readings' low-pass for the tare
 PERIOD_TAU_S = 0.1       # the time between new values is averaged over about this
+MAX_MPS2 = 400.0         # beyond any box's range (the EP3751's INT16 in mg: 32.8 g, 321 m/s^2): not a reading
 
 
 class AccelerometerConfig(Strict):
@@ -78,7 +79,7 @@ class Accelerometer:
             self._t_first = t
         count = inputs.acc_samples
         f = (inputs.acc_x, inputs.acc_y, inputs.acc_z)
-        finite = all(math.isfinite(v) for v in f)
+        finite = all(math.isfinite(v) and abs(v) <= MAX_MPS2 for v in f)
         if self._count is None:                      # the first cycle: where the count stands
             self._count = count
         elif count != self._count and finite:        # a new sample
@@ -91,11 +92,11 @@ class Accelerometer:
                 self.sample_period_s = since if math.isinf(p) else p + (since - p) * min(1.0, since / PERIOD_TAU_S)
             self._count, self._moved_t = count, t
         R = np.asarray(R_sensor) @ self.R_m
-        if tare and self.f_lp is not None:
-            self.bias = self.f_lp + R.T @ self.g
-            log.info("accelerometer tared: bias %s m/s^2 (box axes)", np.array2string(self.bias, precision=3))
         since = t - (self._t_first if self._moved_t is None else self._moved_t)
         ok = self._moved_t is not None and finite and since <= self.timeout_s
+        if tare and ok:                              # a frozen box's last value is no zero
+            self.bias = self.f_lp + R.T @ self.g
+            log.info("accelerometer tared: bias %s m/s^2 (box axes)", np.array2string(self.bias, precision=3))
         condition = None if ok or since <= self.timeout_s and finite else MISSING if self._moved_t is None else FROZEN
         if condition != self.condition:
             self._say(condition, since, finite)
@@ -107,7 +108,7 @@ class Accelerometer:
         if condition is None:
             log.info("%s ended: the accelerometer's samples arrive again", self.condition)
         else:
-            why = ("a value is not finite" if not finite else
+            why = (f"a value is not finite or beyond {MAX_MPS2:g} m/s^2" if not finite else
                    f"acc_samples has not moved for {1000 * since:.0f} ms (accelerometer.timeout_ms = "
                    f"{1000 * self.timeout_s:g})")
             log.warning("%s: %s; the correction goes on from the force alone", condition, why)

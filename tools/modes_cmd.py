@@ -8,7 +8,9 @@ HIL's (`stiffcomp hil circle --dynamic-compensation --modes-data FILE`). Or DATA
 deflection seen through the accelerometer's band (`stiffness.dynamics.from_cut`); ``--config`` then names the
 service config the cut ran with: its model's robot turns the joints into the tool's path, its
 ``dynamics.observer`` gives the band (else the observer's default), and its ``dynamics.structure.lag_ms`` is
-kept (a trace's lag is not the arm's: its wrench is filtered, its acceleration late). It prints which force directions the
+kept (a trace's lag is not the arm's: its wrench is filtered, its acceleration late). ``--compare FILE`` holds
+the modes of a file's ``dynamics.structure`` against the record's and names what is missing or off
+(`stiffness.dynamics.compare`). It prints which force directions the
 record excites, the modes (a mode the record does not show is refused, `stiffness.dynamics.excitation`), the
 arm's own lag and how much of the deflection they explain against a static fit alone; ``-o`` writes the
 ``dynamics`` section for the service config, ``--plot`` the identified response over the measured one
@@ -31,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--modes", type=int, default=2, choices=(1, 2, 3), help="how many modes (default 2)")
     p.add_argument("--max-lag-ms", type=float, default=30.0,
                    help="the longest lag of the arm tried, ms (above 0, at most the config's 100)")
+    p.add_argument("--compare", default=None, metavar="FILE.yaml",
+                   help="the modes of this file's dynamics.structure (a service config, or what -o wrote) against "
+                        "the record's: which is missing, which is off (the record's modes: one more than it holds "
+                        "where the record shows one)")
     p.add_argument("-o", "--output", default=None, metavar="FILE.yaml",
                    help="write the dynamics section (the modes, their lag) for the service config")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="the identified response over the measured one")
@@ -64,6 +70,25 @@ def check_options(args) -> None:
         check_output_file("--plot", args.plot)
 
 
+def compared_structure(path):
+    """The ``dynamics.structure`` of a YAML file (a service config, or what -o wrote); DataError naming the file
+    when it holds none the service takes."""
+    from pydantic import ValidationError
+
+    from stiffness.dynamics.structure import Structure
+    from stiffness.errors import DataError
+    from stiffness.files.yaml_schema import format_validation_error, read_yaml
+
+    data = read_yaml(path)
+    section = (data.get("dynamics") or {}).get("structure") if isinstance(data, dict) else None
+    if not isinstance(section, dict):
+        raise DataError(f"--compare {path}: no dynamics.structure in it (a service config's, or what -o writes)")
+    try:
+        return Structure(Structure.Config.model_validate(section))
+    except ValidationError as e:
+        raise DataError(format_validation_error(str(path), e, prefix="dynamics.structure")) from e
+
+
 def read_data(args):
     """(the record, the lag to keep: None for a tap test's record, the config's for a trace's)."""
     from stiffness.data.trace_file import looks_like_trace
@@ -95,7 +120,14 @@ def run(args) -> int:
 
     check_options(args)
     rec, kept_lag = read_data(args)
-    found = identify(rec, args.modes, args.max_lag_ms)
+    verdict = None
+    if args.compare is not None:
+        from stiffness.dynamics.compare import compare
+
+        verdict = compare(rec, compared_structure(args.compare), args.max_lag_ms)
+        found = verdict.found
+    else:
+        found = identify(rec, args.modes, args.max_lag_ms)
     if kept_lag is not None:
         found.structure.cfg.lag_ms = kept_lag
     out = {"modes": found.to_config()["modes"], "lag_ms": found.to_config()["lag_ms"],
@@ -103,6 +135,9 @@ def run(args) -> int:
            "residual_rms_mm": round(found.rms_mm, 5),
            "excitation": {**found.excitation.to_json(), "modes": [round(e, 1) for e in found.evidence]},
            "config": section(found)}
+    if verdict is not None:
+        out["compare"] = {"file": str(args.compare), "findings": [{"kind": f.kind, "text": f.text} for f in verdict.findings],
+                          "rms_model_mm": round(verdict.rms_model_mm, 5), "rms_found_mm": round(verdict.rms_found_mm, 5)}
     if args.output:
         try:
             Path(args.output).write_text("# the structure identified by `stiffcomp modes " + str(args.data)
@@ -113,7 +148,7 @@ def run(args) -> int:
         out["written"] = str(args.output)
     if args.plot:
         try:
-            figure(found, rec).savefig(args.plot, dpi=110)
+            figure(found, rec, predicted=None if verdict is None else verdict.response_model).savefig(args.plot, dpi=110)
         except OSError as e:
             raise OutputError(f"--plot {args.plot}: cannot write: {e}") from e
         out["plot"] = str(args.plot)
@@ -128,6 +163,10 @@ def run(args) -> int:
                                                           if kept_lag is not None else ""))
     print(f"explains {100 * found.explained:.2f} % of the deflection (a static fit alone: "
           f"{100 * found.explained_static:.2f} %); residual RMS {found.rms_mm:.4f} mm")
+    if verdict is not None:
+        print(f"against {args.compare}:")
+        for line in verdict.lines():
+            print(f"  {line}")
     if args.output:
         print(f"next: merge {args.output} into the service config, set dynamics.delay_ms to the measured "
               "end-to-end delay, and restart the service")

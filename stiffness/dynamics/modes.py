@@ -155,6 +155,12 @@ def _solve(rec: Record, st: Structure, lag_s: float) -> tuple[np.ndarray, np.nda
     return sol[:9].reshape(3, 3), sol[9:], (A @ sol).reshape(-1, 3)
 
 
+def response(rec: Record, st: Structure) -> np.ndarray:
+    """The response (N, 3; m) of ``st`` (its modes and lag) to the record's force, its compliance and offset
+    solved for the record: the structure at its best on it (`stiffness.dynamics.compare`)."""
+    return _solve(rec, st, st.lag_s())[2]
+
+
 def _design(rec: Record, st: Structure, lag_s: float) -> np.ndarray:
     """The model's columns over the record (3 N, 12): the response to each compliance C_ij (column 3 i + j),
     then the offset's three."""
@@ -313,10 +319,11 @@ def _evidence(rec: Record, st: Structure, model: np.ndarray) -> list[float]:
     return out
 
 
-def figure(found: Identified, rec: Record, window_s: float = 1.0):
+def figure(found: Identified, rec: Record, window_s: float = 1.0, predicted: np.ndarray | None = None):
     """The identified response over the measured one: per mode, the deflection along its direction
-    (measured, identified, the static fit alone) in the ``window_s`` with the most motion along it; and the
-    spectrum of the deflection against the identified model's (matplotlib Figure)."""
+    (measured, identified, the static fit alone, and ``predicted``, another structure's response, where given:
+    `stiffness.dynamics.compare`) in the ``window_s`` with the most motion along it; and the spectrum of the
+    deflection against the identified model's (matplotlib Figure)."""
     from matplotlib.figure import Figure
 
     from ..report.plots import legend_below
@@ -335,6 +342,9 @@ def figure(found: Identified, rec: Record, window_s: float = 1.0):
         ax.plot(rec.t[sl], meas[sl], color="k", lw=1.0, label="measured")
         ax.plot(rec.t[sl], mod[sl], color="tab:green", lw=1.0, ls="--", label="identified (modes and lag)")
         ax.plot(rec.t[sl], stat[sl], color="tab:gray", lw=0.8, label="static fit alone")
+        if predicted is not None:
+            ax.plot(rec.t[sl], (predicted @ phi * M_TO_MM)[sl], color="tab:red", lw=0.9, ls=":",
+                    label="the compared model's modes")
         ax.set_title(f"mode {k + 1}: {m.hz:.2f} Hz, {100 * m.damping:.1f} % damping, along "
                      f"[{', '.join(f'{x:+.2f}' for x in m.direction)}]")
         ax.set_xlabel("time, s")
@@ -343,7 +353,8 @@ def figure(found: Identified, rec: Record, window_s: float = 1.0):
         axes.append(ax)
     ax = fig.add_subplot(len(modes) + 1, 1, len(modes) + 1)
     top = 0.0
-    for x, color in ((rec.deflection, "k"), (found.model, "tab:green")):
+    for x, color in ((rec.deflection, "k"), (found.model, "tab:green"),
+                     *(((predicted, "tab:red"),) if predicted is not None else ())):
         f, P = signal.welch((x - x.mean(0)) * M_TO_MM, fs=1.0 / rec.period, nperseg=min(len(x), 2048), axis=0)
         ax.semilogy(f, P.sum(axis=1), color=color, lw=1.0)
         top = max(top, float(P.sum(axis=1).max()))
@@ -353,8 +364,9 @@ def figure(found: Identified, rec: Record, window_s: float = 1.0):
     ax.set_xlim(0, min(60.0, 0.5 / rec.period))
     ax.set_xlabel("frequency, Hz")
     ax.set_ylabel("power of the deflection, mm²/Hz")
-    ax.set_title(f"spectrum: measured (black), identified (green); explains {100 * found.explained:.2f} % "
+    ax.set_title(f"spectrum: measured (black), identified (green){', compared (red)' if predicted is not None else ''}; "
+                 f"explains {100 * found.explained:.2f} % "
                  f"(the static fit alone {100 * found.explained_static:.2f} %)")
     ax.grid(alpha=0.3)
-    legend_below(fig, *axes, ncols=3)
+    legend_below(fig, *axes, ncols=4 if predicted is not None else 3)
     return fig

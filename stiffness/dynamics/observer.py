@@ -201,8 +201,8 @@ class Observer(Stage):
         """This cycle's acceleration (base, m/s^2), whether the accelerometer's samples arrive, and the nominal
         TCP of the joints the PLC reported (m, base), into the term's state; values that come less often than
         every `MAX_SAMPLE_MS` count as not arriving (the force-only path; `too_slow` says so)."""
-        self.too_slow = sample_period_s > MAX_SAMPLE_MS / 1000.0
-        ok = ok and not self.too_slow
+        self.too_slow = math.isfinite(sample_period_s) and sample_period_s > MAX_SAMPLE_MS / 1000.0
+        ok = ok and math.isfinite(sample_period_s) and not self.too_slow      # (infinite: not two values yet)
         for term in self.fed:
             s = term.state
             s[0], s[1], s[2] = acceleration

@@ -92,6 +92,9 @@ def test_a_box_that_never_delivers_is_missing_and_a_value_not_finite_is_frozen(c
         acc.update(0.001 * k, record([float("nan"), 0.0, 9.81], k), np.eye(3), False)
         assert not acc.ok and acc.condition == FROZEN and not np.isnan(acc.acceleration).any()
     assert any("not finite" in r.getMessage() for r in caplog.records)
+    for k in range(60, 90):                                 # beyond any box's range: no reading either
+        acc.update(0.001 * k, record([1e6, 0.0, 9.81], k), np.eye(3), False)
+        assert not acc.ok and np.all(acc.acceleration == 0.0)
 
 
 def config_with_accelerometer(tmp_path, rmap: bool = True) -> ServiceConfig:
