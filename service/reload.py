@@ -47,8 +47,9 @@ from .supervision import Supervisor
 log = logging.getLogger("stiffcomp.service")
 
 # what only a restart applies: the sections of sockets, the cycle's timing and thread, the opened sensor
-# and the image laid out by the register map; the dynamic compensation's states; the model's structure
-RESTART = ("cycle", "source", "plc", "ads", "monitoring", "dynamics", "robot")
+# and the image laid out by the register map; the dynamic compensation's states, the accelerometer's
+# supervision and bias; the model's structure
+RESTART = ("cycle", "source", "plc", "ads", "monitoring", "dynamics", "accelerometer", "robot")
 STRUCTURE = ("model.file:robot.", "model.file:effects")
 RESTART_KEYS = {"gravity.g_mps2"}         # gravity's direction: the arm's static torque too, not a payload switch
 LOWPASS = {"filter.type", "filter.order", "filter.cutoff_hz"}          # a new low-pass (the rest: parameters)

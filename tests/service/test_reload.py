@@ -140,6 +140,7 @@ def test_an_invalid_file_changes_nothing_and_names_file_key_and_range(rig):
     ({"monitoring": {"port": 2}}, "monitoring.port"),
     ({"source": {"max_force_N": 2000.0}}, "source.max_force_N"),
     ({"dynamics": {"enabled": True, "predictor": {}}}, "dynamics.enabled"),       # issue 26: its states start with the cycle
+    ({"accelerometer": {"timeout_ms": 50.0}}, "accelerometer.timeout_ms"),      # its supervision and bias too
     ({"robot": {"interface": "kuka_rsi"}}, "robot.interface"),          # the robot road listens from the start
     ({"robot": {"kuka_rsi": {"correction": "relative"}}}, "robot.kuka_rsi.correction"),
 ])
