@@ -12,6 +12,10 @@ What a commissioning engineer does, with the HIL's instruments:
 4. give the service the modes (their frequencies scaled by 1 + ``mode_error``: a model that is off), the
    delay, and with ``feedforward`` the process plan (`write_plan`: the engagement and the force the milling
    model plans, over the PLC program's time, which the virtual PLC writes to ``plan_time_s``).
+
+With ``modes_file`` step 1 and 2 are a file's modes instead (what `stiffcomp modes -o` writes, e.g. from a
+cut's trace: docs/accelerometer.md); with ``observer`` the service also runs the accelerometer's observer, and
+every pass measures with the virtual box (`DynamicOptions.measured_by`).
 """
 
 from __future__ import annotations

@@ -169,6 +169,10 @@ def quiet_trace(path, acceleration: bool = True):
 
 
 def test_a_trace_is_read_with_the_config_the_cut_ran_with_and_refused_without_acceleration(tmp_path, capsys):
+    from plc_link.contract import Status
+    from stiffness.dynamics.from_cut import ACCELEROMETER_OK
+
+    assert ACCELEROMETER_OK == int(Status.ACCELEROMETER_OK)        # the trace's bit, spelt below the contract
     trace = quiet_trace(tmp_path / "cut.csv")
     assert "give --config SERVICE.yaml" in refused([str(trace)], capsys)
     config = str(ROOT / "config" / "hil" / "service.yaml")
