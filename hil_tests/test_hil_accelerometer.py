@@ -56,3 +56,20 @@ def test_the_service_records_the_acceleration_the_box_measured(tmp_path: Path):
     assert share >= 0.99, share
     assert np.all(np.abs((a - ref).mean(axis=0)) <= 3 * MG), (a - ref).mean(axis=0) / MG
     assert np.abs(ref).max() > 100 * MG                      # the cut moved the arm: not a test of zeros
+
+
+def test_the_real_time_pass_hands_the_box_to_the_plcs_process(tmp_path: Path):
+    """In real time the box lives in the virtual PLC's process (its motion along the reference computed once and
+    handed over); the service's trace says its values arrived from the PLC's start to its stop (the service runs
+    on a little after it: the box is frozen then, and says so)."""
+    from hil.circle import run_circle
+
+    sc = load_scenario()
+    sc.accelerometer.enabled = True
+    run_circle(sc, compensation=False, trace=tmp_path / "trace.csv")
+    trace = read_trace(tmp_path / "trace.csv")
+    ok = (trace.column("status_word").astype(int) & int(Status.ACCELEROMETER_OK)) != 0
+    first, last = int(np.argmax(ok)), len(ok) - 1 - int(np.argmax(ok[::-1]))
+    assert ok.any() and ok[first:last + 1].mean() > 0.99, (ok.mean(), first, last, len(ok))
+    assert not ok[last + 1:].any() and len(ok) - 1 - last < 2000                # frozen once the PLC stopped
+    assert np.abs(trace.block(ACCELERATION)[first:last + 1]).max() > 100 * MG     # the cut moved the arm
