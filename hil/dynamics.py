@@ -201,25 +201,15 @@ class GivenModes:
 
     @classmethod
     def read(cls, path: Path) -> GivenModes:
-        """HilError naming the file when it holds no ``dynamics.structure`` the service takes."""
-        from pydantic import ValidationError
-
-        from stiffness.dynamics.structure import Structure
+        """HilError naming the file when it holds no ``dynamics.structure`` the service takes
+        (`stiffness.dynamics.structure.read_structure`)."""
+        from stiffness.dynamics.structure import read_structure
         from stiffness.errors import StiffnessError
-        from stiffness.files.yaml_schema import format_validation_error
 
         try:
-            data = read_yaml(path)
+            return cls(read_structure(path, "--modes").cfg.model_dump())
         except StiffnessError as e:
-            raise HilError(f"--modes {path}: {e}") from e
-        section = (data.get("dynamics") or {}).get("structure") if isinstance(data, dict) else None
-        if not isinstance(section, dict):
-            raise HilError(f"--modes {path}: no dynamics.structure in it (what `stiffcomp modes -o` writes)")
-        try:
-            Structure.Config.model_validate(section)
-        except ValidationError as e:
-            raise HilError(format_validation_error(str(path), e, prefix="dynamics.structure")) from e
-        return cls(section)
+            raise HilError(str(e)) from e
 
     def to_config(self) -> dict:
         return {"modes": [dict(m) for m in self.structure["modes"]], "lag_ms": self.structure.get("lag_ms", 0.0)}

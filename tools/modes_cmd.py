@@ -70,25 +70,6 @@ def check_options(args) -> None:
         check_output_file("--plot", args.plot)
 
 
-def compared_structure(path):
-    """The ``dynamics.structure`` of a YAML file (a service config, or what -o wrote); DataError naming the file
-    when it holds none the service takes."""
-    from pydantic import ValidationError
-
-    from stiffness.dynamics.structure import Structure
-    from stiffness.errors import DataError
-    from stiffness.files.yaml_schema import format_validation_error, read_yaml
-
-    data = read_yaml(path)
-    section = (data.get("dynamics") or {}).get("structure") if isinstance(data, dict) else None
-    if not isinstance(section, dict):
-        raise DataError(f"--compare {path}: no dynamics.structure in it (a service config's, or what -o writes)")
-    try:
-        return Structure(Structure.Config.model_validate(section))
-    except ValidationError as e:
-        raise DataError(format_validation_error(str(path), e, prefix="dynamics.structure")) from e
-
-
 def read_data(args):
     """(the record, the lag to keep: None for a tap test's record, the config's for a trace's)."""
     from stiffness.data.trace_file import looks_like_trace
@@ -123,8 +104,9 @@ def run(args) -> int:
     verdict = None
     if args.compare is not None:
         from stiffness.dynamics.compare import compare
+        from stiffness.dynamics.structure import read_structure
 
-        verdict = compare(rec, compared_structure(args.compare), args.max_lag_ms)
+        verdict = compare(rec, read_structure(args.compare, "--compare"), args.max_lag_ms)
         found = verdict.found
     else:
         found = identify(rec, args.modes, args.max_lag_ms)

@@ -141,3 +141,22 @@ class Structure(Stage):
         modes = ", ".join(f"{m.hz:g} Hz {100 * m.damping:.1f} %" for m in self.cfg.modes)
         extra = f", damping + {self.cfg.added_damping:g}" if self.cfg.added_damping else ""
         return f"structure ({modes}{extra}; lag {self.cfg.lag_ms:g} ms)"
+
+
+def read_structure(path, option: str) -> Structure:
+    """The ``dynamics.structure`` of a YAML file (a service config, or what `stiffcomp modes -o` writes);
+    DataError naming ``option`` and the file when it holds none, or one the service does not take."""
+    from pydantic import ValidationError
+
+    from ..errors import DataError
+    from ..files.yaml_schema import format_validation_error, read_yaml
+
+    data = read_yaml(path)
+    section = (data.get("dynamics") or {}).get("structure") if isinstance(data, dict) else None
+    if not isinstance(section, dict):
+        raise DataError(f"{option} {path}: no dynamics.structure in it (a service config's, or what "
+                        "`stiffcomp modes -o` writes)")
+    try:
+        return Structure(Structure.Config.model_validate(section))
+    except ValidationError as e:
+        raise DataError(format_validation_error(str(path), e, prefix="dynamics.structure")) from e
