@@ -98,8 +98,8 @@ def commissioning_record(scenario: Scenario, truth: StiffnessModel) -> Record:
 
 
 def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17, axes: tuple[int, ...] = (0, 1, 2),
-               peak_n: float = TAP_N) -> Record:
-    """A tap test at the circle's centre: a half-sine pulse of ``peak_n`` over `TAP_MS` along x, y and z (base
+               peak_n: float = TAP_N, q_deg=None) -> Record:
+    """A tap test at the circle's centre (or at the joints ``q_deg``): a half-sine pulse of ``peak_n`` over `TAP_MS` along x, y and z (base
     axes; those in ``axes``) in turn, and the stub's TCP deflection, every ms, with `TAP_NOISE_M` of noise
     (1 sigma)."""
     stub = RobotStub(truth, scenario.robot, scenario.payload)
@@ -113,7 +113,7 @@ def tap_record(scenario: Scenario, truth: StiffnessModel, seed: int = 17, axes: 
             out[:, k] = np.where((x >= 0) & (x <= 1), peak_n * np.sin(np.pi * np.clip(x, 0, 1)), 0.0)
         return out
 
-    q = np.tile(scenario.circle.center_q_deg, (len(t), 1))
+    q = np.tile(scenario.circle.center_q_deg if q_deg is None else q_deg, (len(t), 1))
     p = stub.actual(t, q, force, t[0], t[-1])[0]
     d = p - truth.robot.frames(np.radians(q[:1]))[0, 7, :3, 3]
     d += np.random.default_rng(seed).normal(0.0, TAP_NOISE_M, d.shape)

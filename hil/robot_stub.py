@@ -40,11 +40,11 @@ import numpy as np
 from stiffness.data.campaign import Context
 from stiffness.data.measurements import Dataset
 from stiffness.kinematics.spatial import transform, transport_wrench
-from stiffness.kinematics.statics import statics_for
+from stiffness.kinematics.statics import PayloadConfig, statics_for
 from stiffness.model.stiffness_model import StiffnessModel
 
 from .payload import TruePayload
-from .structure import GRID_S, Structure, StructureConfig
+from .structure import GRID_S, Structure, StructureConfig, physical_modes
 
 
 class RobotStub:
@@ -64,12 +64,16 @@ class RobotStub:
     def __init__(self, truth: StiffnessModel, structure: StructureConfig | float = 0.0, payload=None):
         self.truth = truth
         self.robot = truth.robot
-        self.structure = Structure(structure)
         self.measured_from_true = np.linalg.inv(truth.input_map())          # L^-1
         if payload is None:
             self.statics = truth.statics()
+            carried = truth.payload if truth.payload is not None else PayloadConfig()
         else:
-            self.statics = statics_for(truth.robot, TruePayload(payload).carried(), payload.g_mps2)
+            carried = TruePayload(payload).carried()
+            self.statics = statics_for(truth.robot, carried, payload.g_mps2)
+        physics = (physical_modes(structure, truth, carried) if isinstance(structure, StructureConfig)
+                   and structure.model == "modal" and structure.frequencies == "physics" else None)
+        self.structure = Structure(structure, physics)
 
     def structural_load(self, t: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The force (N, 3) the arm feels at times ``t`` (uniformly spaced, s) for the process force."""

@@ -113,4 +113,6 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     data = read_yaml(path)
     sc = validate(Scenario, data, str(path))
     sc.path = path
+    if sc.robot.masses is not None:                          # relative to the scenario, as truth and model are
+        sc.robot = sc.robot.model_copy(update={"masses": str(sc.resolve(sc.robot.masses))})
     return sc

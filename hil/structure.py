@@ -16,6 +16,14 @@ distance from the base's axis): f_k(q) = f_k (r_ref / r)^exponent; a farther TCP
 arm. Defaults: 10 Hz and 16 Hz at 3 % damping (published modal maps of milling robots: first modes at
 about 7, 10 and 16 Hz, 2-4 % damping, moving by up to 40 % over the workspace; docs/hil.md cites them).
 
+``frequencies: physics`` computes the modes instead from the truth's own stiffness and inertia, as the
+modal map predicts them (`stiffness.dynamics.modal_map`): the truth model's compliance at the TCP, the link
+masses of the robot description ``masses`` (its ``inertial`` section; the same kinematics as the truth's)
+and the tool the scenario's ``payload`` carries. Mode k is then the k-th lowest, its direction phi_k and
+frequency the pose's (both moving along the path), its damping ``modes[k].damping`` (their ``hz`` and
+``direction`` unused); its share is psi_k . x_s with psi_k the dual of the directions (they are orthogonal
+in the arm's inertia, not in space), the modes left out static.
+
 ``lowpass``: the arm's first mode as a critically damped second-order low-pass at ``structure_hz`` on the
 load (the stub before the modes; 0: static).
 
@@ -30,10 +38,17 @@ import numpy as np
 from pydantic import Field, field_validator
 from scipy import signal
 
+from stiffness.dynamics.modal_map import ArmInertia, ModalMap
 from stiffness.dynamics.structure import ModeConfig, orthogonal
+from stiffness.errors import ConfigError, DataError
 from stiffness.files.yaml_schema import Strict
+from stiffness.kinematics.robot import load_robot
+from stiffness.kinematics.statics import PayloadConfig
+from stiffness.model.cartesian import tcp_compliance
+from stiffness.model.stiffness_model import StiffnessModel
 
 GRID_S = 5e-4            # the structure's time step
+PHYSICS_EVERY_S = 0.02   # physics: `respond` computes the modes at poses this far apart, linear in between
 
 
 def _default_modes() -> list[ModeConfig]:
@@ -50,19 +65,38 @@ class StructureConfig(Strict):
     residual_hz: float = Field(40.0, gt=0.0, le=1000.0)
     reach_ref_m: float = Field(1.8, gt=0.1, le=10.0)
     reach_exponent: float = Field(1.0, ge=0.0, le=4.0)
+    frequencies: Literal["reach", "physics"] = "reach"
+    masses: str | None = None                      # physics: a robot description with the link masses
 
     _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))
 
 
-class Structure:
-    """The structure of one robot stub: `load` filters the process force, `respond` the static deflection."""
+def physical_modes(cfg: StructureConfig, truth: StiffnessModel, tool: PayloadConfig) -> ModalMap:
+    """The modal map of the truth's own stiffness, the masses of ``cfg.masses`` and the ``tool`` it carries
+    (``frequencies: physics``); ConfigError for a description without masses or with other kinematics."""
+    if cfg.masses is None:
+        raise ConfigError("robot.frequencies: physics needs robot.masses: a robot description with the link "
+                          "masses (an inertial section), e.g. config/robots/kr125_masses.yaml")
+    try:
+        inertia = ArmInertia(load_robot(cfg.masses), tool, arm=truth.robot)
+    except DataError as e:
+        raise ConfigError(f"robot.masses: {e}") from e
+    return ModalMap(lambda q: tcp_compliance(truth, q), inertia, tool.mass_kg)
 
-    def __init__(self, cfg: StructureConfig | float):
+
+class Structure:
+    """The structure of one robot stub: `load` filters the process force, `respond` the static deflection.
+    ``physics``: the modal map the modes come from with ``frequencies: physics`` (`physical_modes`)."""
+
+    def __init__(self, cfg: StructureConfig | float, physics: ModalMap | None = None):
         if not isinstance(cfg, StructureConfig):          # a number: the critically damped low-pass at that frequency
             cfg = StructureConfig(model="lowpass", structure_hz=float(cfg))
         self.cfg = cfg
         self.modal = cfg.model == "modal"
         self.directions = np.array([m.direction for m in cfg.modes]).reshape(-1, 3) if self.modal else np.zeros((0, 3))
+        if self.modal and cfg.frequencies == "physics" and physics is None:
+            raise ConfigError("robot.frequencies: physics: the structure needs the truth's modal map")
+        self.physics = physics if self.modal and cfg.frequencies == "physics" else None
 
     @property
     def load_hz(self) -> float:
@@ -78,10 +112,40 @@ class Structure:
         return signal.lfilter(b, a, force, axis=0)
 
     def frequencies(self, q_deg: np.ndarray, tcp: np.ndarray) -> np.ndarray:
-        """(N, K) the modes' frequencies (Hz) at the poses with TCP positions ``tcp`` (N, 3, base, m)."""
+        """(N, K) the modes' frequencies (Hz) at the poses ``q_deg`` (N, 6) with TCP positions ``tcp`` (N, 3)."""
+        return self.shapes(q_deg, tcp)[0]
+
+    def shapes(self, q_deg: np.ndarray, tcp: np.ndarray, every: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The modes at each pose: frequencies (N, K) Hz, directions phi (N, K, 3) and their duals psi (N, K,
+        3), base axes (module docstring); physics: computed at every ``every``-th pose, linear in between."""
+        q_deg = np.atleast_2d(q_deg)
+        if self.physics is not None:
+            return self._physics(q_deg, every)
         reach = np.maximum(np.hypot(tcp[:, 0], tcp[:, 1]), 0.05)
         scale = (self.cfg.reach_ref_m / reach) ** self.cfg.reach_exponent
-        return scale[:, None] * np.array([m.hz for m in self.cfg.modes])[None, :]
+        c, s = np.cos(np.radians(q_deg[:, 0])), np.sin(np.radians(q_deg[:, 0]))
+        arm = np.stack([np.stack([c, -s, np.zeros_like(c)], 1), np.stack([s, c, np.zeros_like(c)], 1),
+                        np.tile([0.0, 0.0, 1.0], (len(c), 1))], axis=1)          # base <- the arm's frame
+        phi = np.einsum("nij,kj->nki", arm, self.directions)                       # (N, K, 3) in base axes
+        return scale[:, None] * np.array([m.hz for m in self.cfg.modes])[None, :], phi, phi
+
+    def _physics(self, q_deg: np.ndarray, every: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`shapes` from the modal map, each mode's sign kept from one computed pose to the next."""
+        n, k = len(q_deg), len(self.cfg.modes)
+        at = np.unique(np.r_[np.arange(0, n, max(every, 1)), n - 1])
+        hz, V = self.physics.predict(q_deg[at])
+        W = np.linalg.inv(V)                                     # rows: the duals (x = V a, a = V^-1 x)
+        phi, psi = np.swapaxes(V, 1, 2)[:, :k], W[:, :k]
+        for i in range(1, len(at)):
+            flip = np.where(np.einsum("kj,kj->k", phi[i], phi[i - 1]) < 0, -1.0, 1.0)[:, None]
+            phi[i], psi[i] = phi[i] * flip, psi[i] * flip
+        idx = np.arange(n)
+
+        def along(v):
+            flat = v.reshape(len(at), -1)
+            return np.stack([np.interp(idx, at, flat[:, j]) for j in range(flat.shape[1])], 1).reshape((n, *v.shape[1:]))
+
+        return along(hz[:, :k]), along(phi), along(psi)
 
     def respond(self, t: np.ndarray, q_deg: np.ndarray, tcp: np.ndarray, x_static: np.ndarray) -> np.ndarray:
         """The dynamic deflection (N, 3) at uniformly spaced times ``t`` for the static one ``x_static`` (N, 3,
@@ -89,12 +153,8 @@ class Structure:
         if not self.modal or not len(self.cfg.modes) or len(t) < 2:
             return np.asarray(x_static, dtype=float)
         dt = float(t[1] - t[0])
-        c, s = np.cos(np.radians(q_deg[:, 0])), np.sin(np.radians(q_deg[:, 0]))
-        arm = np.stack([np.stack([c, -s, np.zeros_like(c)], 1), np.stack([s, c, np.zeros_like(c)], 1),
-                        np.tile([0.0, 0.0, 1.0], (len(c), 1))], axis=1)          # base <- the arm's frame
-        phi = np.einsum("nij,kj->nki", arm, self.directions)                       # (N, K, 3) in base axes
-        share = np.einsum("nki,ni->nk", phi, x_static)                              # phi_k . x_s
-        f = self.frequencies(q_deg, tcp)
+        f, phi, psi = self.shapes(q_deg, tcp, every=max(round(PHYSICS_EVERY_S / dt), 1))
+        share = np.einsum("nki,ni->nk", psi, x_static)                              # psi_k . x_s
         zeta = np.array([m.damping for m in self.cfg.modes])
         moved = oscillate(share, 2 * np.pi * f, zeta, dt)
         return x_static + np.einsum("nki,nk->ni", phi, moved - share)

@@ -36,6 +36,7 @@ COMMANDS = {
     "hil": "tools.hil_cmd",
     "part": "tools.part_cmd",
     "modes": "tools.modes_cmd",
+    "modal-map": "tools.modal_map_cmd",
     "plc-library": "tools.plc_library_cmd",
     "robot-programs": "tools.robot_programs_cmd",
 }
