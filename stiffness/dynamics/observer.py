@@ -11,8 +11,12 @@ Butterworth), both sides of
     e = (B / s^2) a_measured - B L (FK(q) + dX(t - h))  =  B L (d - dX(t - h))
 
 are computable every cycle: the acceleration through B / s^2 (proper: B has four zeros at 0), the nominal TCP
-FK(q) of the joints the PLC reported and the deflection dX the stages before predicted h ago (``horizon_ms``,
-a delay line), which was their prediction for the instant the acceleration describes. So e is the model's error
+FK(q) of the joints the PLC reported ``joints_lead_ms`` ago and the deflection dX the stages before predicted
+h ago (``horizon_ms``; both delay lines), each for the instant the acceleration describes: the joints the PLC
+reports are its commands, which the drives reach a cycle later, while the box's value is a cycle or two old
+when the PLC reads it, so the joints lead the acceleration (3 ms measured best in the HIL with the PLC at 1
+ms, docs/accelerometer.md; FK(q) at the wrong instant leaves the correction's own motion, up to 20 um a ms
+after an entry, in e). So e is the model's error
 in the band, without integrating the accelerometer's bias or noise below it (B's fourth-order zero at 0: a bias
 left after the tare decays with the high-pass's time constant).
 
@@ -54,28 +58,32 @@ MAX_SAMPLE_MS = 3.0     # new values at least this often: measured good with one
 N_BIQUADS = 7           # the acceleration's path: B / s^2 as [1 / (s^2 + ...), high-pass 1, low-pass 2]; the
                         # nominal TCP's and the model's: L, high-pass 2, high-pass 1, low-pass 2
 RING, BIQ = 19, 19 + 3 * H_MAX
-STATE_SIZE = BIQ + 3 * 2 * N_BIQUADS
+JOINTS = BIQ + 3 * 2 * N_BIQUADS        # the nominal TCP's delay line
+STATE_SIZE = JOINTS + 3 * H_MAX
+MAX_LEAD_MS = 20.0      # the most joints_lead_ms takes
 PER_MODE = 5            # phi (3), the cosine's and the sine's factor
 
 
 def observer_law(s, p, dX, dt):
-    """dX (6,) += g sum_k phi_k o_k in place (module docstring). p = [K, h (cycles), ramp step, 7 x (b0, b1, b2,
-    a1, a2), K x (phi (3), c_k, s_k / w_k)]; s = [a (3), FK(q) (3), ok, started, g, ring position, o (3),
-    e last (3), de (3), ring (3 H_MAX), 3 x 7 x (z0, z1)]."""
+    """dX (6,) += g sum_k phi_k o_k in place (module docstring). p = [K, h (cycles), ramp step, the joints' lead
+    (cycles), 7 x (b0, b1, b2, a1, a2), K x (phi (3), c_k, s_k / w_k)]; s = [a (3), FK(q) (3), ok, started, g,
+    ring position, o (3), e last (3), de (3), dX's ring (3 H_MAX), 3 x 7 x (z0, z1), FK(q)'s ring (3 H_MAX)]."""
     n = int(p[0])
     h = int(p[1])
+    lead = int(p[3])
     if s[6] > 0.5:
         if s[7] == 0.0:                          # (re)start: the line full of this dX, the filters steady
             for k in range(H_MAX):
                 for i in range(3):
                     s[RING + 3 * k + i] = dX[i]
+                    s[JOINTS + 3 * k + i] = s[3 + i]
             for i in range(3):                   # the acceleration's path at rest (its mean is 0, not
                 for j in range(3):               # this value); the positions' at their steady state
                     s[BIQ + 14 * i + 2 * j] = 0.0
                     s[BIQ + 14 * i + 2 * j + 1] = 0.0
                 u = s[3 + i] + dX[i]
                 for j in range(3, N_BIQUADS):
-                    o, z = 3 + 5 * j, BIQ + 14 * i + 2 * j
+                    o, z = 4 + 5 * j, BIQ + 14 * i + 2 * j
                     b0, b1, b2, a1, a2 = p[o], p[o + 1], p[o + 2], p[o + 3], p[o + 4]
                     y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
                     s[z + 1] = b2 * u - a2 * y
@@ -86,14 +94,17 @@ def observer_law(s, p, dX, dt):
             s[9] = 0.0
         pos = int(s[9])
         back = (pos - h) % H_MAX
+        led = (pos - lead) % H_MAX
         for i in range(3):
             old = s[RING + 3 * back + i]
             s[RING + 3 * pos + i] = dX[i]
+            s[JOINTS + 3 * pos + i] = s[3 + i]
+            nominal = s[JOINTS + 3 * led + i]
             e = 0.0
             for path in range(2):
-                u = s[i] if path == 0 else s[3 + i] + old
+                u = s[i] if path == 0 else nominal + old
                 for j in range(3 * path, 3 + 4 * path):
-                    o, z = 3 + 5 * j, BIQ + 14 * i + 2 * j
+                    o, z = 4 + 5 * j, BIQ + 14 * i + 2 * j
                     y = p[o] * u + s[z]
                     s[z] = p[o + 1] * u - p[o + 3] * y + s[z + 1]
                     s[z + 1] = p[o + 2] * u - p[o + 4] * y
@@ -105,7 +116,7 @@ def observer_law(s, p, dX, dt):
         for i in range(3):
             s[10 + i] = 0.0
         for k in range(n):
-            o = 3 + 5 * N_BIQUADS + PER_MODE * k
+            o = 4 + 5 * N_BIQUADS + PER_MODE * k
             ek = p[o] * s[13] + p[o + 1] * s[14] + p[o + 2] * s[15]
             dek = p[o] * s[16] + p[o + 1] * s[17] + p[o + 2] * s[18]
             out = p[o + 3] * ek + p[o + 4] * dek
@@ -154,6 +165,7 @@ class Observer(Stage):
     class Config(Strict):
         modes: list[ModeConfig] = Field(min_length=1, max_length=6)
         horizon_ms: float = Field(4.0, ge=0.0, le=MAX_HORIZON_MS)
+        joints_lead_ms: float = Field(3.0, ge=0.0, le=MAX_LEAD_MS)
         band_hz: list[float] = Field(default_factory=lambda: [2.5, 40.0], min_length=2, max_length=2)
         box_lowpass_hz: float = Field(62.5, ge=0.0, le=5000.0)
         ramp_ms: float = Field(100.0, gt=0.0, le=10_000.0)
@@ -191,7 +203,12 @@ class Observer(Stage):
             a = math.exp(-m.damping * w * h * period_s) / gain
             rows.append([*m.direction, a * math.cos(th), a * math.sin(th) / w])
         step = period_s / (self.cfg.ramp_ms / 1000.0)
-        return np.array([len(rows), h, step, *np.ravel(f), *np.ravel(rows)])
+        lead = round(self.cfg.joints_lead_ms / 1000.0 / period_s)
+        for key, cycles in (("horizon_ms", h), ("joints_lead_ms", lead)):
+            if cycles >= H_MAX:
+                raise ValueError(f"dynamics.observer.{key} is {cycles} cycles of {1000 * period_s:g} ms; the delay "
+                                 f"lines hold {H_MAX - 1}")
+        return np.array([len(rows), h, step, lead, *np.ravel(f), *np.ravel(rows)])
 
     def terms(self, ctx: DynamicsContext) -> list[TwistTerm]:
         self.fed.append(TwistTerm(observer_law, self.params(ctx.period_s), [0.0] * STATE_SIZE))

@@ -7,6 +7,8 @@ along x, carrying a static deflection that enters and leaves a cut (ramps of 50 
 * with the mode right, it adds next to nothing (within 15 % of the static compensator's peak; 11 % measured);
 * the samples stopping mid-cut ramp its share to zero without a jump: the output moves by no more than the
   ramp's step times its share per cycle, and ends on the force-only path;
+* the correction's own motion (the nominal TCP the PLC reports, reached by the drives a cycle later) cancels
+  when ``joints_lead_ms`` is the lead of the reported joints over the acceleration's instant, not without it;
 * 60 s of the box's noise (1 mg RMS a value) at rest: no growth, and a few micrometres at most.
 """
 
@@ -45,13 +47,15 @@ def arm(f_model: float, seconds: float = 2.0):
     return t, ahead, target, acc
 
 
-def observe(f_model: float, acc: np.ndarray, dX_model: np.ndarray, ok=None) -> np.ndarray:
+def observe(f_model: float, acc: np.ndarray, dX_model: np.ndarray, ok=None, nominal=None, lead_ms=3.0) -> np.ndarray:
+    """The observer's output; ``nominal`` (N,): the nominal TCP's x as the PLC reports it (default still)."""
     part = Observer(Observer.Config(modes=[{"hz": f_model, "damping": 0.03, "direction": [1, 0, 0]}],
-                                    horizon_ms=1000 * (AGE_S + OUTPUT_S)))
+                                    horizon_ms=1000 * (AGE_S + OUTPUT_S), joints_lead_ms=lead_ms))
     term = part.terms(DynamicsContext(DT))[0]
     out = np.zeros(len(acc))
     for k in range(len(acc)):
-        part.feed_motion([acc[k], 0.0, 0.0], True if ok is None else bool(ok[k]), P_NOM)
+        p = P_NOM if nominal is None else P_NOM + [nominal[k], 0.0, 0.0]
+        part.feed_motion([acc[k], 0.0, 0.0], True if ok is None else bool(ok[k]), p)
         dX = np.zeros(6)
         dX[0] = dX_model[k]
         term.law(term.state, term.params, dX, DT)
@@ -79,6 +83,29 @@ def test_with_the_mode_right_it_adds_next_to_nothing():
     static = window_peaks(t, late, target)
     seen = window_peaks(t, observe(TRUE_HZ, acc, ahead), target)
     assert all(s <= 0.15 * p for s, p in zip(seen, static)), (seen, static)     # measured 0.11 and 0.11
+
+
+DRIVE_S = 0.001             # the drives reach a command a cycle after the PLC reports it
+
+
+@pytest.mark.parametrize("error", [0.2, -0.2])
+def test_the_corrections_own_motion_cancels_when_the_joints_lead_is_right(error):
+    """The PLC reports the corrected joints c(t); the arm is there DRIVE_S later, and the acceleration describes
+    it AGE_S before the service reads it: the reported joints lead by DRIVE_S + AGE_S. With that lead the
+    observer's output is what it is with the nominal still; with none, the correction's motion leaks in."""
+    f_model = TRUE_HZ * (1 + error)
+    t, ahead, _, acc = arm(f_model)
+    c = -ahead                                                  # the nominal TCP moved by the correction
+    shift = round((DRIVE_S + AGE_S) / DT)
+    seen_c = np.concatenate([np.full(shift, c[0]), c[:-shift]])
+    b, a = signal.butter(2, 62.5, fs=1 / DT)
+    moving = acc + signal.lfilter(b, a, np.gradient(np.gradient(seen_c, DT), DT))
+    still = observe(f_model, acc, ahead)
+    right = observe(f_model, moving, ahead, nominal=c, lead_ms=1000 * (DRIVE_S + AGE_S))
+    wrong = observe(f_model, moving, ahead, nominal=c, lead_ms=0.0)
+    cut = (t >= 0.5) & (t < 1.4)
+    leak_right, leak_wrong = (np.abs(x - still)[cut].max() for x in (right, wrong))
+    assert leak_right < 0.05 * np.abs(still - ahead)[cut].max() and leak_wrong > 5 * leak_right, (leak_right, leak_wrong)
 
 
 def test_samples_that_stop_mid_cut_ramp_it_to_the_force_only_path_without_a_jump():
