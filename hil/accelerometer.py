@@ -158,17 +158,11 @@ def reference_motion(scenario, truth, world) -> tuple[np.ndarray, np.ndarray]:
 def register_map_with_accelerometer(cfg, folder: Path) -> Path:
     """The register map of the service config ``cfg`` with the accelerometer's four values bound after its last
     from_plc register (no gap: the PLC writes its block whole; docs/register_map.md, "The accelerometer")."""
-    from stiffness.files.yaml_schema import dump_yaml, read_yaml
+    from plc_link.contract import ACCELEROMETER
+    from stiffness.files.yaml_schema import dump_yaml
 
     source = cfg.resolve(cfg.plc.register_map)
-    data = read_yaml(source)
-    last = max(cfg.register_map().registers, key=lambda r: (r.direction == "from_plc", r.address))
-    at = last.address + last.count
-    data["from_plc"]["registers"] += [
-        {"name": "acc_x", "address": at, "type": "float32", "unit": "m/s2"},
-        {"name": "acc_y", "address": at + 2, "type": "float32", "unit": "m/s2"},
-        {"name": "acc_z", "address": at + 4, "type": "float32", "unit": "m/s2"},
-        {"name": "acc_samples", "address": at + 6, "type": "uint16"}]
+    data = cfg.register_map().extended(ACCELEROMETER)
     path = folder / f"{source.stem}_accelerometer.yaml"
     path.write_text(dump_yaml(data, sort_keys=False))
     return path

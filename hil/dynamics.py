@@ -27,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from io_process.endpoints import SHIPPED_CONFIG
+from plc_link.register_map import RegisterMap
 from stiffness.dynamics.modes import DEFLECTION, FORCE, Identified, Record, identify
-from stiffness.files.yaml_schema import dump_yaml, read_yaml
+from stiffness.files.yaml_schema import dump_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 from stiffness.units import M_TO_MM
 
@@ -41,8 +42,7 @@ from .world import World
 
 RECORD_PERIOD_S = 0.001
 TAP_N, TAP_MS, TAP_EVERY_S, TAP_NOISE_M = 100.0, 3.0, 1.2, 1e-6     # the hammer: peak force, pulse, spacing
-PLAN_REGISTERS = ({"name": "plan_time_s", "address": 0x800F, "type": "float32", "unit": "s"},      # no gap: a PLC writes its block whole
-                  {"name": "plan_engagement", "address": 0x8011, "type": "float32"})
+PLAN_VALUES = ("plan_time_s", "plan_engagement")
 
 
 @dataclass
@@ -142,9 +142,9 @@ def write_plan(world: World, path: Path) -> None:
 
 
 def plan_register_map(source: Path, folder: Path) -> Path:
-    """The register map ``source`` with the plan's two values added (docs/register_map.md, "The plan")."""
-    data = read_yaml(source)
-    data["from_plc"]["registers"] += [dict(r) for r in PLAN_REGISTERS]
+    """The register map ``source`` with the plan's two values added after its last from-PLC register
+    (docs/register_map.md, "The plan")."""
+    data = RegisterMap.from_yaml(source).extended(PLAN_VALUES)
     path = folder / "registers_plan.yaml"
     path.write_text(dump_yaml(data, sort_keys=False))
     return path

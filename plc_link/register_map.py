@@ -255,6 +255,23 @@ class RegisterMap:
             raise RegisterMapError(format_validation_error(str(path), e)) from e
         return cls(cfg, str(path))
 
+    def extended(self, names) -> dict:
+        """The map's config (a mapping, as its YAML holds it) with the from-PLC values ``names`` bound one after
+        another from the end of its last from-PLC register, each as the contract types it (no gap: a PLC writes
+        its block whole; docs/register_map.md). RegisterMapError for a name the PLC does not write or one the map
+        binds already."""
+        data = self._cfg.model_dump(exclude_none=True)
+        at = max(r.address + r.count for r in self.registers if r.direction == "from_plc")
+        for name in names:
+            if name not in VALUES["from_plc"] or name in self.by_name:
+                raise RegisterMapError(f"{self.source}: cannot add {quote(name)}: "
+                                       + ("the map binds it already" if name in self.by_name else
+                                          "it is not a value the PLC writes"))
+            kind = VALUES["from_plc"][name].type
+            data["from_plc"]["registers"].append({"name": name, "address": at, "type": kind})
+            at += TYPES[kind][1]
+        return data
+
     def as_list(self) -> list[dict]:
         """The map as `stiffcomp registers --json` prints it."""
         return [r.as_dict() for r in self.registers]

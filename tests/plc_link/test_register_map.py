@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import struct
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -114,3 +115,29 @@ def test_service_accepts_a_map_without_optional_registers_and_refuses_unknown_on
     (tmp_path / "extra.yaml").write_text(yaml.safe_dump(data))
     with pytest.raises(ServiceConfigError, match="'spindle_speed' is not a value the service produces"):
         Service(load_config(write_config(tmp_path, {"plc": {"register_map": str(tmp_path / "extra.yaml")}})))
+
+
+@pytest.mark.parametrize("names", [("acc_x", "acc_y", "acc_z", "acc_samples"), ("plan_time_s", "plan_engagement"),
+                                   ("payload_index",)])
+def test_values_added_follow_the_last_from_plc_register_and_load_again(tmp_path, names):
+    m = RegisterMap.from_yaml(MAP)
+    if "payload_index" in names:                       # the shipped map binds it: add it to a map without it
+        data = yaml.safe_load(MAP.read_text())
+        data["from_plc"]["registers"] = [r for r in data["from_plc"]["registers"] if r["name"] != "payload_index"]
+        (tmp_path / "without.yaml").write_text(yaml.safe_dump(data))
+        m = RegisterMap.from_yaml(tmp_path / "without.yaml")
+    end = max(r.address + r.count for r in m.registers if r.direction == "from_plc")
+    (tmp_path / "more.yaml").write_text(yaml.safe_dump(m.extended(names)))
+    more = RegisterMap.from_yaml(tmp_path / "more.yaml")
+    added = sorted((r for r in more.registers if r.name in names), key=lambda r: r.address)
+    assert [r.name for r in added] == list(names) and added[0].address == end
+    assert all(a.address + a.count == b.address for a, b in pairwise(added))      # no gap
+    assert [r.as_dict() for r in more.registers if r.name not in names] == [r.as_dict() for r in m.registers]
+
+
+def test_a_value_bound_already_or_not_the_plcs_is_not_added():
+    m = RegisterMap.from_yaml(MAP)
+    with pytest.raises(RegisterMapError, match="'q1'.*binds it already"):
+        m.extended(["q1"])
+    with pytest.raises(RegisterMapError, match="'dx'.*not a value the PLC writes"):
+        m.extended(["dx"])
