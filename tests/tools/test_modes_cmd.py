@@ -179,3 +179,13 @@ def test_a_trace_is_read_with_the_config_the_cut_ran_with_and_refused_without_ac
     assert "never marked as arriving" in refused([str(trace), "--config", config], capsys)
     old = quiet_trace(tmp_path / "old.csv", acceleration=False)
     assert "its accelerometer columns are missing" in refused([str(old), "--config", config], capsys)
+
+
+def test_a_compare_file_without_a_structure_the_service_takes_is_refused_naming_it(record, tmp_path, capsys):
+    none = tmp_path / "none.yaml"
+    none.write_text("dynamics: {enabled: true}\n")
+    assert f"--compare {none}: no dynamics.structure in it" in refused([str(record), "--compare", str(none)], capsys)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("dynamics:\n  structure:\n    modes: [{hz: 10.0, damping: 0.03, direction: [0, 0, 0]}]\n")
+    err = refused([str(record), "--compare", str(bad)], capsys)
+    assert str(bad) in err and "dynamics.structure.modes" in err and "must not be zero" in err
