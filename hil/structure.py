@@ -74,6 +74,9 @@ class StructureConfig(Strict):
 def physical_modes(cfg: StructureConfig, truth: StiffnessModel, tool: PayloadConfig) -> ModalMap:
     """The modal map of the truth's own stiffness, the masses of ``cfg.masses`` and the ``tool`` it carries
     (``frequencies: physics``); ConfigError for a description without masses or with other kinematics."""
+    if len(cfg.modes) > 3:
+        raise ConfigError(f"robot.modes: {len(cfg.modes)} modes with frequencies: physics, which gives the TCP's "
+                          "three (translation): give at most 3")
     if cfg.masses is None:
         raise ConfigError("robot.frequencies: physics needs robot.masses: a robot description with the link "
                           "masses (an inertial section), e.g. config/robots/kr125_masses.yaml")

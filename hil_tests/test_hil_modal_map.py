@@ -19,6 +19,7 @@ from hil.modal_survey import tap_survey, true_modes, workspace_poses
 from hil.robot_stub import RobotStub
 from hil.scenario import load_scenario
 from stiffness.dynamics.modal_map import ArmInertia, ModalMap
+from stiffness.dynamics.structure import ModeConfig
 from stiffness.errors import ConfigError
 from stiffness.kinematics.robot import load_robot
 from stiffness.kinematics.statics import PayloadConfig
@@ -76,6 +77,10 @@ def test_physics_needs_masses_on_the_truths_arm(tmp_path):
     sc, truth = physics_scenario()
     with pytest.raises(ConfigError, match="robot.masses"):
         RobotStub(truth, sc.robot.model_copy(update={"masses": None}), sc.payload)
+    four = [{"hz": 10.0 + k, "damping": 0.03, "direction": d} for k, d in enumerate(np.eye(3).tolist())]
+    four.append({"hz": 20.0, "damping": 0.03, "direction": [1.0, 0.0, 0.0]})
+    with pytest.raises(ConfigError, match="robot.modes: 4 modes"):
+        RobotStub(truth, sc.robot.model_copy(update={"modes": [ModeConfig(**m) for m in four]}), sc.payload)
     other = tmp_path / "other.yaml"
     other.write_text(f"extends: {ROOT / 'config/robots/kr125_masses.yaml'}\ndh: {{a_mm: [350, 1100, 41, 0, 0, 0]}}\n")
     with pytest.raises(ConfigError, match="robot.masses.*DH table or TCP"):

@@ -49,6 +49,7 @@ MEASURED_SIGMA = 0.01       # a measured mode's frequency, 1 sigma (a tap test's
 PRIOR_SIGMA = 0.2           # c_K and c_M about 1: the masses are estimates, the springs identified
 TOOL_SIGMA = 0.3            # the tool's mass about what the gravity section says, as a share of it
 MIN_TOOL_SIGMA_KG = 2.0
+MAX_CONDITION = 1e6         # the TCP's translational Jacobian of joints 1-3, and its compliance: beyond, singular
 
 
 def modes(K: np.ndarray, Lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -95,6 +96,10 @@ class ArmInertia:
         J6 = pin.getFrameJacobian(model, data, self.tcp, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:, :ARM_JOINTS]
         r = data.oMf[self.sensor].act(self.cog) - data.oMf[self.tcp].translation
         Jc = J6[:3] - np.cross(r[:, None], J6[3:], axis=0)
+        if np.linalg.cond(J6[:3]) > MAX_CONDITION:
+            raise DataError(f"q = {np.round(np.degrees(q), 3).tolist()} deg: joints 1-3 cannot move the TCP in "
+                            "every direction there (the arm stretched or folded, or the TCP on the base's axis), "
+                            "so the arm's inertia at the TCP is unbounded: no modes at a singular pose")
         Ji = np.linalg.inv(J6[:3])
         return Ji.T @ M[:ARM_JOINTS, :ARM_JOINTS] @ Ji, Ji.T @ (Jc.T @ Jc) @ Ji
 
@@ -128,8 +133,12 @@ class ModalMap:
     def _parts(self, q_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         key = tuple(np.round(np.asarray(q_deg, dtype=float), 6))
         if key not in self._cache:
-            K = np.linalg.inv(np.asarray(self.compliance(np.asarray(q_deg, dtype=float)))[:3, :3])
-            self._cache[key] = (K, *self.inertia.at(q_deg))
+            C = np.asarray(self.compliance(np.asarray(q_deg, dtype=float)))[:3, :3]
+            if not np.isfinite(C).all() or np.linalg.cond(C) > MAX_CONDITION:
+                raise DataError(f"q = {np.round(np.asarray(q_deg, dtype=float), 3).tolist()} deg: the model's "
+                                "compliance at the TCP is singular there (a direction its springs cannot deflect): "
+                                "no modes")
+            self._cache[key] = (np.linalg.inv(C), *self.inertia.at(q_deg))
         return self._cache[key]
 
     def predict(self, q_deg: np.ndarray, factors: Factors | None = None) -> tuple[np.ndarray, np.ndarray]:

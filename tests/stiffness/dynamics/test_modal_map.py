@@ -135,3 +135,12 @@ def test_the_poses_file_round_trips_and_names_each_bad_line(tmp_path):
     assert read_poses(unmeasured, measured=False)[1].shape == (1, 0)
     with pytest.raises(DataError, match="line 1: missing column.*f1_hz"):
         read_poses(unmeasured, measured=True)
+
+
+def test_a_singular_pose_is_refused_naming_it():
+    on_the_axis = np.array([0.0, -109.46172, -0.0088259, 0.0, 60.0, 0.0])   # the TCP on the base's axis
+    with pytest.raises(DataError, match=r"q = \[0.0, -109.462, -0.009.*no modes at a singular pose"):
+        kr125_map().predict(on_the_axis)
+    singular = ModalMap(lambda q: np.diag([1e-6, 1e-6, 0.0]), ArmInertia(MASSES, TOOL), 12.0)
+    with pytest.raises(DataError, match="compliance at the TCP is singular"):
+        singular.predict(CENTRE)
