@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from io_process.endpoints import SHIPPED_CONFIG
 from plc_link.register_map import RegisterMap
+from service.config import load_config
 from stiffness.dynamics.modes import DEFLECTION, FORCE, Identified, Record, identify
 from stiffness.files.yaml_schema import dump_yaml
 from stiffness.model.stiffness_model import StiffnessModel
@@ -141,10 +141,10 @@ def write_plan(world: World, path: Path) -> None:
             w.writerow([f"{row[0]:.4f}", f"{row[1]:.5f}", *(f"{x:.2f}" for x in row[2:])])
 
 
-def plan_register_map(source: Path, folder: Path) -> Path:
-    """The register map ``source`` with the plan's two values added after its last from-PLC register
-    (docs/register_map.md, "The plan")."""
-    data = RegisterMap.from_yaml(source).extended(PLAN_VALUES)
+def plan_register_map(rmap: RegisterMap, folder: Path) -> Path:
+    """The register map ``rmap`` (the scenario's service config's) with the plan's two values added after its
+    last from-PLC register, written into ``folder`` (docs/register_map.md, "The plan")."""
+    data = rmap.extended(PLAN_VALUES)
     path = folder / "registers_plan.yaml"
     path.write_text(dump_yaml(data, sort_keys=False))
     return path
@@ -169,7 +169,8 @@ def service_dynamics(found: Identified | GivenModes, delay_ms: float, opts: Dyna
         section["feedforward"] = {"source": "file", "file": str(folder / "plan.csv"),
                                   # the PLC program takes a read's answer a cycle after it sent it, then holds it
                                   "output_delay_ms": 1.5 * scenario.plc.period_ms + scenario.plc.extra_delay_ms}
-        out["plc"] = {"register_map": str(plan_register_map(SHIPPED_CONFIG / "registers.yaml", folder))}
+        rmap = load_config(scenario.resolve(scenario.service)).register_map()
+        out["plc"] = {"register_map": str(plan_register_map(rmap, folder))}
     return out
 
 
