@@ -175,13 +175,13 @@ def service_dynamics(found: Identified | GivenModes, delay_ms: float, opts: Dyna
 
 
 def observer_horizon_ms(scenario: Scenario) -> float:
-    """From the box's value to the correction at the joints: the PLC passes the value it read at its cycle's
-    start, its write lands a cycle later and the service reads it at its next cycle (2.5 PLC cycles), and the
-    correction reaches the joints 1.5 PLC cycles after the service's output, plus the extra delay; at most
-    the observer's `MAX_HORIZON_MS`."""
+    """From the box's value to the correction in the arm: the PLC passes the value it read at its cycle's
+    start, its write lands a cycle later and the service reads it at its next cycle (2.5 PLC cycles); the
+    correction is the PLC's command 1.5 PLC cycles after the service's output, and the drives reach a command a
+    cycle later (5 in all), plus the extra delay; at most the observer's `MAX_HORIZON_MS`."""
     from stiffness.dynamics.observer import MAX_HORIZON_MS
 
-    return min(4.0 * scenario.plc.period_ms + scenario.plc.extra_delay_ms, MAX_HORIZON_MS)
+    return min(5.0 * scenario.plc.period_ms + scenario.plc.extra_delay_ms, MAX_HORIZON_MS)
 
 
 def structure_section(found: Identified | GivenModes, opts: DynamicOptions) -> dict:

@@ -164,7 +164,7 @@ class Observer(Stage):
 
     class Config(Strict):
         modes: list[ModeConfig] = Field(min_length=1, max_length=6)
-        horizon_ms: float = Field(4.0, ge=0.0, le=MAX_HORIZON_MS)
+        horizon_ms: float = Field(5.0, ge=0.0, le=MAX_HORIZON_MS)
         joints_lead_ms: float = Field(3.0, ge=0.0, le=MAX_LEAD_MS)
         band_hz: list[float] = Field(default_factory=lambda: [2.5, 40.0], min_length=2, max_length=2)
         box_lowpass_hz: float = Field(62.5, ge=0.0, le=5000.0)
