@@ -14,9 +14,11 @@ are computable every cycle: the acceleration through B / s^2 (proper: B has four
 FK(q) of the joints the PLC reported ``joints_lead_ms`` ago and the deflection dX the stages before predicted
 h ago (``horizon_ms``; both delay lines), each for the instant the acceleration describes: the joints the PLC
 reports are its commands, which the drives reach a cycle later, while the box's value is a cycle or two old
-when the PLC reads it, so the joints lead the acceleration (3 ms measured best in the HIL with the PLC at 1
-ms, docs/accelerometer.md; FK(q) at the wrong instant leaves the correction's own motion, up to 20 um a ms
-after an entry, in e). So e is the model's error
+when the PLC reads it, so the joints lead the acceleration (in the HIL with the PLC at 1 ms, a lead of 2 to 5
+cycles did about equally well and none did clearly better, docs/accelerometer.md; 3 ms is the default; FK(q)
+at the wrong instant leaves the correction's own motion in e, up to 20 um a ms after an entry). h runs on to
+the instant the correction is in the arm: the PLC commands it 1.5 cycles after the service's output and the
+drives reach it a cycle later (5 ms with a 1 ms PLC, the default). So e is the model's error
 in the band, without integrating the accelerometer's bias or noise below it (B's fourth-order zero at 0: a bias
 left after the tare decays with the high-pass's time constant).
 
