@@ -66,11 +66,13 @@ def stiffness_and_tool(args):
 def run(args) -> int:
     import numpy as np
 
-    from stiffness.dynamics.modal_map import ArmInertia, ModalMap, read_poses
-    from stiffness.errors import OutputError
+    from stiffness.dynamics.modal_map import JOINTS, MODES, ArmInertia, ModalMap, read_poses
+    from stiffness.errors import ConfigError, OutputError
     from stiffness.kinematics.robot import load_robot
     from stiffness.model.cartesian import tcp_compliance
 
+    if args.output is not None and args.at is None:
+        raise ConfigError(f"-o {args.output}: it writes the modes at the --at poses; give --at POSES.csv")
     for option, path in (("-o", args.output), ("--plot", args.plot)):
         if path is not None:
             check_output_file(option, path)
@@ -93,8 +95,7 @@ def run(args) -> int:
         hz, phi = mapped.predict(at)
         out["at"] = [{"q_deg": p.tolist(), "hz": h.tolist(), "directions": v.T.tolist()} for p, h, v in zip(at, hz, phi)]
         if args.output:
-            header = ",".join([*(f"q{i}_deg" for i in range(1, 7)), "f1_hz", "f2_hz", "f3_hz",
-                               *(f"phi{m}_{a}" for m in (1, 2, 3) for a in "xyz")])
+            header = ",".join([*JOINTS, *MODES, *(f"phi{m}_{a}" for m in (1, 2, 3) for a in "xyz")])
             rows = np.column_stack([at, hz, np.swapaxes(phi, 1, 2).reshape(len(at), 9)])
             try:
                 np.savetxt(args.output, rows, delimiter=",", header=header, comments="", fmt="%.6g")
