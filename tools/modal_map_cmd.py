@@ -45,16 +45,12 @@ def stiffness_and_tool(args):
         if args.tool_kg is not None or args.tool_cog_mm is not None:
             raise ConfigError("--tool-kg and --tool-cog-mm go with --model; with --config the tool is its "
                               "gravity section's")
-        import numpy as np
-
         from service.config import load_config
 
         cfg = load_config(args.config)
-        g = cfg.gravity
-        bodies = [g.sensor, g.tool, g.fixture, g.workpiece]          # all the sensor carries moves with the arm
-        m = sum(b.mass_kg for b in bodies)
-        cog = sum(b.mass_kg * np.array(b.cog_mm) for b in bodies) / m if m > 0 else np.zeros(3)
-        return StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)), PayloadConfig(mass_kg=m, cog_mm=cog.tolist())
+        carried = cfg.gravity.payload_sets()[0]                  # all the sensor carries moves with the arm
+        return (StiffnessModel.from_yaml(cfg.resolve(cfg.model.file)),
+                PayloadConfig(mass_kg=carried.mass_kg, cog_mm=carried.cog_mm))
     model = StiffnessModel.from_yaml(args.model)
     base = model.payload or PayloadConfig()
     if args.tool_kg is not None and not 0.0 <= args.tool_kg <= 1e4:
