@@ -83,7 +83,7 @@ def main(argv=None) -> int:
     truth_hz = true_modes(sc, truth, held_q)
 
     inertia = ArmInertia(load_robot(ROOT / "config/robots/kr125_masses.yaml"), TOOL, arm=model.robot)
-    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia, TOOL.mass_kg)
+    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia)
     prior_hz = mapped.predict(held_q)[0][:, :2]
     factors = mapped.fit(measured_q, measured)
     map_hz = mapped.predict(held_q)[0][:, :2]

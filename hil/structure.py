@@ -84,7 +84,7 @@ def physical_modes(cfg: StructureConfig, truth: StiffnessModel, tool: PayloadCon
         inertia = ArmInertia(load_robot(cfg.masses), tool, arm=truth.robot)
     except DataError as e:
         raise ConfigError(f"robot.masses: {e}") from e
-    return ModalMap(lambda q: tcp_compliance(truth, q), inertia, tool.mass_kg)
+    return ModalMap(lambda q: tcp_compliance(truth, q), inertia)
 
 
 class Structure:

@@ -64,7 +64,7 @@ def test_the_map_from_eight_tapped_poses_predicts_held_out_poses_within_5_percen
     held_q = workspace_poses(sc, truth, 10, seed=52)
     model = StiffnessModel.from_yaml(ROOT / "config/models/kr125_6dof.yaml")
     inertia = ArmInertia(load_robot(ROOT / "config/robots/kr125_masses.yaml"), SERVICE_TOOL, arm=model.robot)
-    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia, SERVICE_TOOL.mass_kg)
+    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia)
     truth_hz = true_modes(sc, truth, held_q)
     prior = np.abs(mapped.predict(held_q)[0][:, :2] / truth_hz - 1).max()
     mapped.fit(measured_q, tap_survey(sc, truth, measured_q))

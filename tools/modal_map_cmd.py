@@ -76,7 +76,7 @@ def run(args) -> int:
     masses = load_robot(args.masses) if args.masses else model.robot
     q, measured = read_poses(args.measured, measured=True)
     at = read_poses(args.at, measured=False)[0] if args.at else None
-    mapped = ModalMap(lambda x: tcp_compliance(model, x), ArmInertia(masses, tool, arm=model.robot), tool.mass_kg)
+    mapped = ModalMap(lambda x: tcp_compliance(model, x), ArmInertia(masses, tool, arm=model.robot))
     k = measured.shape[1]
     prior = mapped.predict(q)[0][:, :k]
     factors = mapped.fit(q, measured)

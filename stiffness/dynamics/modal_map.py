@@ -66,7 +66,7 @@ class ArmInertia:
 
     ``robot`` must have an ``inertial`` section (DataError otherwise: the masses are what the modes hang on)
     and, given ``arm`` (the stiffness model's robot), its kinematics; ``tool`` gives the tool's centre of
-    gravity in the sensor frame (its mass is a factor of the map's)."""
+    gravity in the sensor frame and its mass (the prior of the map's tool factor)."""
 
     def __init__(self, robot: Robot, tool: PayloadConfig, arm: Robot | None = None):
         import pinocchio as pin
@@ -81,6 +81,7 @@ class ArmInertia:
         self.model = robot.pin_model
         self.data = self.model.createData()
         self.cog = np.asarray(tool.cog_mm, dtype=float) / 1000.0            # sensor frame, m
+        self.tool_kg = float(tool.mass_kg)                                   # the prior of the map's tool factor
         self.tcp = self.model.getFrameId("TCP")
         self.sensor = self.model.getFrameId("sensor")
 
@@ -122,11 +123,12 @@ class Factors:
 class ModalMap:
     """The first modes at any pose: `predict` from physics with the `factors`, `fit` to measured poses.
 
-    ``compliance(q_deg)`` gives the stiffness model's 3 x 3 TCP compliance (m/N, base axes) at a pose."""
+    ``compliance(q_deg)`` gives the stiffness model's 3 x 3 TCP compliance (m/N, base axes) at a pose; the
+    prior's tool is ``inertia``'s."""
 
-    def __init__(self, compliance: Callable[[np.ndarray], np.ndarray], inertia: ArmInertia, tool_kg: float):
+    def __init__(self, compliance: Callable[[np.ndarray], np.ndarray], inertia: ArmInertia):
         self.compliance, self.inertia = compliance, inertia
-        self.prior = Factors(tool_kg=float(tool_kg))
+        self.prior = Factors(tool_kg=inertia.tool_kg)
         self.factors = self.prior
         self._cache: dict[tuple, tuple] = {}
 

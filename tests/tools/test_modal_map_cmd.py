@@ -28,7 +28,7 @@ CENTRE = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
 def arm():
     model = StiffnessModel.from_yaml(ROOT / "config/models/kr125_6dof.yaml")
     tool = PayloadConfig(mass_kg=12.0, cog_mm=[0.0, 0.0, 110.0])
-    return ModalMap(lambda q: tcp_compliance(model, q), ArmInertia(load_robot(MASSES), tool), 12.0)
+    return ModalMap(lambda q: tcp_compliance(model, q), ArmInertia(load_robot(MASSES), tool))
 
 
 def write(path, poses, hz=None):

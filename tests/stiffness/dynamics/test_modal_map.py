@@ -25,7 +25,7 @@ CENTRE = np.array([0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
 
 
 def kr125_map(tool=TOOL) -> ModalMap:
-    return ModalMap(lambda q: tcp_compliance(MODEL, q), ArmInertia(MASSES, tool, arm=MODEL.robot), tool.mass_kg)
+    return ModalMap(lambda q: tcp_compliance(MODEL, q), ArmInertia(MASSES, tool, arm=MODEL.robot))
 
 
 @given(k=st.lists(st.floats(1e5, 1e8), min_size=3, max_size=3), m=st.lists(st.floats(1.0, 1e4), min_size=3, max_size=3),
@@ -61,7 +61,7 @@ def round_column():
     first = next(e for e in data["effects"] if e["effect"] == "joint_spring" and e["joint"] == 1)
     first["ry_rad_per_Nm"] = first["rx_rad_per_Nm"]
     model = StiffnessModel.from_dict(data, base_dir=ROOT / "config/models")
-    return ModalMap(lambda q: tcp_compliance(model, q), ArmInertia(MASSES, TOOL), TOOL.mass_kg)
+    return ModalMap(lambda q: tcp_compliance(model, q), ArmInertia(MASSES, TOOL))
 
 
 ROUND = round_column()
@@ -141,6 +141,6 @@ def test_a_singular_pose_is_refused_naming_it():
     on_the_axis = np.array([0.0, -109.46172, -0.0088259, 0.0, 60.0, 0.0])   # the TCP on the base's axis
     with pytest.raises(DataError, match=r"q = \[0.0, -109.462, -0.009.*no modes at a singular pose"):
         kr125_map().predict(on_the_axis)
-    singular = ModalMap(lambda q: np.diag([1e-6, 1e-6, 0.0]), ArmInertia(MASSES, TOOL), 12.0)
+    singular = ModalMap(lambda q: np.diag([1e-6, 1e-6, 0.0]), ArmInertia(MASSES, TOOL))
     with pytest.raises(DataError, match="compliance at the TCP is singular"):
         singular.predict(CENTRE)
