@@ -28,24 +28,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from hil.modal_survey import tap_survey, true_modes, workspace_poses
-from hil.scenario import load_scenario
-from stiffness.dynamics.modal_map import ArmInertia, ModalMap
-from stiffness.kinematics.robot import load_robot
-from stiffness.kinematics.statics import PayloadConfig
-from stiffness.model.cartesian import tcp_compliance
+from hil.modal_survey import physics_scenario, service_map, tap_survey, true_modes, workspace_poses
 from stiffness.model.stiffness_model import StiffnessModel
-
-TOOL = PayloadConfig(mass_kg=12.0, cog_mm=[0.0, 0.0, 110.0])      # config/hil/service.yaml's gravity.tool
-
-
-def truth_scenario(tool_error: float):
-    sc = load_scenario(ROOT / "config/hil/circle.yaml")
-    sc.robot = sc.robot.model_copy(update={"frequencies": "physics",
-                                           "masses": str(ROOT / "config/hil/truth_masses.yaml")})
-    tool = sc.payload.tool.model_copy(update={"mass_kg": TOOL.mass_kg * (1.0 + tool_error)})
-    sc.payload = sc.payload.model_copy(update={"tool": tool})
-    return sc
 
 
 def reach(truth, poses):
@@ -73,17 +57,15 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
 
-    sc = truth_scenario(args.tool_error)
+    sc = physics_scenario(args.tool_error)
     truth = StiffnessModel.from_yaml(sc.resolve(sc.truth))
-    model = StiffnessModel.from_yaml(ROOT / "config/models/kr125_6dof.yaml")
     measured_q = workspace_poses(sc, truth, args.measured, seed=0, corners=True)
     held_q = workspace_poses(sc, truth, args.held_out, seed=52)
     print(f"tap tests at {len(measured_q)} poses ...", flush=True)
     measured = tap_survey(sc, truth, measured_q, progress=lambda i, n: print(f"  {i}/{n}", flush=True))
     truth_hz = true_modes(sc, truth, held_q)
 
-    inertia = ArmInertia(load_robot(ROOT / "config/robots/kr125_masses.yaml"), TOOL, arm=model.robot)
-    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia)
+    mapped = service_map(sc)
     prior_hz = mapped.predict(held_q)[0][:, :2]
     factors = mapped.fit(measured_q, measured)
     map_hz = mapped.predict(held_q)[0][:, :2]
@@ -95,7 +77,7 @@ def main(argv=None) -> int:
           f"and {truth_hz[:, 1].min():.2f}-{truth_hz[:, 1].max():.2f} Hz; the tap tests' own error at most "
           f"{100 * np.abs(meas_err).max():.2f} %")
     print(f"fitted factors: stiffness {factors.stiffness:.3f}, arm inertia {factors.arm:.3f}, "
-          f"tool {factors.tool_kg:.2f} kg (the truth's {sc.payload.tool.mass_kg:.2f}, the prior's {TOOL.mass_kg:.2f})")
+          f"tool {factors.tool_kg:.2f} kg (the truth's {sc.payload.tool.mass_kg:.2f}, the prior's {mapped.prior.tool_kg:.2f})")
     print(f"\n{'':15s} {'mode 1 max |err| %':>19s} {'mode 2 max |err| %':>19s} {'RMS %':>7s}")
     out = {"measured_poses": len(measured_q), "held_out_poses": len(held_q), "factors": factors.__dict__, "rows": {}}
     for name, hz in rows.items():

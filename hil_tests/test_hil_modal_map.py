@@ -15,38 +15,31 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.modal_survey import tap_survey, true_modes, workspace_poses
+from hil.modal_survey import physics_scenario, service_map, tap_survey, true_modes, workspace_poses
 from hil.robot_stub import RobotStub
 from hil.scenario import load_scenario
-from stiffness.dynamics.modal_map import ArmInertia, ModalMap
 from stiffness.dynamics.structure import ModeConfig
 from stiffness.errors import ConfigError
-from stiffness.kinematics.robot import load_robot
-from stiffness.kinematics.statics import PayloadConfig
-from stiffness.model.cartesian import tcp_compliance
 from stiffness.model.stiffness_model import StiffnessModel
 from testlib.common import ROOT
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
-SERVICE_TOOL = PayloadConfig(mass_kg=12.0, cog_mm=[0.0, 0.0, 110.0])     # config/hil/service.yaml's gravity
 
-
-def physics_scenario(tool_kg=14.4, masses="config/hil/truth_masses.yaml"):
-    sc = load_scenario()
-    sc.robot = sc.robot.model_copy(update={"frequencies": "physics", "masses": str(ROOT / masses)})
-    sc.payload = sc.payload.model_copy(update={"tool": sc.payload.tool.model_copy(update={"mass_kg": tool_kg})})
+def physics_truth():
+    """The scenario with the truth's modes from its own masses and a tool 20 % heavier, and its truth model."""
+    sc = physics_scenario(0.2)
     return sc, StiffnessModel.from_yaml(sc.resolve(sc.truth))
 
 
 def test_the_stub_rings_at_the_modes_its_physics_gives():
-    sc, truth = physics_scenario()
+    sc, truth = physics_truth()
     poses = workspace_poses(sc, truth, 2, seed=1)
     np.testing.assert_allclose(tap_survey(sc, truth, poses), true_modes(sc, truth, poses), rtol=0.005)
 
 
 def test_a_constant_load_settles_to_the_static_deflection():
-    sc, truth = physics_scenario()
+    sc, truth = physics_truth()
     stub = RobotStub(truth, sc.robot, sc.payload)
     t = np.arange(0.0, 4.0, 5e-4)
     q = np.tile(sc.circle.center_q_deg, (len(t), 1))
@@ -59,12 +52,10 @@ def test_a_constant_load_settles_to_the_static_deflection():
 
 
 def test_the_map_from_eight_tapped_poses_predicts_held_out_poses_within_5_percent():
-    sc, truth = physics_scenario()
+    sc, truth = physics_truth()
     measured_q = workspace_poses(sc, truth, 8, seed=0, corners=True)
     held_q = workspace_poses(sc, truth, 10, seed=52)
-    model = StiffnessModel.from_yaml(ROOT / "config/models/kr125_6dof.yaml")
-    inertia = ArmInertia(load_robot(ROOT / "config/robots/kr125_masses.yaml"), SERVICE_TOOL, arm=model.robot)
-    mapped = ModalMap(lambda q: tcp_compliance(model, q), inertia)
+    mapped = service_map(sc)
     truth_hz = true_modes(sc, truth, held_q)
     prior = np.abs(mapped.predict(held_q)[0][:, :2] / truth_hz - 1).max()
     mapped.fit(measured_q, tap_survey(sc, truth, measured_q))
@@ -74,7 +65,7 @@ def test_the_map_from_eight_tapped_poses_predicts_held_out_poses_within_5_percen
 
 
 def test_physics_needs_masses_on_the_truths_arm(tmp_path):
-    sc, truth = physics_scenario()
+    sc, truth = physics_truth()
     with pytest.raises(ConfigError, match="robot.masses"):
         RobotStub(truth, sc.robot.model_copy(update={"masses": None}), sc.payload)
     four = [{"hz": 10.0 + k, "damping": 0.03, "direction": d} for k, d in enumerate(np.eye(3).tolist())]
