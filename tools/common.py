@@ -94,6 +94,17 @@ def check_output_file(option: str, path: str | Path) -> Path:
     return _in_a_folder(option, path)
 
 
+def check_image_file(option: str, path: str | Path) -> Path:
+    """`check_output_file` for an image: its suffix must also be a format matplotlib writes (the suffix says
+    which); OutputError naming the option otherwise."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    kinds = [f".{s}" for s in FigureCanvasBase.get_supported_filetypes()]
+    if Path(path).suffix.lower() not in kinds:
+        raise OutputError(f"{option} {path}: the suffix says the image's format; it must be one of {', '.join(kinds)}")
+    return check_output_file(option, path)
+
+
 def check_output_folder(option: str, path: str | Path) -> Path:
     """The output folder ``path`` given as ``option``: it may be new, but its parent must exist and it must not
     be a file; OutputError naming the option otherwise (checked before any work starts)."""

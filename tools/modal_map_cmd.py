@@ -12,7 +12,7 @@ modes predicted there; ``-o`` writes those as CSV, ``--plot`` draws the measured
 
 from __future__ import annotations
 
-from .common import check_output_file, print_json
+from .common import check_image_file, check_output_file, print_json
 
 
 def register(sub) -> None:
@@ -69,9 +69,10 @@ def run(args) -> int:
 
     if args.output is not None and args.at is None:
         raise ConfigError(f"-o {args.output}: it writes the modes at the --at poses; give --at POSES.csv")
-    for option, path in (("-o", args.output), ("--plot", args.plot)):
-        if path is not None:
-            check_output_file(option, path)
+    if args.output is not None:
+        check_output_file("-o", args.output)
+    if args.plot is not None:
+        check_image_file("--plot", args.plot)
     model, tool = stiffness_and_tool(args)
     masses = load_robot(args.masses) if args.masses else model.robot
     q, measured = read_poses(args.measured, measured=True)

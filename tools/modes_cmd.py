@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .common import check_number, check_output_file, print_json
+from .common import check_image_file, check_number, check_output_file, print_json
 
 
 def register(sub) -> None:
@@ -53,21 +53,14 @@ def check_options(args) -> None:
     """Each option's value, refused naming it before the record is read: --max-lag-ms within what the
     service's ``dynamics.structure.lag_ms`` takes, -o and --plot into folders that exist, --plot with a
     suffix matplotlib writes."""
-    from matplotlib.backend_bases import FigureCanvasBase
-
     from stiffness.dynamics.structure import MAX_LAG_MS
-    from stiffness.errors import OutputError
 
     check_number("--max-lag-ms", args.max_lag_ms, "ms: the arm's lag is fitted from 0 to it, and "
                  f"dynamics.structure.lag_ms takes at most {MAX_LAG_MS:g}", above=0.0, at_most=MAX_LAG_MS)
     if args.output is not None:
         check_output_file("-o", args.output)
     if args.plot is not None:
-        kinds = [f".{s}" for s in FigureCanvasBase.get_supported_filetypes()]
-        if Path(args.plot).suffix.lower() not in kinds:
-            raise OutputError(f"--plot {args.plot}: the suffix says the image's format; it must be one of "
-                              f"{', '.join(kinds)}")
-        check_output_file("--plot", args.plot)
+        check_image_file("--plot", args.plot)
 
 
 def read_data(args):

@@ -79,6 +79,8 @@ def test_bad_input_is_refused_naming_where(tmp_path, capsys):
     assert "give --at POSES.csv" in refused([str(good), "--config", SERVICE, "--masses", MASSES, "-o",
                                              str(tmp_path / "modes.csv")], capsys)
     assert not (tmp_path / "modes.csv").exists()
+    assert "--plot map.bad: the suffix says the image's format" in refused(
+        [str(good), "--config", SERVICE, "--masses", MASSES, "--plot", "map.bad"], capsys)
     bad = tmp_path / "bad.csv"
     bad.write_text(",".join(JOINTS) + ",f1_hz\n0,-60,90,0,60,zero,10\n")
     assert "line 2: q6_deg = 'zero' is not a number" in refused([str(bad), "--config", SERVICE, "--masses", MASSES],
