@@ -154,17 +154,20 @@ class VirtualRobot:
         ``t``), take its answer if it arrives by clock time ``answer_by``:
         (answered in its cycle, round trip in s; NaN when late). The round trip runs from the send to the
         answer's arrival as the kernel stamped it (SO_TIMESTAMPNS), so a robot process that the host runs late
-        neither lengthens it nor takes a late answer for one in time."""
+        neither lengthens it, nor takes a late answer for one in time, nor misses one that came in time."""
         self._drain()
         packet = self.controller.packet(t if stamp_t is None else stamp_t, q_ref)
         wall_by = time.time_ns() + int(1e9 * (answer_by - clock()))
         t_send = time.time_ns()
         self.sock.sendto(packet, self.address)
-        while (left := answer_by - clock()) > 0:
-            self.sock.settimeout(left)
+        while True:
+            # past the deadline, what is queued is still read once, without waiting: an answer the kernel
+            # stamped in time counts although this process, on a shared host, came to read it late
+            left = answer_by - clock()
+            self.sock.settimeout(max(left, 0.0))
             try:
                 data, anc, _, _ = self.sock.recvmsg(65536, 64)
-            except TimeoutError:
+            except (TimeoutError, BlockingIOError):
                 break
             except OSError:                         # ICMP unreachable: the service is not there (yet)
                 break

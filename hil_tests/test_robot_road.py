@@ -121,9 +121,9 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     first = again.answer[0][np.isfinite(again.answer[0])]
     assert again.answered[:3].all() and np.all(first == 0.0), again.answer[:3]     # from zero, at once
     # late answers to packets the robot sent on time (one it sent late, its own host stalled, has less of its
-    # cycle left for the answer; the road is not what made it late)
-    assert d.late_on_time() <= 0.005 * len(d.answered), f"{d.late_on_time()} of {len(d.answered)} answers late " \
-        f"to packets sent on time ({d.late} in all)"
+    # cycle left for the answer; the road is not what made it late): no evidence that more than 0.5 % come late
+    assert not d.late_beyond(0.005), f"{d.late_on_time()} of {len(d.answered)} answers late to packets sent on " \
+        f"time ({d.late} in all)"
     # (an RSI answer counts as answered only with its own packet's IPOC)
     assert np.all(np.diff(d.stamp) > 0)
     tr = trace(tmp_path)
