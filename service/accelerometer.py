@@ -22,12 +22,19 @@ values invalid, or the PLC no longer passing them) or a value not finite or beyo
 sample), logged once when it starts and once when it ends, and the status bit ``accelerometer_ok`` is clear.
 It is not a latched fault: the correction goes on without the acceleration (the parts that use it fall back to
 the force alone), and the acceleration reads zero meanwhile. A tare while it is not ok keeps the bias.
+
+``accelerometer.replay`` reads the box's samples from a file instead of the PLC (`BoxReplay`): a CSV of ``t_s``,
+``acc_x``, ``acc_y``, ``acc_z`` (s; m/s^2 along the box's axes, as the PLC passes them), released on the cycle's
+clock from its first cycle, as `service.sources.replay` releases the force sensor's CAN log. Each sample counts
+as one new value, so the same supervision holds: after the file's last sample the box reads frozen, and the
+correction goes on from the force alone.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from pathlib import Path
 
 import numpy as np
 from pydantic import Field
@@ -49,13 +56,42 @@ class AccelerometerConfig(Strict):
     enabled: bool = False
     mount: PoseConfig = Field(default_factory=PoseConfig)      # the box's axes in the force sensor's frame
     timeout_ms: float = Field(20.0, gt=0.0, le=1000.0)
+    replay: str | None = None           # a CSV of the box's samples, read in place of the PLC's values
+
+
+REPLAY_COLUMNS = ("t_s", "acc_x", "acc_y", "acc_z")
+
+
+class BoxReplay:
+    """The box's samples from a file (module docstring): `at` gives the count of samples released by cycle time
+    ``t`` and the newest of them, as the PLC's ``acc_samples`` and ``acc_x..z``. DataError names the file, line
+    and column of a bad file, or its last line where the file was cut off."""
+
+    def __init__(self, path):
+        from stiffness.dynamics.records import check_whole, read_columns
+
+        check_whole(path)
+        cols = read_columns(path, REPLAY_COLUMNS, what="accelerometer replay")
+        self.path = str(path)
+        self.t_s = cols["t_s"] - cols["t_s"][0]
+        self.values = np.column_stack([cols[c] for c in REPLAY_COLUMNS[1:]])
+        self._t0: float | None = None
+
+    def at(self, t: float) -> tuple[int, tuple[float, float, float]]:
+        if self._t0 is None:
+            self._t0 = t
+        n = int(np.searchsorted(self.t_s, t - self._t0, side="right"))     # the first sample at the first cycle
+        x, y, z = self.values[n - 1]
+        return n, (float(x), float(y), float(z))
 
 
 class Accelerometer:
-    """The accelerometer of one ``accelerometer`` section; `update` each cycle with the PLC's record."""
+    """The accelerometer of one ``accelerometer`` section; `update` each cycle with the PLC's record (or, with
+    ``replay``, the file's samples: `BoxReplay`)."""
 
-    def __init__(self, section: AccelerometerConfig, g_mps2):
+    def __init__(self, section: AccelerometerConfig, g_mps2, resolve=Path):
         self.enabled = section.enabled
+        self.replay = BoxReplay(resolve(section.replay)) if section.enabled and section.replay else None
         self.R_m = np.asarray(section.mount.matrix())[:3, :3]
         self.timeout_s = section.timeout_ms / 1000.0
         self.g = np.asarray(g_mps2, dtype=float)
@@ -71,14 +107,16 @@ class Accelerometer:
         self._t_first: float | None = None
 
     def update(self, t: float, inputs, R_sensor, tare: bool) -> None:
-        """The cycle at ``t`` (s): the PLC's `FromPlc` record ``inputs``, the force sensor's axes in the base
+        """The cycle at ``t`` (s): the PLC's `FromPlc` record ``inputs`` (unread with a replay), the force sensor's axes in the base
         ``R_sensor`` (3, 3) at its joints; ``tare``: take the bias now (the arm at rest)."""
         if not self.enabled:
             return
         if self._t_first is None:
             self._t_first = t
-        count = inputs.acc_samples
-        f = (inputs.acc_x, inputs.acc_y, inputs.acc_z)
+        if self.replay is not None:
+            count, f = self.replay.at(t)
+        else:
+            count, f = inputs.acc_samples, (inputs.acc_x, inputs.acc_y, inputs.acc_z)
         finite = all(math.isfinite(v) and abs(v) <= MAX_MPS2 for v in f)
         if self._count is None:                      # the first cycle: where the count stands
             self._count = count

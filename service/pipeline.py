@@ -209,7 +209,7 @@ class Compensator:
         else:
             self._cycle_compiled(k, pk, pred, dt, reading, hold, moved, payload_moved)
         acc = self.accelerometer
-        if acc is not None and inputs is not None:       # the sensor's axes at these joints now
+        if acc is not None and (inputs is not None or acc.replay is not None):    # the sensor's axes at these joints
             acc.update(t, inputs, pred.R_s, tare)
             if self.dynamics is not None:                 # for the next cycle's observer
                 self.dynamics.feed_motion(acc.acceleration, acc.ok, pred.p_tcp, acc.sample_period_s)
@@ -345,7 +345,7 @@ class Cycle:
         return cls(Supervisor.from_config(cfg.faults, faults, model.robot.limits_deg, cfg.cycle_enables_on_start),
                    Compensator.from_config(cfg.model, cfg.filter, cfg.gravity, cfg.limits, cfg.tare, period,
                                            model, faults, dynamics if dynamics.active else None,
-                                           Accelerometer(cfg.accelerometer, cfg.gravity.g_mps2)), vector)
+                                           Accelerometer(cfg.accelerometer, cfg.gravity.g_mps2, cfg.resolve)), vector)
 
     def step(self, t: float, reading: Reading | None, errors: list[SensorError], command: int,
              plc_heartbeat: int, q_deg: list[float], overrun: bool = False, payload_index: int = 0,

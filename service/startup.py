@@ -22,7 +22,7 @@ log = logging.getLogger("stiffcomp.service")
 def check_plc_values(cfg, cycle, rmap) -> None:
     """ServiceConfigError naming the register when ``dynamics.feedforward`` or ``accelerometer`` reads a value
     from the PLC that ``plc.register_map`` (``rmap``) does not have."""
-    if cfg.accelerometer.enabled:
+    if cfg.accelerometer.enabled and not cfg.accelerometer.replay:
         missing = [n for n in ACCELEROMETER if n not in rmap.codecs["from_plc"].index]
         if missing:
             raise ServiceConfigError(f"{cfg.path}: accelerometer.enabled reads {', '.join(ACCELEROMETER)} from the "

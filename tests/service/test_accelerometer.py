@@ -6,7 +6,10 @@
   when it never moved), logged by name once, the acceleration 0 and status bit 8 clear, and the correction
   unchanged (the force alone); the samples coming again end it;
 * through the cycle: the signals and the status word carry it, on the Python and the compiled path alike;
-* the config: enabled with a register map that lacks its values refuses to start, naming them.
+* the config: enabled with a register map that lacks its values refuses to start, naming them;
+* a replay file (``accelerometer.replay``): the PLC's samples recorded at the cycles they arrived and replayed
+  give the same acceleration cycle by cycle (hypothesis), the file's end is a frozen box, a bad file is named by
+  line, and a replay needs no register of the map.
 """
 
 from __future__ import annotations
@@ -15,18 +18,20 @@ import logging
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from hil.testing import CONFIG, model_with
 from plc_link.contract import FROM_PLC, Command, FromPlc, Status
-from service.accelerometer import FROZEN, MISSING, Accelerometer, AccelerometerConfig
+from service.accelerometer import FROZEN, MISSING, Accelerometer, AccelerometerConfig, BoxReplay
 from service.app import Service
 from service.ati import Reading
 from service.config import ServiceConfig, load_config
 from service.errors import ServiceConfigError
 from service.pipeline import Cycle
+from service.startup import check_plc_values
+from stiffness.errors import DataError
 
 G = np.array([0.0, 0.0, -9.81])
 Q = [10.0, -70.0, 95.0, 15.0, 40.0, -20.0]
@@ -147,3 +152,77 @@ def test_an_accelerometer_whose_values_the_map_lacks_refuses_to_start(tmp_path):
     with pytest.raises(ServiceConfigError, match=r"accelerometer.enabled reads acc_x.*no register acc_x, acc_y, acc_z, "
                                                  "acc_samples"):
         Service(cfg)
+
+
+def write_replay(path, t_s, values) -> None:
+    rows = "".join(f"{t:.6f},{float(x)!r},{float(y)!r},{float(z)!r}\n" for t, (x, y, z) in zip(t_s, values))
+    path.write_text("# the box's samples, as the PLC passed them\nt_s,acc_x,acc_y,acc_z\n" + rows)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(gaps=st.lists(st.integers(1, 4), min_size=3, max_size=60), values=st.lists(vectors, min_size=60, max_size=60),
+       pose=angles)
+def test_a_replayed_box_gives_what_the_plcs_samples_gave(tmp_path, gaps, values, pose):
+    """The PLC's samples arriving every 1 to 4 cycles, recorded with the cycle time each arrived at, then
+    replayed from the file: the acceleration, ok and condition the same at every cycle, the tare's included."""
+    R_s = Rotation.from_euler("xyz", pose, degrees=True).as_matrix()
+    arrive = np.cumsum([0, *gaps])                            # the cycles at which a new sample came
+    f = [box(R_s, np.array(v), np.array([0.05, -0.02, 0.01])) for v in values[:len(arrive)]]
+    write_replay(tmp_path / "box.csv", 0.001 * arrive, f)
+    live = Accelerometer(AccelerometerConfig(enabled=True, timeout_ms=3.0), G)
+    again = Accelerometer(AccelerometerConfig(enabled=True, timeout_ms=3.0, replay=str(tmp_path / "box.csv")), G)
+    count = -1
+    for k in range(int(arrive[-1]) + 10):                     # and past the file's end
+        if k in arrive:
+            count += 1
+        live.update(0.001 * k, record(f[count], count), R_s, k == 2)
+        again.update(0.001 * k, None, R_s, k == 2)
+        assert (again.ok, again.condition) == (live.ok, live.condition), k
+        assert np.array_equal(again.acceleration, live.acceleration), k
+    assert live.condition == FROZEN
+
+
+def test_a_bad_replay_file_is_named_by_line(tmp_path):
+    path = tmp_path / "box.csv"
+    path.write_text("t_s,acc_x,acc_y,acc_z\n0.000,0,0,9.81\n0.001,0,0,9.81\n0.001,0,0,9.81\n")
+    with pytest.raises(DataError, match=r"box.csv: line 4: t_s = 0.001 does not increase"):
+        BoxReplay(path)
+    path.write_text("t_s,acc_x,acc_z\n0.000,0,9.81\n0.001,0,9.81\n")
+    with pytest.raises(DataError, match=r"line 1: missing column\(s\) acc_y"):
+        BoxReplay(path)
+    path.write_text("t_s,acc_x,acc_y,acc_z\n0.000,0,0,9.81\n0.001,0,0,9.8")
+    with pytest.raises(DataError, match=r"box.csv"):
+        BoxReplay(path)                                        # its last line cut off
+
+
+def test_a_replayed_box_runs_through_the_cycle_without_the_maps_registers(tmp_path):
+    """A config with ``accelerometer.replay`` and the shipped map (no acc registers) starts; the cycle publishes
+    the replayed acceleration on both paths alike, and a replay file not there is named by its key."""
+    t = 0.001 * np.arange(150)
+    write_replay(tmp_path / "box.csv", t, [[0.2 * np.sin(40.0 * x), 0.0, 9.81] for x in t])
+    cfg = load_config(CONFIG / "default.yaml")
+    data = cfg.model_dump()
+    data["accelerometer"] = {"enabled": True, "timeout_ms": 20.0, "replay": str(tmp_path / "box.csv")}
+    (tmp_path / "service.yaml").write_text(__import__("yaml").safe_dump(data))
+    cfg = load_config(tmp_path / "service.yaml")
+    seen = []
+    for compiled in (False, True):
+        c = Cycle.from_config(cfg, model_with())
+        check_plc_values(cfg, c, cfg.register_map())
+        if compiled:
+            c.compensator.compile()
+        rows = []
+        for k in range(1, 200):
+            c.step(0.001 * k, Reading(W, 0, k, False), [], int(Command.ENABLE) | (int(Command.TARE) if k == 5 else 0),
+                   k, Q)
+            s = c.signals()
+            rows.append((s.status_word, s.acc_x, s.acc_y, s.acc_z))
+        seen.append(np.array(rows))
+    assert np.allclose(seen[0], seen[1], atol=1e-9)
+    ok = (seen[0][:, 0].astype(int) & int(Status.ACCELEROMETER_OK)) != 0
+    assert ok[5:140].all() and not ok[175:].any()              # the file ends at 150 ms: frozen 20 ms later
+    assert np.abs(seen[0][5:140, 1:4]).max() > 0.1 and np.all(seen[0][175:, 1:4] == 0.0)
+    data["accelerometer"]["replay"] = str(tmp_path / "nowhere.csv")
+    (tmp_path / "service.yaml").write_text(__import__("yaml").safe_dump(data))
+    with pytest.raises(ServiceConfigError, match=r"accelerometer.replay = .*nowhere.csv"):
+        load_config(tmp_path / "service.yaml")
