@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hil.testing import ROOT, free_port, write_config
-from plc_link.contract import TaskState
+from plc_link.contract import Status, TaskState
 from service.config import load_config
 from stiffness.data.trace_file import read_trace
 
@@ -109,3 +109,32 @@ def test_duration_counts_from_the_first_cycle(tmp_path):
     assert p.returncode == 0, p.stderr
     s = json.loads(stats.read_text())
     assert s["cycles"] >= 1 and s["status"] == "stopped"
+
+
+def test_a_replayed_accelerometer_reaches_the_trace(tmp_path):
+    """`stiffcomp run` with ``accelerometer.replay``: every traced cycle after the first (where the count starts,
+    as the PLC's does) while the box's samples last carries the sample the file releases at its time since it (untared: |a - g| = |f| in any pose), status
+    bit 8 set; after the file's last sample and ``timeout_ms`` the box reads frozen: the bit clear, a zero."""
+    t_s = 0.001 * np.arange(500)
+    f = np.column_stack([3.0 * np.sin(2.0 * np.pi * 10.0 * t_s), 0.5 * np.cos(2.0 * np.pi * 3.0 * t_s), 0.0 * t_s])
+    rows = "".join(f"{t:.3f},{x!r},{y!r},{z!r}\n" for t, (x, y, z) in zip(t_s, f.tolist()))
+    (tmp_path / "box.csv").write_text("t_s,acc_x,acc_y,acc_z\n" + rows)
+    cfg = write_config(tmp_path, {"plc": {"port": free_port()}, "accelerometer": {
+        "enabled": True, "timeout_ms": 20.0, "replay": str(tmp_path / "box.csv")}})
+    trace = tmp_path / "trace.csv"
+    p = subprocess.run(stiffcomp("run", "--config", str(cfg), "--duration", "1.0", "--trace", str(trace)),
+                       cwd=ROOT, check=False, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    t = read_trace(trace)
+    g = np.asarray(load_config(cfg).gravity.g_mps2)
+    acc = np.column_stack([t.column(f"acc_{a}_mps2") for a in "xyz"])
+    ok = (t.column("status_word").astype(int) & int(Status.ACCELEROMETER_OK)) != 0
+    since = t.time_s - t.time_s[0]
+    released = np.searchsorted(t_s, since + 1e-9, side="right") - 1
+    during, after = (since > 0.0) & (since < t_s[-1]), since > t_s[-1] + 0.03    # (the first cycle: the count's start)
+    assert during.sum() > 300 and after.sum() > 100, (during.sum(), after.sum())
+    assert ok[during].all() and not ok[after].any()
+    np.testing.assert_allclose(np.linalg.norm(acc[during] - g, axis=1), np.linalg.norm(f[released[during]], axis=1),
+                               atol=2e-5)
+    assert np.all(acc[after] == 0.0)
+    assert "accelerometer_frozen" in p.stderr
