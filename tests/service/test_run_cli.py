@@ -113,8 +113,9 @@ def test_duration_counts_from_the_first_cycle(tmp_path):
 
 def test_a_replayed_accelerometer_reaches_the_trace(tmp_path):
     """`stiffcomp run` with ``accelerometer.replay``: every traced cycle after the first (where the count starts,
-    as the PLC's does) while the box's samples last carries the sample the file releases at its time since it (untared: |a - g| = |f| in any pose), status
-    bit 8 set; after the file's last sample and ``timeout_ms`` the box reads frozen: the bit clear, a zero."""
+    as the PLC's does) while the box's samples last carries the sample the file releases at its time since the
+    first cycle (untared: |a - g| = |f| in any pose), status bit 8 set; after the file's last sample and
+    ``timeout_ms`` the box reads frozen: the bit clear, a zero."""
     t_s = 0.001 * np.arange(500)
     f = np.column_stack([3.0 * np.sin(2.0 * np.pi * 10.0 * t_s), 0.5 * np.cos(2.0 * np.pi * 3.0 * t_s), 0.0 * t_s])
     rows = "".join(f"{t:.3f},{x!r},{y!r},{z!r}\n" for t, (x, y, z) in zip(t_s, f.tolist()))
