@@ -92,6 +92,10 @@ class Accelerometer:
     def __init__(self, section: AccelerometerConfig, g_mps2, resolve=Path):
         self.enabled = section.enabled
         self.replay = BoxReplay(resolve(section.replay)) if section.enabled and section.replay else None
+        if self.replay is not None:
+            r = self.replay
+            log.info("accelerometer: replaying %s (%d samples over %.3f s) in place of the PLC's values", r.path,
+                     len(r.t_s), r.t_s[-1])
         self.R_m = np.asarray(section.mount.matrix())[:3, :3]
         self.timeout_s = section.timeout_ms / 1000.0
         self.g = np.asarray(g_mps2, dtype=float)
