@@ -111,8 +111,9 @@ class Accelerometer:
         self._t_first: float | None = None
 
     def update(self, t: float, inputs, R_sensor, tare: bool) -> None:
-        """The cycle at ``t`` (s): the PLC's `FromPlc` record ``inputs`` (unread with a replay), the force sensor's axes in the base
-        ``R_sensor`` (3, 3) at its joints; ``tare``: take the bias now (the arm at rest)."""
+        """The cycle at ``t`` (s): the PLC's `FromPlc` record ``inputs`` (unread with a replay), the force
+        sensor's axes in the base ``R_sensor`` (3, 3) at its joints; ``tare``: take the bias now (the arm at
+        rest)."""
         if not self.enabled:
             return
         if self._t_first is None:
