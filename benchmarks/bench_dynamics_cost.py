@@ -5,7 +5,8 @@ milling load, a new sample and new joints every cycle), on config/models/kr125_6
 (``dynamics`` off), each part of the dynamic compensation alone (the predictor, the structure's two modes,
 the feedforward from a plan file, the PLC's program time fed every cycle), all three, and the structure's
 modes with the accelerometer's observer (a new value every cycle; against "structure", the force-only
-dynamic path it corrects). Each runs on the
+dynamic path it corrects), and the same with the box's values replayed from a file (`accelerometer.replay`, a
+new sample every cycle; against "observer", the PLC's values). Each runs on the
 Python path and on the compiled one, in alternating blocks of cycles in one process (the machine's drift
 falls on all alike); the figure is the ratio of the medians of the per-block mean cycle times to the static
 path's on the same path.
@@ -38,22 +39,28 @@ MODES = [{"hz": 10.0, "damping": 0.03, "direction": [1.0, 0.0, 0.0]},
          {"hz": 16.0, "damping": 0.03, "direction": [0.0, 1.0, 0.0]}]
 
 
+REPLAYED = "observer, replay"      # the observer's row with the box's values from a file
+
+
 def sections(plan: Path) -> dict[str, dict | None]:
     ff = {"source": "file", "file": str(plan)}
+    observer = {"structure": {"modes": MODES, "lag_ms": 8.0}, "observer": {"modes": MODES, "horizon_ms": 4.0}}
     return {"static": None, "predictor": {"predictor": {}}, "structure": {"structure": {"modes": MODES, "lag_ms": 8.0}},
             "feedforward": {"feedforward": ff},
             "all three": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 8.0}, "feedforward": ff},
-            "observer": {"structure": {"modes": MODES, "lag_ms": 8.0}, "observer": {"modes": MODES, "horizon_ms": 4.0}}}
+            "observer": observer, REPLAYED: observer}
 
 
-def config(section: dict | None) -> ServiceConfig:
+def config(section: dict | None, box: Path | None = None) -> ServiceConfig:
+    """The shipped config with ``dynamics`` set to ``section``; ``box``: the accelerometer's values replayed
+    from this file (else from the PLC's record)."""
     cfg = load_config(ROOT / "config" / "default.yaml")
     if section is None:
         return cfg
     data = cfg.model_dump()
     data["dynamics"] = {"enabled": True, "delay_ms": 16.0, **section}
     if "observer" in section:                       # the accelerometer it reads, a new value every cycle
-        data["accelerometer"] = {"enabled": True}
+        data["accelerometer"] = {"enabled": True, **({"replay": str(box)} if box is not None else {})}
     out = ServiceConfig.model_validate(data)
     out.path = cfg.path
     return out
@@ -96,7 +103,11 @@ def main(argv: list[str] | None = None) -> dict:
         e = np.clip((t % 2.0 - 0.5) / 0.1, 0.0, 1.0) * (t % 2.0 < 1.5)
         np.savetxt(plan, np.column_stack([t, e, np.tile([300.0, -200.0, 150.0], (len(t), 1))]), delimiter=",",
                    header="t_s,engagement,fx_N,fy_N,fz_N", comments="", fmt="%.4f")
-        runners = {(name, c): Runner(config(sec), c) for name, sec in sections(plan).items() for c in (False, True)}
+        box = Path(tmp) / "box.csv"                 # a sample every ms, as the PLC's record gives one every cycle
+        np.savetxt(box, np.column_stack([t, 3.0 * np.sin(60.0 * t), 0.0 * t, 9.81 + 0.0 * t]), delimiter=",",
+                   header="t_s,acc_x,acc_y,acc_z", comments="", fmt="%.4f")
+        runners = {(name, c): Runner(config(sec, box if name == REPLAYED else None), c)
+                   for name, sec in sections(plan).items() for c in (False, True)}
         means: dict[tuple, list[float]] = {k: [] for k in runners}
         for r in runners.values():
             r.run(200)                                    # warm-up
@@ -107,12 +118,12 @@ def main(argv: list[str] | None = None) -> dict:
     med = {k: float(np.median(v)) for k, v in means.items()}
     out = {}
     print(f"{args.blocks} blocks of {args.cycles} cycles each, alternating; median of the block means")
-    print(f"{'':<14} {'Python us':>10} {'x static':>9} {'compiled us':>12} {'x static':>9}")
+    print(f"{'':<18} {'Python us':>10} {'x static':>9} {'compiled us':>12} {'x static':>9}")
     for name in sections(Path()):
         py, cc = med[(name, False)], med[(name, True)]
         out[name] = {"python_us": 1e6 * py, "compiled_us": 1e6 * cc, "python_x_static": py / med[("static", False)],
                      "compiled_x_static": cc / med[("static", True)]}
-        print(f"{name:<14} {1e6 * py:10.1f} {out[name]['python_x_static']:9.2f} {1e6 * cc:12.1f} "
+        print(f"{name:<18} {1e6 * py:10.1f} {out[name]['python_x_static']:9.2f} {1e6 * cc:12.1f} "
               f"{out[name]['compiled_x_static']:9.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
