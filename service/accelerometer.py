@@ -73,16 +73,20 @@ class BoxReplay:
         check_whole(path)
         cols = read_columns(path, REPLAY_COLUMNS, what="accelerometer replay")
         self.path = str(path)
-        self.t_s = cols["t_s"] - cols["t_s"][0]
-        self.values = np.column_stack([cols[c] for c in REPLAY_COLUMNS[1:]])
+        # plain lists: one step of a cursor a cycle (numpy's scalar access costs more than the search)
+        self.t_s = (cols["t_s"] - cols["t_s"][0]).tolist()
+        self.values = [tuple(v) for v in np.column_stack([cols[c] for c in REPLAY_COLUMNS[1:]]).tolist()]
         self._t0: float | None = None
+        self._n = 1                                  # the samples released: the first at the first cycle
 
     def at(self, t: float) -> tuple[int, tuple[float, float, float]]:
         if self._t0 is None:
             self._t0 = t
-        n = int(np.searchsorted(self.t_s, t - self._t0, side="right"))     # the first sample at the first cycle
-        x, y, z = self.values[n - 1]
-        return n, (float(x), float(y), float(z))
+        since, times, n = t - self._t0, self.t_s, self._n
+        while n < len(times) and times[n] <= since:
+            n += 1
+        self._n = n
+        return n, self.values[n - 1]
 
 
 class Accelerometer:
