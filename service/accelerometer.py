@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
+from stiffness.dynamics.records import check_whole, read_columns
 from stiffness.files.yaml_schema import Strict
 from stiffness.kinematics.robot import PoseConfig
 
@@ -68,8 +69,6 @@ class BoxReplay:
     and column of a bad file, or its last line where the file was cut off."""
 
     def __init__(self, path):
-        from stiffness.dynamics.records import check_whole, read_columns
-
         check_whole(path)
         cols = read_columns(path, REPLAY_COLUMNS, what="accelerometer replay")
         self.path = str(path)
