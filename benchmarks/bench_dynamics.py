@@ -111,8 +111,8 @@ def main(argv: list[str] | None = None) -> dict:
         sc.plc.period_ms = args.plc_period_ms
     truth = StiffnessModel.from_yaml(Path(args.truth))
     model_path = Path(args.model) if args.model else sc.resolve(sc.model)
-    keep = tempfile.TemporaryDirectory(prefix="stiffcomp-bench-dynamics-")
-    if args.learned:
+    if args.learned:            # the learned model's folder lives until the passes that read it are done
+        keep = tempfile.TemporaryDirectory(prefix="stiffcomp-bench-dynamics-")
         model_path = learned_from_a_part(sc, Path(args.truth), model_path, Path(keep.name))
     variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz,
                                observer=obs, observer_horizon_ms=args.observer_horizon_ms,
@@ -120,7 +120,8 @@ def main(argv: list[str] | None = None) -> dict:
                 for obs in ([False, True] if args.observer else [False])
                 for ff in ([False, True] if args.feedforward else [False])
                 for zeta in args.added_damping for err in args.mode_error]
-    result = compare(sc, truth, model_path, [(extra, variants) for extra in args.extra_delay_ms], run=realtime if args.realtime else run_lockstep,
+    result = compare(sc, truth, model_path, [(extra, variants) for extra in args.extra_delay_ms],
+                     run=realtime if args.realtime else run_lockstep,
                      progress=lambda text: print(text, file=sys.stderr, flush=True))
     print(f"identified ({args.commissioning}): {result['identified']}")
     table(result)

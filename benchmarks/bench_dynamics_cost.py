@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> dict:
         np.savetxt(plan, np.column_stack([t, e, np.tile([300.0, -200.0, 150.0], (len(t), 1))]), delimiter=",",
                    header="t_s,engagement,fx_N,fy_N,fz_N", comments="", fmt="%.4f")
         box = Path(tmp) / "box.csv"                 # a sample every ms, as the PLC's record gives one every cycle
-        np.savetxt(box, np.column_stack([t, 3.0 * np.sin(60.0 * t), 0.0 * t, 9.81 + 0.0 * t]), delimiter=",",
+        np.savetxt(box, np.column_stack([t, 3.0 * np.sin(60.0 * t), np.zeros_like(t), np.full_like(t, 9.81)]), delimiter=",",
                    header="t_s,acc_x,acc_y,acc_z", comments="", fmt="%.4f")
         runners = {(name, c): Runner(config(sec, box if name == REPLAYED else None), c)
                    for name, sec in sections(plan).items() for c in (False, True)}
