@@ -37,7 +37,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from stiffness.dynamics.records import check_whole, read_columns
 from stiffness.files.yaml_schema import Strict
@@ -59,6 +59,12 @@ class AccelerometerConfig(Strict):
     timeout_ms: float = Field(20.0, gt=0.0, le=1000.0)
     replay: str | None = None           # a CSV of the box's samples, read in place of the PLC's values
 
+    @model_validator(mode="after")
+    def _replay_read(self):
+        if self.replay and not self.enabled:
+            raise ValueError(f"replay = {self.replay!r} is read only with enabled: true (the accelerometer is off)")
+        return self
+
 
 REPLAY_COLUMNS = ("t_s", "acc_x", "acc_y", "acc_z")
 
@@ -70,7 +76,7 @@ class BoxReplay:
 
     def __init__(self, path):
         check_whole(path)
-        cols = read_columns(path, REPLAY_COLUMNS, what="accelerometer replay")
+        cols = read_columns(path, REPLAY_COLUMNS, what="replay of the accelerometer")
         self.path = str(path)
         # plain lists: one step of a cursor a cycle (numpy's scalar access costs more than the search)
         self.t_s = (cols["t_s"] - cols["t_s"][0]).tolist()
@@ -94,7 +100,7 @@ class Accelerometer:
 
     def __init__(self, section: AccelerometerConfig, g_mps2, resolve=Path):
         self.enabled = section.enabled
-        self.replay = BoxReplay(resolve(section.replay)) if section.enabled and section.replay else None
+        self.replay = BoxReplay(resolve(section.replay)) if section.replay else None
         if self.replay is not None:
             r = self.replay
             log.info("accelerometer: replaying %s (%d samples over %.3f s) in place of the PLC's values", r.path,
@@ -154,8 +160,9 @@ class Accelerometer:
         if condition is None:
             log.info("%s ended: the accelerometer's samples arrive again", self.condition)
         else:
+            held = ("acc_samples has not moved" if self.replay is None else
+                    f"no new sample of {self.replay.path} (its last at {self.replay.t_s[-1]:.3f} s)")
             why = (f"a value is not finite or beyond {MAX_MPS2:g} m/s^2" if not finite else
-                   f"acc_samples has not moved for {1000 * since:.0f} ms (accelerometer.timeout_ms = "
-                   f"{1000 * self.timeout_s:g})")
+                   f"{held} for {1000 * since:.0f} ms (accelerometer.timeout_ms = {1000 * self.timeout_s:g})")
             log.warning("%s: %s; the correction goes on from the force alone", condition, why)
         self.condition = condition

@@ -80,7 +80,7 @@ class ServiceConfig(Strict):
                  "source.ati.dbc": self.source.ati.dbc}
         if self.source.type == "replay" and self.source.replay is not None:
             files["source.replay.file"] = self.source.replay.file
-        if self.accelerometer.enabled and self.accelerometer.replay:
+        if self.accelerometer.replay:                  # (given only with enabled)
             files["accelerometer.replay"] = self.accelerometer.replay
         ff = self.dynamics.feedforward
         if self.dynamics.enabled and ff is not None and ff.file is not None:

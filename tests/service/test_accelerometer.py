@@ -182,7 +182,21 @@ def test_a_replayed_box_gives_what_the_plcs_samples_gave(tmp_path, gaps, values,
     assert live.condition == FROZEN
 
 
+def test_a_replays_end_is_named_with_its_file(tmp_path, caplog):
+    write_replay(tmp_path / "box.csv", [0.0, 0.001, 0.002], [[0.0, 0.0, 9.81]] * 3)
+    acc = Accelerometer(AccelerometerConfig(enabled=True, timeout_ms=5.0, replay=str(tmp_path / "box.csv")), G)
+    caplog.set_level(logging.WARNING, logger="stiffcomp.service")
+    for k in range(20):
+        acc.update(0.001 * k, None, np.eye(3), False)
+    assert acc.condition == FROZEN
+    named = [r.getMessage() for r in caplog.records if FROZEN in r.getMessage()]
+    assert len(named) == 1 and f"no new sample of {tmp_path / 'box.csv'} (its last at 0.002 s)" in named[0]
+
+
 def test_a_bad_replay_file_is_named_by_line(tmp_path):
+    """... and a replay given to an accelerometer that is off is refused, not ignored."""
+    with pytest.raises(ValueError, match=r"replay = 'box.csv' is read only with enabled: true"):
+        AccelerometerConfig(enabled=False, replay="box.csv")
     path = tmp_path / "box.csv"
     path.write_text("t_s,acc_x,acc_y,acc_z\n0.000,0,0,9.81\n0.001,0,0,9.81\n0.001,0,0,9.81\n")
     with pytest.raises(DataError, match=r"box.csv: line 4: t_s = 0.001 does not increase"):
