@@ -50,6 +50,15 @@ class Drive:
         packets: 2 late or more), where a host that stalls a process for a few ms now and then is enough."""
         return bool(stats.binom.sf(self.late_on_time(lag_s) - 1, len(self.answered), rate) < significance)
 
+    def packets_before(self, unix_s: float, span_s: float, slack_s: float = 0.005) -> np.ndarray:
+        """The packets that can have reached the service by ``unix_s`` (sent up to ``slack_s`` after it: the robot's
+        and the service's stamps are two clocks), the newest covering ``span_s`` of the robot's cycles, counted in
+        packets, not in time: after the host stalls the row of ``unix_s`` can still hold a packet sent before the
+        stall, which a window of time would have left out."""
+        period = float(np.median(np.diff(self.sent_unix)))
+        end = int(np.searchsorted(self.sent_unix, unix_s + slack_s, side="right"))
+        return np.arange(max(0, end - int(np.ceil(span_s / period))), end)
+
 
 def drive(vr: VirtualRobot, seconds: float, t0: float | None = None, priority: int = 0) -> Drive:
     """Run ``vr`` for ``seconds`` of its cycles (program time from ``t0``, clock time, default now): each packet

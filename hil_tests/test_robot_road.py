@@ -138,9 +138,8 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     rows = np.flatnonzero((u > d.sent_unix[0] + 0.3) & (u < d.sent_unix[-1]))[::7]
     checked = 0
     for r in rows:
-        # the packets of the 100 ms before the row (and 5 ms after: the row's stamp and the packet's are two clocks)
-        near = np.flatnonzero((d.sent_unix >= u[r] - 0.1) & (d.sent_unix <= u[r] + 0.005))
-        if d.sent_unix[near].max(initial=-np.inf) < u[r] - 3 * period_s:
+        near = d.packets_before(u[r], 0.1)      # the robot's last 100 ms of packets, counted in packets
+        if len(near) == 0 or d.sent_unix[near[-1]] < u[r] - 3 * period_s:
             continue    # the robot's own host stalled (its packets stopped): the row's correction moved on alone
         checked += 1
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])

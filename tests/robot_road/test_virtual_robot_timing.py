@@ -109,3 +109,27 @@ def test_more_late_answers_are_never_less_evidence(n, k, rate):
     assert drive_with(n, k).late_beyond(rate) <= drive_with(n, k + 1).late_beyond(rate)
     if k <= rate * n:                     # no more late than the rate itself: never evidence against it
         assert not drive_with(n, k).late_beyond(rate)
+
+
+def drive_sent_at(sent_unix: np.ndarray) -> Drive:
+    n = len(sent_unix)
+    nan = np.full((n, 6), np.nan)
+    return Drive(sent_unix, np.arange(n), nan, nan, np.ones(n, dtype=bool), nan, np.full(n, np.nan),
+                 np.full((n, 3, 3), np.nan), np.zeros(n))
+
+
+@given(stall_s=st.floats(0.0, 0.5), row_after_s=st.floats(0.0, 0.01))
+def test_the_packets_before_a_row_reach_back_past_a_stall(stall_s, row_after_s):
+    """A host that stops both processes for ``stall_s`` (CI's failure of 0318257: a trace row just after the
+    stall held the joints of the packet sent before it, more than 100 ms earlier): the packets before the row
+    are still the newest 100 ms of the robot's cycles, the one before the stall among them, and none sent
+    after the row's stamp and its clocks' slack."""
+    before = np.arange(100) * 0.004
+    after = before[-1] + stall_s + 0.004 + np.arange(3) * 0.001      # it catches up: three packets at once
+    d = drive_sent_at(np.concatenate([before, after]))
+    row = after[0] + row_after_s
+    near = d.packets_before(row, 0.1)
+    assert 99 in near                                               # the last packet before the stall
+    assert len(near) == 25 and np.all(np.diff(near) == 1)          # 100 ms of 4 ms cycles, in a row
+    assert d.sent_unix[near].max() <= row + 0.005
+    assert near[-1] == np.flatnonzero(d.sent_unix <= row + 0.005)[-1]
