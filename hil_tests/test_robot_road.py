@@ -185,7 +185,7 @@ def test_the_shipped_kuka_config_obeys_the_robots_enable_and_traces_its_joints(t
     tr = trace(tmp_path)
     u = tr["unix_time_s"]
     for r in np.flatnonzero((u > on.sent_unix[0] + 0.3) & (u < on.sent_unix[-1]))[::11]:
-        near = np.flatnonzero((on.sent_unix >= u[r] - 0.1) & (on.sent_unix <= u[r] + 0.005))
+        near = on.packets_before(u[r], 0.1)
         q = np.array([tr[f"q{i}_deg"][r] for i in range(1, 7)])
         held = on.q_cmd[near] - on.q_ref[near]
         assert np.abs(on.q_ref[near] - (q - held)).max(axis=1).min() <= 0.01, r
@@ -259,7 +259,7 @@ def test_a_silent_robot_latches_the_fault_and_what_is_not_the_robots_changes_not
             s.setblocking(True)
         vr.controller.stamp += 8
         after = drive(vr, 0.3, t0, ROBOT_FIFO)
-        assert after.late == 0 or after.late <= 2
+        assert not after.late_beyond(0.005), f"{after.late_on_time()} of {len(after.answered)} answers late"
     finally:
         vr.close()
         stranger.close()
