@@ -39,6 +39,12 @@ def main() -> int:
         t0 = time.monotonic()
         time.sleep(1.0)
         r1 = c.read_input_registers(BASE, count=32)
+        # deadlines the host held the cycle past are counted by the cycle after the first that runs again
+        # (io_base.deadlines): read until two more cycles have run, so a stall under way at the read is counted
+        first, give_up = u32(r1.registers[4:6]), time.monotonic() + 10.0
+        while u32(r1.registers[4:6]) < first + 2 and time.monotonic() < give_up:
+            time.sleep(0.001)
+            r1 = c.read_input_registers(BASE, count=32)
         t1 = time.monotonic()
         out["cycles"] = [u32(r0.registers[4:6]), u32(r1.registers[4:6])]
         out["exceed"] = [u32(r0.registers[6:8]), u32(r1.registers[6:8])]
@@ -48,10 +54,21 @@ def main() -> int:
         for v in q:
             words += f32_words(v)
         c.write_registers(BASE, words)
-        for k in range(40):
-            c.write_register(BASE + 1, k + 1)
+        # 0.4 s of heartbeats, then on until the cycle has run on with the correction applied and unchanged
+        # (a host that holds the cycle meanwhile delays its ramp-in; it must not fail the reading)
+        k, prev, give_up = 0, None, time.monotonic() + 10.0
+        while True:
+            k += 1
+            c.write_register(BASE + 1, k)
             time.sleep(0.01)
-        r = c.read_input_registers(BASE, count=60).registers
+            if k < 40:
+                continue
+            r = c.read_input_registers(BASE, count=60).registers
+            now = (u32(r[4:6]), r[0x10:0x1C])
+            if (r[1] & 0x2 and prev is not None and now[0] > prev[0] and now[1] == prev[1]
+                    or time.monotonic() > give_up):
+                break
+            prev = now
         out["status_word"] = r[1]
         out["fault_word"] = r[2]
         out["correction_deg"] = [f32(r[0x10 + 2 * i: 0x12 + 2 * i]) for i in range(6)]

@@ -27,6 +27,23 @@ pytestmark = pytest.mark.realtime
 PROBE = ["-m", "testlib.ads_probe"]      # run from the repository's root, where testlib is
 
 
+def until_the_correction_holds(port: int, codec, timeout_s: float = 20.0) -> None:
+    """The correction ramps in at its rate limit and then holds: read it over Modbus until two reads, 20 ms
+    and some cycles apart, agree and it is applied (later where the host holds the cycle meanwhile)."""
+    names = [f"correction_q{i}" for i in range(1, 7)]
+    prev, give_up = None, time.monotonic() + timeout_s
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=2) as c:
+        assert c.connect()
+        while time.monotonic() < give_up:
+            v = dict(zip(codec.names, codec.decode(c.read_input_registers(codec.start, count=codec.words).registers)))
+            now = (v["cycle_count"], [v[n] for n in names])
+            if prev is not None and now[0] > prev[0] and now[1] == prev[1] and max(map(abs, now[1])) > 1e-3:
+                return
+            prev = now
+            time.sleep(0.02)
+    raise AssertionError(f"the correction did not settle within {timeout_s} s: {prev}")
+
+
 def test_pyads_script_against_the_running_service(tmp_path):
     log = constant_log(tmp_path / "load.blf", [200.0, -100.0, 300.0, 10.0, 5.0, 2.0], seconds=1.0)
     ads_port, modbus_port = free_port(), free_port()
@@ -40,7 +57,7 @@ def test_pyads_script_against_the_running_service(tmp_path):
     s = Service(cfg)
     s.start()
     try:
-        time.sleep(1.0)                 # the correction ramps in at its rate limit and then holds
+        until_the_correction_holds(modbus_port, s.rmap.codecs["to_plc"])
         p = subprocess.run([sys.executable, *PROBE, f"127.0.0.1:{ads_port}"], capture_output=True, text=True,
                            timeout=120, check=False, cwd=ROOT)
         assert p.returncode == 0, p.stderr
