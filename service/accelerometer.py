@@ -24,10 +24,11 @@ It is not a latched fault: the correction goes on without the acceleration (the 
 the force alone), and the acceleration reads zero meanwhile. A tare while it is not ok keeps the bias.
 
 ``accelerometer.replay`` reads the box's samples from a file instead of the PLC (`BoxReplay`): a CSV of ``t_s``,
-``acc_x``, ``acc_y``, ``acc_z`` (s; m/s^2 along the box's axes, as the PLC passes them), released on the cycle's
-clock from its first cycle, as `service.sources.replay` releases the force sensor's CAN log. Each sample counts
-as one new value, so the same supervision holds: after the file's last sample the box reads frozen, and the
-correction goes on from the force alone.
+``acc_x``, ``acc_y``, ``acc_z`` (s; m/s^2 along the box's axes, as the PLC passes them), or the service's own
+trace of a cut (its ``box_`` columns: the reading taken, as it came, and the count of readings taken, `taken`),
+released on the cycle's clock from its first cycle, as `service.sources.replay` releases the force sensor's CAN
+log. Each sample counts as one new value, so the same supervision holds: after the file's last sample the box
+reads frozen, and the correction goes on from the force alone.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field, model_validator
 
+from stiffness.data.trace_file import looks_like_trace, read_trace
 from stiffness.dynamics.records import check_whole, read_columns
 from stiffness.files.yaml_schema import Strict
 from stiffness.kinematics.robot import PoseConfig
@@ -57,7 +59,7 @@ class AccelerometerConfig(Strict):
     enabled: bool = False
     mount: PoseConfig = Field(default_factory=PoseConfig)      # the box's axes in the force sensor's frame
     timeout_ms: float = Field(20.0, gt=0.0, le=1000.0)
-    replay: str | None = None           # a CSV of the box's samples, read in place of the PLC's values
+    replay: str | None = None           # the box's samples (a CSV, or a trace), read in place of the PLC's values
 
     @model_validator(mode="after")
     def _replay_read(self):
@@ -71,16 +73,25 @@ REPLAY_COLUMNS = ("t_s", "acc_x", "acc_y", "acc_z")
 
 class BoxReplay:
     """The box's samples from a file (module docstring): `at` gives the count of samples released by cycle time
-    ``t`` and the newest of them, as the PLC's ``acc_samples`` and ``acc_x..z``. DataError names the file, line
-    and column of a bad file, or its last line where the file was cut off."""
+    ``t`` and the newest of them, as the PLC's ``acc_samples`` and ``acc_x..z``. The file is a CSV of
+    `REPLAY_COLUMNS`, or a service's trace (`stiffness.data.trace_file`): its readings (`Trace.box_readings`),
+    from its first row's time, so a cut traced with its box runs again with the same readings at the same cycles.
+    DataError names the file, line and column of a bad file, or its last line where the file was cut off."""
 
     def __init__(self, path):
-        check_whole(path)
-        cols = read_columns(path, REPLAY_COLUMNS, what="replay of the accelerometer")
         self.path = str(path)
+        if looks_like_trace(path):
+            trace = read_trace(path)
+            t, v = trace.box_readings()
+            # the first line starts the clock and the count (never taken as a reading, as the PLC's first count)
+            t_s, values = np.r_[trace.time_s[0], t], np.vstack([v[:1], v])
+        else:
+            check_whole(path)
+            cols = read_columns(path, REPLAY_COLUMNS, what="replay of the accelerometer")
+            t_s, values = cols["t_s"], np.column_stack([cols[c] for c in REPLAY_COLUMNS[1:]])
         # plain lists: one step of a cursor a cycle (numpy's scalar access costs more than the search)
-        self.t_s = (cols["t_s"] - cols["t_s"][0]).tolist()
-        self.values = [tuple(v) for v in np.column_stack([cols[c] for c in REPLAY_COLUMNS[1:]]).tolist()]
+        self.t_s = (t_s - t_s[0]).tolist()
+        self.values = [tuple(v) for v in values.tolist()]
         self._t0: float | None = None
         self._n = 1                                  # the samples released: the first at the first cycle
 
@@ -116,6 +127,7 @@ class Accelerometer:
         self.condition: str | None = None    # FROZEN or MISSING while not ok, None otherwise
         self.sample_period_s = math.inf      # the time between new values, averaged (PERIOD_TAU_S)
         self._count: float | None = None
+        self.taken = 0                       # readings taken since start: one more in each cycle that takes one
         self._moved_t: float | None = None
         self._t_first: float | None = None
 
@@ -143,6 +155,7 @@ class Accelerometer:
                 p = self.sample_period_s
                 self.sample_period_s = since if math.isinf(p) else p + (since - p) * min(1.0, since / PERIOD_TAU_S)
             self._count, self._moved_t = count, t
+            self.taken += 1
         R = np.asarray(R_sensor) @ self.R_m
         since = t - (self._t_first if self._moved_t is None else self._moved_t)
         ok = self._moved_t is not None and finite and since <= self.timeout_s

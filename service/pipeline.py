@@ -42,6 +42,7 @@ _OUT_SCALE = np.array([M_TO_MM, M_TO_MM, M_TO_MM, RAD_TO_DEG, RAD_TO_DEG, RAD_TO
 _MOVED, _FRESH, _GRAVITY, _SAFE = 1, 2, 4, 8      # the compiled cycle's flags (`service.kernel.template.cycle`)
 # the scalars' places in `Cycle.vector`
 _STATUS, _FAULT, _TARES, _SAMPLES, _AGE, _PAYLOAD, _RELOADS, _ACC = (SCALAR_AT[n] for n in SCALARS[:8])
+_BOX, _BOX_SAMPLES = SCALAR_AT["box_x"], SCALAR_AT["box_samples"]
 
 
 class TareConfig(Strict):
@@ -374,13 +375,16 @@ class Cycle:
         v[_AGE], v[_PAYLOAD], v[_RELOADS] = age, comp.payloads.active.index, self.reloads & 0xFFFF
         if acc is not None:
             v[_ACC], v[_ACC + 1], v[_ACC + 2] = acc.acceleration
+            v[_BOX], v[_BOX + 1], v[_BOX + 2] = acc.f
+            v[_BOX_SAMPLES] = acc.taken & 0xFFFF
 
     def signals(self) -> Signals:
         """The record of the last cycle."""
         c = self.compensator
         return Signals(self.status_word, self.faults.word, c.correction, c.dq_deg, c.wrench_base,
                        c.wrench_sensor, c.deflection, c.tares, c.samples, float(self.vector[_AGE]),
-                       c.payloads.active.index, self.reloads & 0xFFFF, *(float(a) for a in self.vector[_ACC:_ACC + 3]))
+                       c.payloads.active.index, self.reloads & 0xFFFF, *(float(a) for a in self.vector[_ACC:_ACC + 3]),
+                       *(float(a) for a in self.vector[_BOX:_BOX + 3]), int(self.vector[_BOX_SAMPLES]))
 
     @property
     def status_word(self) -> int:

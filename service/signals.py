@@ -29,6 +29,11 @@ class Signals(NamedTuple):
     acc_x: float                    # the arm's acceleration at the tool, base axes, m/s^2, gravity and bias
     acc_y: float                    # removed (service.accelerometer); 0 without an accelerometer or while
     acc_z: float                    # its samples do not arrive
+    box_x: float                    # the box's reading the accelerometer last took, as it came: box axes, m/s^2,
+    box_y: float                    # gravity and bias in (what the PLC passed or the replay released); 0
+    box_z: float                    # without an accelerometer
+    box_samples: int                # the readings taken since start, mod 65536: one more in each cycle that
+                                    # took a new one
 
 
 # Signals as one float vector, field by field in their order (a list takes six places): what the compiled
@@ -44,7 +49,7 @@ assert [SIGNAL_SLOTS[n][0] for n in VECTORS] == list(range(VECTORS_START, VECTOR
 # each vector's place in the signal path's own view of the five (`Compensator.vector`)
 VECTOR_AT = {name: SIGNAL_SLOTS[name][0] - VECTORS_START for name in VECTORS}
 SCALARS = ("status_word", "fault_word", "tare_count", "sensor_samples", "sample_age_ms", "payload_active",
-           "reload_count", "acc_x", "acc_y", "acc_z")
+           "reload_count", "acc_x", "acc_y", "acc_z", "box_x", "box_y", "box_z", "box_samples")
 SCALAR_AT = {name: SIGNAL_SLOTS[name][0] for name in SCALARS}
 
 

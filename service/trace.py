@@ -9,9 +9,9 @@
 
 The cycle never waits and never touches a file: `TraceRing.put_cycle` packs the row into slot
 ``count % rows`` and then raises the count (x86-64 keeps the two stores in order, as the process image
-relies on). The cycle packs only what it alone knows, 25 values in one struct call: its time (float64), the
-joints, wrench, correction and the arm's acceleration (float32, the precision the PLC's registers carry: 0.3 um
-at 2 m for a joint) and the three words (uint16); the cycle count is the ring's own count, and the wall-clock time its start
+relies on). The cycle packs only what it alone knows, 29 values in one struct call: its time (float64), the
+joints, wrench, correction, the arm's acceleration and the box's reading (float32, the precision the PLC's
+registers carry: 0.3 um at 2 m for a joint) and the three words and the box's count (uint16); the cycle count is the ring's own count, and the wall-clock time its start
 stamp plus the cycle's time. The ring is small (1.5 MB) and touched once at start-up, so the cycle never
 takes a page fault on it. The writer reads the slots between its own count and the cycle's, then checks the count
 again: a slot the cycle overwrote meanwhile (the writer fell more than a ring behind, 16 s at 1 ms) is
@@ -47,14 +47,15 @@ log = logging.getLogger("stiffcomp.trace")
 ROWS = 1 << 14          # the ring: 16 s of cycles at 1 ms (the writer drains it every DRAIN_S), 1.8 MB
 DRAIN_S = 0.1           # the writer's period
 _HEADER = 8             # int64: rows put by the cycle, taken by the writer, lost, written, the start stamp (ns)
-_ROW = struct.Struct("<d21f3H14x")      # 112 bytes: time_s; the joints, wrench, correction, acceleration; the words
-ROW_DTYPE = np.dtype([("time", "<f8"), ("values", "<f4", (21,)), ("words", "<u2", (3,)), ("pad", "V14")])
+_ROW = struct.Struct("<d24f4H")     # 112 bytes: time_s; joints, wrench, correction, acceleration, box; words, count
+ROW_DTYPE = np.dtype([("time", "<f8"), ("values", "<f4", (24,)), ("words", "<u2", (4,))])
 _START = 4              # the header's start stamp: wall-clock ns at the cycle's time 0
 # what each field of a row holds, in `_ROW`'s order (the names of the compiled service's values, `service.app`):
 # the compiled cycle packs its row by this table, `put_cycle` in the same order
 ROW_SOURCES = ("t", *(f"q{i}" for i in range(1, 7)), *(f"signals.wrench_base[{k}]" for k in range(6)),
                *(f"signals.correction[{k}]" for k in range(6)), "signals.acc_x", "signals.acc_y", "signals.acc_z",
-               "signals.status_word", "signals.fault_word", "task.task_state")
+               "signals.box_x", "signals.box_y", "signals.box_z",
+               "signals.status_word", "signals.fault_word", "task.task_state", "signals.box_samples")
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,8 @@ class TraceRing:
         if not n:
             self.header[_START] = time.time_ns() - int(t * 1e9)
         self._pack(self._buf, 8 * _HEADER + _ROW.size * (n % self.rows), t, *q_deg, *sig.wrench_base,
-                   *sig.correction, sig.acc_x, sig.acc_y, sig.acc_z, sig.status_word, sig.fault_word, task_state)
+                   *sig.correction, sig.acc_x, sig.acc_y, sig.acc_z, sig.box_x, sig.box_y, sig.box_z, sig.status_word,
+                   sig.fault_word, task_state, sig.box_samples)
         self._n = n = n + 1
         self._put_count[0] = n
 

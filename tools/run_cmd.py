@@ -48,7 +48,9 @@ def add_trace_options(p) -> None:
                         "columns: time_s, unix_time_s, cycle, q1_deg..q6_deg (the joints the PLC reported), "
                         "fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm (the wrench the cycle used, base axes), "
                         "c1_deg..c6_deg (the correction sent), acc_x_mps2, acc_y_mps2, acc_z_mps2 (the arm's acceleration "
-                        "at the tool, base axes, with an accelerometer), status_word, fault_word, task_state. The "
+                        "at the tool, base axes, with an accelerometer), box_x_mps2, box_y_mps2, box_z_mps2 (its "
+                        "reading as the box gave it), status_word, fault_word, task_state, box_samples (readings "
+                        "taken, mod 65536; accelerometer.replay reads them back). The "
                         "predicted deflection is not recorded: stiffcomp part recomputes it from its model "
                         "(docs/part_format.md)")
     p.add_argument("--trace-max-mb", type=float, default=DEFAULT_MAX_MB, metavar="MB",

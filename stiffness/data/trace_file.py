@@ -13,7 +13,11 @@ c1_deg .. c6_deg                   the joint correction the service sent (after 
 acc_x_mps2 .. acc_z_mps2           the arm's acceleration at the tool, base axes, gravity and bias removed
                                    (0 without an accelerometer, or while its samples do not arrive; a
                                    trace written before it had none, and reads NaN there)
+box_x_mps2 .. box_z_mps2           the accelerometer's reading last taken, as it came: box axes, gravity
+                                   and bias in (0 without an accelerometer; NaN in an older trace)
 status_word, fault_word, task_state  the contract's words (`plc_link.contract`)
+box_samples                        the readings taken since start, mod 65536: one more in each cycle that
+                                   took a new one (`Trace.box_readings`: the box's samples, to replay)
 =================================  ===============================================================
 
 The cycle counts 1, 2, ... with no gap; a gap is rows the service lost (its writer fell a ring behind):
@@ -55,10 +59,12 @@ Q = tuple(f"q{i}_deg" for i in range(1, 7))
 WRENCH = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
 CORRECTION = tuple(f"c{i}_deg" for i in range(1, 7))
 ACCELERATION = ("acc_x_mps2", "acc_y_mps2", "acc_z_mps2")
+BOX = ("box_x_mps2", "box_y_mps2", "box_z_mps2")
 WORDS = ("status_word", "fault_word", "task_state")
-COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *CORRECTION, *ACCELERATION, *WORDS)
-OPTIONAL = set(ACCELERATION)          # a trace of an older service has none: NaN
-INTEGER = {"cycle", *WORDS}
+BOX_SAMPLES = "box_samples"
+COLUMNS = ("time_s", "unix_time_s", "cycle", *Q, *WRENCH, *CORRECTION, *ACCELERATION, *BOX, *WORDS, BOX_SAMPLES)
+OPTIONAL = {*ACCELERATION, *BOX, BOX_SAMPLES}     # a trace of an older service has none: NaN
+INTEGER = {"cycle", *WORDS, BOX_SAMPLES}
 SUFFIXES = (".csv", ".parquet")
 DEFAULT_MAX_MB = 200.0
 DEFAULT_KEEP = 4
@@ -252,6 +258,20 @@ class Trace:
     correction_deg = property(lambda self: self.block(CORRECTION))
     fault_word = property(lambda self: self.column("fault_word").astype(np.int64))
     status_word = property(lambda self: self.column("status_word").astype(np.int64))
+
+    def box_readings(self) -> tuple[np.ndarray, np.ndarray]:
+        """The accelerometer's readings the service took, as they came: the time (``time_s``) of each cycle that
+        took one and its reading (k, 3: box axes, m/s^2, gravity and bias in). Across rows the trace lost, the
+        readings taken there are one, at the row after them. DataError, naming the trace, where it holds none."""
+        n = self.column(BOX_SAMPLES)
+        if not np.isfinite(n).all():
+            raise DataError(f"{self.source}: no box_samples column: a trace written before the accelerometer's "
+                            "readings were traced")
+        new = np.flatnonzero(np.diff(n) != 0) + 1
+        if not len(new):
+            raise DataError(f"{self.source}: the accelerometer took no reading in this trace (box_samples never "
+                            "changes: a service without accelerometer.enabled, or a box whose values never came)")
+        return self.time_s[new], self.block(BOX)[new]
 
     def gaps(self) -> list[Gap]:
         """Where the cycle count jumps: the rows lost there (docs/part_format.md)."""

@@ -16,7 +16,7 @@ from service.signals import Signals
 
 LISTS = ("correction", "dq_deg", "wrench_base", "wrench_sensor", "deflection")
 SCALARS = ("status_word", "fault_word", "tare_count", "sensor_samples", "sample_age_ms", "payload_active",
-           "reload_count", "acc_x", "acc_y", "acc_z")
+           "reload_count", "acc_x", "acc_y", "acc_z", "box_x", "box_y", "box_z", "box_samples")
 ANY_SOURCE = ([f"task.{n}" for n in TaskValues._fields] + [f"signals.{n}" for n in SCALARS]
               + [f"signals.{n}[{i}]" for n in LISTS for i in range(6)])
 value = st.floats(allow_nan=False, allow_infinity=False, width=32)

@@ -240,3 +240,57 @@ def test_a_replayed_box_runs_through_the_cycle_without_the_maps_registers(tmp_pa
     (tmp_path / "service.yaml").write_text(__import__("yaml").safe_dump(data))
     with pytest.raises(ServiceConfigError, match=r"accelerometer.replay = .*nowhere.csv"):
         load_config(tmp_path / "service.yaml")
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(gaps=st.lists(st.integers(1, 4), min_size=3, max_size=30), values=st.lists(vectors, min_size=30, max_size=30),
+       suffix=st.sampled_from([".csv", ".parquet"]))
+def test_a_traced_cut_replays_its_box_at_the_same_cycles(tmp_path, gaps, values, suffix):
+    """The service records the box in its trace: a cut whose PLC passes samples every 1 to 4 cycles (float32,
+    as its registers carry them), traced through the ring to a file, runs again with ``accelerometer.replay``
+    naming that trace: every cycle's acceleration, status, reading and count the same, the tare's included."""
+    from service.trace import TraceRing
+    from stiffness.data.trace_file import TraceFile
+
+    arrive = np.cumsum([2, *gaps])                             # the cycles at which a new sample came
+    f = np.float32([box(np.eye(3), np.array(v), np.array([0.05, -0.02, 0.01])) for v in values[:len(arrive)]])
+    cfg = config_with_accelerometer(tmp_path)
+    live, ring = Cycle.from_config(cfg, model_with()), TraceRing(rows=256)
+    seen, count = [], 0
+    try:
+        for k in range(1, int(arrive[-1]) + 30):               # and past the last sample: frozen
+            if k in arrive:
+                count += 1
+            live.step(0.001 * k, Reading(W, 0, k, False), [], int(Command.ENABLE) | (int(Command.TARE) if k == 5 else 0),
+                      k, Q, inputs=record([float(v) for v in f[count - 1]] if count else [0.0, 0.0, 9.81], count))
+            seen.append(live.signals())
+            ring.put_cycle(0.001 * k, Q, seen[-1], 1)
+        with TraceFile(tmp_path / f"trace{suffix}") as out:
+            out.write(ring.take())
+    finally:
+        ring.close()
+    cfg.accelerometer = AccelerometerConfig(enabled=True, timeout_ms=20.0, replay=str(tmp_path / f"trace{suffix}"))
+    again = Cycle.from_config(cfg, model_with())
+    for k, was in enumerate(seen, start=1):
+        again.step(0.001 * k, Reading(W, 0, k, False), [], int(Command.ENABLE) | (int(Command.TARE) if k == 5 else 0),
+                   k, Q)
+        s = again.signals()
+        assert (s.status_word, s.acc_x, s.acc_y, s.acc_z) == (was.status_word, was.acc_x, was.acc_y, was.acc_z), k
+        assert (s.box_x, s.box_y, s.box_z, s.box_samples) == (was.box_x, was.box_y, was.box_z, was.box_samples), k
+    assert seen[-1].box_samples == len(arrive) and not seen[-1].status_word & int(Status.ACCELEROMETER_OK)
+
+
+def test_a_trace_without_the_boxs_readings_is_refused_by_name(tmp_path):
+    from stiffness.data.trace_file import COLUMNS, TraceFile
+
+    rows = np.zeros((50, len(COLUMNS)))
+    rows[:, 0], rows[:, 2] = 0.001 * np.arange(50), np.arange(1, 51)
+    with TraceFile(tmp_path / "trace.csv") as out:
+        out.write(rows)
+    with pytest.raises(DataError, match=r"trace.csv: the accelerometer took no reading in this trace"):
+        BoxReplay(tmp_path / "trace.csv")
+    text = (tmp_path / "trace.csv").read_text().splitlines()
+    keep = [k for k, c in enumerate(COLUMNS) if not c.startswith("box_")]
+    (tmp_path / "old.csv").write_text("\n".join(",".join(line.split(",")[k] for k in keep) for line in text) + "\n")
+    with pytest.raises(DataError, match=r"old.csv: no box_samples column"):
+        BoxReplay(tmp_path / "old.csv")

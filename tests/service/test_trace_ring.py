@@ -34,7 +34,7 @@ def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
                 q = [float(n), 0.0, 0.0, 0.0, 0.0, float(-n)]
                 zeros = [0.0] * 6
                 sig = Signals(n & 0xFFFF, 0, [0.5 * n] * 6, zeros, [float(n)] * 6, zeros, zeros, 0, n, 0.0, 0, 0,
-                              0.25 * n, 0.0, -0.5 * n)
+                              0.25 * n, 0.0, -0.5 * n, 9.75, -0.125 * n, 2.0, (3 * n) & 0xFFFF)
                 ring.put_cycle(n * 0.001, q, sig, 1)
             if k % 2 == 0 or k == len(batches) - 1:
                 got.append(ring.take())
@@ -51,6 +51,9 @@ def test_rows_come_out_in_order_and_what_overran_the_ring_is_counted(batches):
         np.testing.assert_array_equal(rows[:, COLUMNS.index("acc_x_mps2")], 0.25 * cycle)
         np.testing.assert_array_equal(rows[:, COLUMNS.index("acc_z_mps2")], -0.5 * cycle)
         np.testing.assert_array_equal(rows[:, COLUMNS.index("status_word")], cycle % 65536)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("box_x_mps2")], 9.75)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("box_y_mps2")], -0.125 * cycle)
+        np.testing.assert_array_equal(rows[:, COLUMNS.index("box_samples")], (3 * cycle) % 65536)
     finally:
         ring.close()
 
