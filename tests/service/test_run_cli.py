@@ -14,6 +14,7 @@ import pytest
 
 from hil.testing import ROOT, free_port, write_config
 from plc_link.contract import Status, TaskState
+from service.accelerometer import BoxReplay
 from service.config import load_config
 from stiffness.data.trace_file import read_trace
 
@@ -140,3 +141,12 @@ def test_a_replayed_accelerometer_reaches_the_trace(tmp_path):
                                atol=2e-5)
     assert np.all(acc[after] == 0.0)
     assert "accelerometer_frozen" in p.stderr
+    # the box recorded: each cycle's reading as it came (float32), the count one more where a new one came,
+    # and the trace read back as a replay holds the samples the file released, at the cycles that took them
+    box = t.block(("box_x_mps2", "box_y_mps2", "box_z_mps2"))
+    np.testing.assert_array_equal(box[during], f[released[during]].astype(np.float32))
+    new = np.flatnonzero(np.diff(released) > 0) + 1
+    np.testing.assert_array_equal(np.flatnonzero(np.diff(t.column("box_samples")) != 0) + 1, new)
+    again = BoxReplay(trace)
+    np.testing.assert_array_equal(again.t_s[1:], since[new])
+    np.testing.assert_array_equal(np.array(again.values[1:]), f[released[new]].astype(np.float32))
