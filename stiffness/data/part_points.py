@@ -131,8 +131,7 @@ def write_part(path: str | Path, points_mm: np.ndarray, tool_radius_mm: float, f
     lines = [f"# stiffcomp part: {title or 'points on a machined surface'}",
              f"# tool_radius_mm: {tool_radius_mm:g}"]
     if frame is not None:
-        lines.append(f"# part_frame: {{xyz_mm: [{', '.join(f'{v:.4f}' for v in frame.xyz_mm)}], "
-                     f"rpy_deg: [{', '.join(f'{v:.6g}' for v in frame.rpy_deg)}]}}")
+        lines.append(f"# part_frame: {frame.flow_text()}")
     lines.append("point," + ",".join(POINT_COLS))
     labels = labels or [str(k + 1) for k in range(len(points_mm))]
     lines += [f"{lab}," + ",".join(f"{v:.4f}" for v in p) for lab, p in zip(labels, points_mm)]

@@ -161,8 +161,7 @@ def write_probe(path: str | Path, q_deg: np.ndarray, approach: np.ndarray, tool_
     lines = [f"# stiffcomp probe: {title or 'the robot probes its own part'}",
              f"# tool_radius_mm: {tool_radius_mm:g}",
              f"# stylus_radius_mm: {stylus_radius_mm:g}",
-             (f"# probe_frame: {{xyz_mm: [{', '.join(f'{v:.4f}' for v in probe_frame.xyz_mm)}], "
-              f"rpy_deg: [{', '.join(f'{v:.6g}' for v in probe_frame.rpy_deg)}]}}")]
+             f"# probe_frame: {probe_frame.flow_text()}"]
     if probing_speed_mm_s is not None and trigger_latency_ms is not None:
         lines += [f"# probing_speed_mm_s: {probing_speed_mm_s:g}", f"# trigger_latency_ms: {trigger_latency_ms:g}"]
     lines.append(HEADER)

@@ -51,6 +51,12 @@ class PoseConfig(Strict):
     def matrix(self) -> np.ndarray:
         return transform(rpy_matrix(np.radians(self.rpy_deg)), np.array(self.xyz_mm) / 1000.0)
 
+    def flow_text(self) -> str:
+        """The pose as a YAML flow mapping (a data file's ``# key: value`` header): the position to 0.1 um,
+        the angles to 10 digits (six, 100.0625 deg written as 100.062, turned a point 60 mm away by 0.5 um)."""
+        return (f"{{xyz_mm: [{', '.join(f'{v:.4f}' for v in self.xyz_mm)}], "
+                f"rpy_deg: [{', '.join(f'{v:.10g}' for v in self.rpy_deg)}]}}")
+
 
 class SensorConfig(PoseConfig):
     frame: int = Field(6, ge=0, le=6, description="DH frame the sensor is mounted on")

@@ -67,6 +67,24 @@ def test_the_part_frame_chosen_changes_nothing(cut, truth, tmp_path, turn, shift
     np.testing.assert_allclose(again.deviation_mm, rows.deviation_mm, atol=5e-4)       # the file holds 0.1 um
 
 
+@given(xyz=st.tuples(*[st.floats(-2000.0, 2000.0)] * 3), rpy=st.tuples(*[st.floats(-180.0, 180.0)] * 3))
+def test_a_frame_written_in_a_header_reads_back_to_the_points_precision(tmp_path_factory, xyz, rpy):
+    """The frame in a part file's header places a point 1 m from its origin within 0.01 um (a tenth of the
+    points' own precision) of where the frame written places it: the angles are not rounded to six digits."""
+    frame = PoseConfig(xyz_mm=list(xyz), rpy_deg=list(rpy))
+    path = write_part(tmp_path_factory.mktemp("frame") / "part.csv", np.array([[1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0],
+                                                                              [0.0, 0.0, 1000.0]]), 4.0, frame)
+    back, T = read_part(path).frame, frame.matrix()
+    np.testing.assert_allclose(back[:3, :3] * 1000.0, T[:3, :3] * 1000.0, rtol=0, atol=1e-5)     # 0.01 um
+    np.testing.assert_allclose(back[:3, 3] * 1000.0, xyz, rtol=0, atol=5.1e-5)
+    # a probe log's stylus frame, written the same way
+    from stiffness.data.probe_log import read_probe, write_probe
+
+    path = write_probe(path.with_name("probe.csv"), np.zeros((3, 6)), np.tile([1.0, 0.0, 0.0], (3, 1)), 4.0, 1.5, frame)
+    np.testing.assert_allclose(read_probe(path).probe_frame.matrix()[:3, :3] * 1000.0, T[:3, :3] * 1000.0, rtol=0,
+                               atol=1e-5)
+
+
 def test_best_fit_hides_a_constant_offset_and_says_so(cut, truth, tmp_path):
     """Without a datum (the part's axes the base's, its origin 0.36 mm off): after the best fit its deviations are
     the datum's up to a rigid shift of the contour, which along a circle's normal is a first harmonic
