@@ -11,8 +11,8 @@ The cycle never waits and never touches a file: `TraceRing.put_cycle` packs the 
 ``count % rows`` and then raises the count (x86-64 keeps the two stores in order, as the process image
 relies on). The cycle packs only what it alone knows, 29 values in one struct call: its time (float64), the
 joints, wrench, correction, the arm's acceleration and the box's reading (float32, the precision the PLC's
-registers carry: 0.3 um at 2 m for a joint) and the three words and the box's count (uint16); the cycle count is the ring's own count, and the wall-clock time its start
-stamp plus the cycle's time. The ring is small (1.5 MB) and touched once at start-up, so the cycle never
+registers carry: 0.3 um at 2 m for a joint), the three words and the box's count (uint16); the cycle count is
+the ring's own count, and the wall-clock time its start stamp plus the cycle's time. The ring is small (1.5 MB) and touched once at start-up, so the cycle never
 takes a page fault on it. The writer reads the slots between its own count and the cycle's, then checks the count
 again: a slot the cycle overwrote meanwhile (the writer fell more than a ring behind, 16 s at 1 ms) is
 not written but counted as lost, and the log and the service's statistics say how many. Nothing is
