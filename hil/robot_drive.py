@@ -50,6 +50,11 @@ class Drive:
         packets: 2 late or more), where a host that stalls a process for a few ms now and then is enough."""
         return bool(stats.binom.sf(self.late_on_time(lag_s) - 1, len(self.answered), rate) < significance)
 
+    def silences(self, longer_than_s: float) -> int:
+        """How often the robot sent nothing for longer than ``longer_than_s`` between two packets (its own host
+        stalled): after each, the road rightly begins a new session (`faults.plc_heartbeat_timeout_ms`)."""
+        return int((np.diff(self.sent_unix) > longer_than_s).sum())
+
     def packets_before(self, unix_s: float, span_s: float, slack_s: float = 0.005) -> np.ndarray:
         """The packets that can have reached the service by ``unix_s`` (sent up to ``slack_s`` after it: the robot's
         and the service's stamps are two clocks), the newest covering ``span_s`` of the robot's cycles, counted in

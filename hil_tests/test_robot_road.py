@@ -117,7 +117,11 @@ def test_every_packet_is_answered_with_a_cycles_correction_and_its_joints_are_tr
     n = len(d.answered) + len(again.answered)
     # every packet reached the road and was answered (none dropped), and the answers came in their cycle
     assert road["packets"] == road["answered"] == n, road
-    assert road["dropped"] == {} and road["sessions"] == 2 and road["restarts"] == 1, road
+    # (and one more session after each silence of the robot's own, its host stalled, beyond the road's 200 ms,
+    # give or take 10 ms: the robot's clock and the road's)
+    assert road["dropped"] == {} and road["restarts"] == 1, road
+    assert 2 + d.silences(0.21) + again.silences(0.21) <= road["sessions"] <= 2 + d.silences(0.19) \
+        + again.silences(0.19), road
     first = again.answer[0][np.isfinite(again.answer[0])]
     assert again.answered[:3].all() and np.all(first == 0.0), again.answer[:3]     # from zero, at once
     # late answers to packets the robot sent on time (one it sent late, its own host stalled, has less of its

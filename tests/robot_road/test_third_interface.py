@@ -115,6 +115,9 @@ def test_the_running_service_answers_the_toy_robot(tmp_path, installed):
         service.stop()
     stats, _ = service.result()
     road = stats["robot"]
-    assert road["interface"] == "toy" and road["dropped"] == {} and road["sessions"] == 1, road
+    # one session, and one more after each silence of the robot's own (a stalled host) beyond the road's 200 ms
+    # (give or take 10 ms: the robot's clock and the road's)
+    assert road["interface"] == "toy" and road["dropped"] == {}, road
+    assert 1 + d.silences(0.21) <= road["sessions"] <= 1 + d.silences(0.19), road
     assert road["packets"] == road["answered"] == len(d.answered) > 0, road
     assert d.answered.sum() >= 0.9 * len(d.answered)

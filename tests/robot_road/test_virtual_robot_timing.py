@@ -133,3 +133,13 @@ def test_the_packets_before_a_row_reach_back_past_a_stall(stall_s, row_after_s):
     assert len(near) == 25 and np.all(np.diff(near) == 1)          # 100 ms of 4 ms cycles, in a row
     assert d.sent_unix[near].max() <= row + 0.005
     assert near[-1] == np.flatnonzero(d.sent_unix <= row + 0.005)[-1]
+
+
+def test_a_robots_silences_are_counted_by_their_length():
+    """Packets every 4 ms with two gaps (a host stalled 150 and 260 ms): one silence beyond 200 ms, two beyond
+    100 ms, none beyond 300 ms."""
+    t = np.arange(300) * 0.004
+    t[100:] += 0.150
+    t[200:] += 0.260
+    d = drive_sent_at(t)
+    assert (d.silences(0.2), d.silences(0.1), d.silences(0.3)) == (1, 2, 0)
