@@ -63,10 +63,12 @@ def trace(tmp_path: Path) -> dict[str, np.ndarray]:
     return {c: t.column(c).to_numpy() for c in t.column_names}
 
 
-def rows_before(tr: dict, sent_unix: float, back_s: float = 0.1) -> np.ndarray:
-    """The trace rows of the cycles run in the ``back_s`` before ``sent_unix`` (and 5 ms after: the clocks)."""
-    u = tr["unix_time_s"]
-    return np.flatnonzero((u >= sent_unix - back_s) & (u <= sent_unix + 0.005))
+def rows_before(tr: dict, sent_unix: float, cycles: int = 100) -> np.ndarray:
+    """The trace rows of the service's last ``cycles`` cycles (100 ms at 1 ms) before ``sent_unix`` (and 5 ms
+    after: the clocks), counted in cycles, not in time: after the host stalls, a packet can be answered with a
+    correction of the cycle before the stall, more than 100 ms before it."""
+    end = int(np.searchsorted(tr["unix_time_s"], sent_unix + 0.005, side="right"))
+    return np.arange(max(0, end - cycles), end)
 
 
 def corrections(tr: dict, rows: np.ndarray) -> np.ndarray:
