@@ -52,16 +52,20 @@ class Answering:
         self.image.close()
 
 
-@pytest.mark.parametrize("delay_s, in_time", [(0.0, True), (0.03, False)], ids=["came_in_time", "came_late"])
+CYCLE_S = 0.15      # the robot's cycle here: long enough for the answering thread on a loaded host (CI once took
+                    # more than 4 ms to answer in a fresh clone's run), so only the stall decides
+
+
+@pytest.mark.parametrize("delay_s, in_time", [(0.0, True), (0.3, False)], ids=["came_in_time", "came_late"])
 def test_an_answer_is_judged_by_its_arrival_when_the_robot_reads_it_late(delay_s, in_time):
     """The robot's clock stands still until the answer is in its socket, then jumps past the deadline (its process
     stalled before it read): the answer that came at once counts as answered in its cycle, with its round trip
-    from the kernel's stamp; one that came 30 ms after the packet, past its 4 ms cycle, is late."""
+    from the kernel's stamp; one that came 0.3 s after the packet, past its cycle (`CYCLE_S`), is late."""
     peer = Answering(delay_s)
     vr = VirtualRobot(controller_for(RobotSettings.model_validate(SECTION), ROBOT), "127.0.0.1", peer.port,
                       lambda t: Q)
     start = time.monotonic()
-    answer_by = start + 0.004
+    answer_by = start + CYCLE_S
     calls = []
 
     def stalled_clock() -> float:
@@ -79,7 +83,7 @@ def test_an_answer_is_judged_by_its_arrival_when_the_robot_reads_it_late(delay_s
         peer.close()
     assert answered is in_time
     if in_time:
-        assert 0.0 < rtt_s < 0.004 and np.all(np.isfinite(vr.controller.answer)) and vr.controller.late == 0
+        assert 0.0 < rtt_s < CYCLE_S and np.all(np.isfinite(vr.controller.answer)) and vr.controller.late == 0
     else:
         assert np.isnan(rtt_s) and vr.controller.late == 1
 
