@@ -61,8 +61,14 @@ class Drive:
         packets, not in time: after the host stalls the row of ``unix_s`` can still hold a packet sent before the
         stall, which a window of time would have left out."""
         period = float(np.median(np.diff(self.sent_unix)))
-        end = int(np.searchsorted(self.sent_unix, unix_s + slack_s, side="right"))
-        return np.arange(max(0, end - int(np.ceil(span_s / period))), end)
+        return newest_up_to(self.sent_unix, unix_s + slack_s, int(np.ceil(span_s / period)))
+
+
+def newest_up_to(stamps: np.ndarray, until: float, count: int) -> np.ndarray:
+    """The indices of the newest ``count`` of the rising ``stamps`` at or before ``until``: a window counted in
+    rows, which a host's stall does not empty as a window of time would."""
+    end = int(np.searchsorted(stamps, until, side="right"))
+    return np.arange(max(0, end - count), end)
 
 
 def drive(vr: VirtualRobot, seconds: float, t0: float | None = None, priority: int = 0) -> Drive:

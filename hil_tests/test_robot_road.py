@@ -15,7 +15,7 @@ import pytest
 
 from hil.priority import ROAD_IO_FIFO as IO_FIFO
 from hil.priority import ROBOT_FIFO
-from hil.robot_drive import Drive, drive
+from hil.robot_drive import Drive, drive, newest_up_to
 from hil.run import ServiceProcess
 from hil.testing import CONFIG, free_port, write_config
 from hil.virtual_robot import VirtualRobot, controller_for
@@ -67,8 +67,7 @@ def rows_before(tr: dict, sent_unix: float, cycles: int = 100) -> np.ndarray:
     """The trace rows of the service's last ``cycles`` cycles (100 ms at 1 ms) before ``sent_unix`` (and 5 ms
     after: the clocks), counted in cycles, not in time: after the host stalls, a packet can be answered with a
     correction of the cycle before the stall, more than 100 ms before it."""
-    end = int(np.searchsorted(tr["unix_time_s"], sent_unix + 0.005, side="right"))
-    return np.arange(max(0, end - cycles), end)
+    return newest_up_to(tr["unix_time_s"], sent_unix + 0.005, cycles)
 
 
 def corrections(tr: dict, rows: np.ndarray) -> np.ndarray:

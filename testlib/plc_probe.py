@@ -29,6 +29,15 @@ def f32_words(x):
     return list(struct.unpack("<HH", struct.pack("<f", x)))
 
 
+def counted(c, at_least: int, give_up_s: float = 10.0):
+    """The service's registers, read again until its cycle count reaches ``at_least`` (``give_up_s`` at most)."""
+    r, give_up = c.read_input_registers(BASE, count=32), time.monotonic() + give_up_s
+    while u32(r.registers[4:6]) < at_least and time.monotonic() < give_up:
+        time.sleep(0.001)
+        r = c.read_input_registers(BASE, count=32)
+    return r
+
+
 def main() -> int:
     port = int(sys.argv[1])
     q = [float(v) for v in sys.argv[2].split(",")]
@@ -37,19 +46,12 @@ def main() -> int:
         assert c.connect()
         # from the cycle's first count on: the service's start can return before its task runs (a fresh clone's
         # CI twice read 0 first and 487-490 cycles a second later, the task started half a second into the window)
-        r0, give_up = c.read_input_registers(BASE, count=32), time.monotonic() + 10.0
-        while u32(r0.registers[4:6]) < 1 and time.monotonic() < give_up:
-            time.sleep(0.001)
-            r0 = c.read_input_registers(BASE, count=32)
+        r0 = counted(c, 1)
         t0 = time.monotonic()
         time.sleep(1.0)
-        r1 = c.read_input_registers(BASE, count=32)
         # deadlines the host held the cycle past are counted by the cycle after the first that runs again
         # (io_base.deadlines): read until two more cycles have run, so a stall under way at the read is counted
-        first, give_up = u32(r1.registers[4:6]), time.monotonic() + 10.0
-        while u32(r1.registers[4:6]) < first + 2 and time.monotonic() < give_up:
-            time.sleep(0.001)
-            r1 = c.read_input_registers(BASE, count=32)
+        r1 = counted(c, u32(c.read_input_registers(BASE, count=32).registers[4:6]) + 2)
         t1 = time.monotonic()
         out["cycles"] = [u32(r0.registers[4:6]), u32(r1.registers[4:6])]
         out["exceed"] = [u32(r0.registers[6:8]), u32(r1.registers[6:8])]
