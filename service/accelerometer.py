@@ -75,7 +75,8 @@ class BoxReplay:
     """The box's samples from a file (module docstring): `at` gives the count of samples released by cycle time
     ``t`` and the newest of them, as the PLC's ``acc_samples`` and ``acc_x..z``. The file is a CSV of
     `REPLAY_COLUMNS`, or a service's trace (`stiffness.data.trace_file`): its readings (`Trace.box_readings`),
-    from its first row's time, so a cut traced with its box runs again with the same readings at the same cycles.
+    from its first row's time, so a cut traced with its box runs again with the same readings at the same cycle
+    times (in real time, a late cycle takes the newer of two).
     DataError names the file, line and column of a bad file, or its last line where the file was cut off."""
 
     def __init__(self, path):
