@@ -23,12 +23,14 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..data.trace_file import Trace
+from ..data.trace_file import Gap, Trace
 from ..errors import DataError
 from ..kinematics.robot import Robot
+from .left_out import GAP_MARGIN_MM, Jump, jumps
 
 TASK_RUN = 1
 CHORD_STEPS = 20         # a chord between two traced samples up to this many typical steps long is the path
+PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 WALL_HEIGHT_MM = 50.0    # a measured wall lies within this of the tool centre's path along the tool axis (an end
                          # mill's flutes reach a few diameters; 250 mm is a frame in metres)
 
@@ -104,7 +106,37 @@ class TracedCut(ToolPath):
     rows: np.ndarray
     q_deg: np.ndarray
 
-    def abeam(self, p2: np.ndarray, near: np.ndarray) -> float:
+    @cached_property
+    def blind(self) -> list[Gap | Jump]:
+        """Where the trace is blind, in row order: the rows it lost (`Trace.gaps`) and where its joints jumped
+        (`left_out.jumps`)."""
+        return sorted(self.trace.gaps() + jumps(self.trace, self.tool, self.run), key=lambda b: b.row)
+
+    def passing(self, p2: np.ndarray, r: float, near_m: float) -> Passing:
+        """Where the path passes the in-plane points ``p2``: each one's nearest sample, and, for each one on the
+        wall (the tool radius ``r`` off the path within ``near_m``, m), how many passes of the tool came within
+        PASS_MARGIN_MM as close as the closest one and, where one did, the fractional trace row abeam of it and
+        the blind span (`blind`) the path passed within GAP_MARGIN_MM of there."""
+        near, j = self.tree.query(p2)
+        passes, u = np.zeros(len(p2), dtype=int), np.full(len(p2), np.nan)
+        for k in np.nonzero(np.abs(near - r) <= near_m)[0]:
+            cand = np.sort(np.array(self.tree.query_ball_point(p2[k], near[k] + PASS_MARGIN_MM / 1000.0), dtype=int))
+            passes[k] = 1 + int(np.sum(np.diff(cand) > 1)) if len(cand) else 0
+            if passes[k] == 1:
+                u[k] = self._abeam(p2[k], cand)
+        return Passing(near, self.rows[j], passes, u, self._blind_near(u))
+
+    def _blind_near(self, u: np.ndarray) -> np.ndarray:
+        """For each fractional trace row ``u``, the index into `blind` of the span the path passed within
+        GAP_MARGIN_MM of there, or -1 (also for NaN): by the path's length, so a tool standing still adds nothing."""
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.tool, axis=0), axis=1))])
+        s_u = np.interp(u, np.arange(len(s)), s)
+        out, margin = np.full(len(u), -1), GAP_MARGIN_MM / 1000.0
+        for g, b in enumerate(self.blind):
+            out[(s_u >= s[b.row] - margin) & (s_u <= s[b.row + 1] + margin) & (out < 0)] = g
+        return out
+
+    def _abeam(self, p2: np.ndarray, near: np.ndarray) -> float:
         """The fractional trace row where the path passes abeam of the in-plane point ``p2``: the foot of the
         perpendicular on the polyline beside the nearest of its samples ``near`` (chords between rows that follow
         each other)."""
@@ -113,9 +145,24 @@ class TracedCut(ToolPath):
         return float(self.rows[s] + f)
 
 
-def traced_cut(trace: Trace, robot: Robot, what: str) -> TracedCut:
-    """The cut of ``trace`` through ``robot``'s kinematics; DataError when nothing ran or the tool hardly moved
-    (``what``: the file it should have made)."""
+@dataclass
+class Passing:
+    """Where a cut's path passes some points (`TracedCut.passing`): ``near`` each one's distance from its nearest
+    sample (m) and ``row`` that sample's trace row; ``passes`` how many passes of the tool came about as close (0
+    for a point off the wall), ``u`` the fractional trace row abeam of it where one pass did (NaN elsewhere), and
+    ``blind`` the index of the blind span of the trace (`TracedCut.blind`) the path passed near there (-1: none).
+    Separate passes are runs of moving samples that do not follow each other (a stalled host leaves no such gap)."""
+
+    near: np.ndarray
+    row: np.ndarray
+    passes: np.ndarray
+    u: np.ndarray
+    blind: np.ndarray
+
+
+def traced_cut(trace: Trace, robot: Robot) -> TracedCut:
+    """The cut of ``trace`` through ``robot``'s kinematics; DataError naming the trace when nothing ran or the tool
+    hardly moved."""
     run = trace.column("task_state") == TASK_RUN
     if not run.any():
         raise DataError(f"{trace.source}: no cycle of the trace ran (task state RUN): nothing was cut")
@@ -124,7 +171,7 @@ def traced_cut(trace: Trace, robot: Robot, what: str) -> TracedCut:
     tool = F[:, 7, :3, 3]
     moving = at_feed(trace.time_s, tool) & run
     if moving.sum() < 3:
-        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut {what}")
+        raise DataError(f"{trace.source}: the tool hardly moves in this trace: it cannot have cut a part")
     a = np.median(F[moving, 7, :3, 2], axis=0)
     a /= np.linalg.norm(a)
     return TracedCut(tool[moving], a, trace=trace, tool=tool, run=run, rows=np.nonzero(moving)[0],

@@ -127,18 +127,6 @@ def line_ranges(lines: list[int]) -> str:
     return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
-def gap_of(tool: np.ndarray, rows: list[int], u: np.ndarray, margin_m: float = GAP_MARGIN_MM / 1000.0) -> np.ndarray:
-    """For each fractional trace row ``u``, the index into ``rows`` (each the last trace row before a gap) of the
-    gap the path passed within ``margin_m`` of there, or -1: by the path's length (``tool``, the tool centre of
-    every trace row, m), so a tool standing still adds nothing."""
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tool, axis=0), axis=1))])
-    s_u = np.interp(u, np.arange(len(s)), s)
-    out = np.full(len(u), -1)
-    for g, k in enumerate(rows):
-        out[(s_u >= s[k] - margin_m) & (s_u <= s[k + 1] + margin_m) & (out < 0)] = g
-    return out
-
-
 def gross_errors(parts: list, data, outlier: np.ndarray, residual: np.ndarray) -> list[LeftOut]:
     """The points a robust fit judged gross errors: ``outlier`` and ``residual`` (mm, after the fit) over the
     rows of ``data``, the ``parts``' (`PartRows`) datasets concatenated; named by part file and line."""

@@ -39,7 +39,7 @@ history for effects that have one (hysteresis).
 Checks, each naming the file and the line: points far from where the tool went; a file whose points fit
 the traced path only after scaling by 25.4 or 1000 (inches, metres); a trace that never passes the
 contour at all. A point the tool passed twice (the overlap of a closed contour's entry and exit: another
-pass came within PASS_MARGIN_MM as close to it as the closest one) is left out and named: which pass made
+pass came within `contour.PASS_MARGIN_MM` as close to it as the closest one) is left out and named: which pass made
 it cannot be told. So is a point made while the trace lost rows (a gap in its cycle count, `Trace.gaps`), or
 within GAP_MARGIN_MM of the path of them: where the arm was and what loaded it then is not known, and the
 path across the gap is a chord. The notes name each gap (its cycles, its time, how many rows) and the points
@@ -60,14 +60,13 @@ from ..data.part_points import PartMeasurement
 from ..data.trace_file import Gap, Trace
 from ..errors import DataError, Problems
 from ..kinematics.robot import Robot
-from .contour import WALL_HEIGHT_MM, TracedCut, plane_basis, traced_cut
-from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, gap_of, jumps, left_out_lines
+from .contour import WALL_HEIGHT_MM, Passing, TracedCut, plane_basis, traced_cut
+from .left_out import IN_GAP, JUMP, TWICE, Jump, LeftOut, left_out_lines
 from .suspects import causes, check_units, explain, frame_fit
 
 NEAR_MM = 3.0            # a point farther than this from r off the traced path is not on the contour: more
                          # than an arm deflects under a cut (a few tenths of a mm to about 2 mm)
 HISTORY_STEP_S = 0.005   # the load history between points, kept at this step
-PASS_MARGIN_MM = 0.5     # another pass made a point too when it came this close to the closest pass's distance
 SMOOTH_HZ = 10.0         # the trace's wrench, low-passed without lag (the arm's first modes are 7-20 Hz)
 
 
@@ -155,7 +154,7 @@ def read_against(part: PartMeasurement, trace: Trace, robot: Robot, label: str =
                  best_fit: bool = False, near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ) -> PartRows:
     """Match every point of ``part`` to the moment its ``trace`` passed it (the module's docstring): `read_cut`
     on the trace's cut."""
-    return read_cut(part, traced_cut(trace, robot, part.source), robot, label, best_fit, near_mm, smooth_hz)
+    return read_cut(part, traced_cut(trace, robot), robot, label, best_fit, near_mm, smooth_hz)
 
 
 def read_cut(part: PartMeasurement, cut: TracedCut, robot: Robot, label: str = "part",
@@ -185,8 +184,6 @@ def read_cut(part: PartMeasurement, cut: TracedCut, robot: Robot, label: str = "
         raise DataError(f"{part.source}: the points lie {height:+.1f} mm along the tool axis from the tool centre's "
                         f"path (median), where a wall the tool cut is within {WALL_HEIGHT_MM:g} mm of it: the points' "
                         "coordinates or the part_frame are that far off along the tool axis (metres for mm?)")
-    blind = trace.gaps() + jumps(trace, cut.tool, cut.run)        # rows lost, and joints that jumped
-    blind.sort(key=lambda b: b.row)
     def why_far(near: np.ndarray, some: bool = False) -> str:
         """Why the points lie off the path: all of them (the refusal), or ``some`` (the causes alone)."""
         fit = None if best_fit or part.frame is None else (lambda: frame_fit(part, _best_fit(part, cut, r), cut, r))
@@ -194,26 +191,36 @@ def read_cut(part: PartMeasurement, cut: TracedCut, robot: Robot, label: str = "
         return (causes if some else partial(explain, trace_source=trace.source))(
             part, near_m=near, path_span_mm=span, fit=fit, near_mm=near_mm)
 
-    used, u_of, left = _match(part, cut, cut.in_plane(p), r, near_mm, blind, why_far)
-    lost = gap_of(cut.tool, [b.row for b in blind], u_of)
-    for k in np.nonzero(used & (lost >= 0))[0]:
-        left[k] = int(lost[k])
-    used &= lost < 0
+    rows = rows_of(part, p, cut.passing(cut.in_plane(p), r, near_mm / 1000.0), cut, robot, label, frame,
+                   near_mm, smooth_hz, why_far)
+    if best_fit:
+        rows.notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
+                          "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
+                          "neither shown nor learned")
+    return rows
+
+
+def rows_of(part: PartMeasurement, p: np.ndarray, passing: Passing, cut: TracedCut, robot: Robot, label: str,
+            frame: np.ndarray, near_mm: float = NEAR_MM, smooth_hz: float = SMOOTH_HZ, why_far=None) -> PartRows:
+    """The points of ``part``, in the base at ``p`` (m) through ``frame``, at the moments the trace of ``cut``
+    passed them (``passing``, `TracedCut.passing`): those the tool passed once, where the trace saw it, as rows;
+    the others left out and named, or refused by line (`_match`, ``why_far``)."""
+    trace, r, blind = cut.trace, part.tool_radius_mm / 1000.0, cut.blind
+    used, u_of, left = _match(part, cut, passing, r, near_mm, blind, why_far)
+    for k in np.nonzero(used & (passing.blind >= 0))[0]:
+        left[k] = int(passing.blind[k])
+    used &= passing.blind < 0
     left_out = [LeftOut(part.source, int(part.lines[k]), part.labels[k], _why(blind[v]) if isinstance(v, int) else v)
                 for k, v in sorted(left.items())]
     hit = set(left.values())
     blind = [b for k, b in enumerate(blind) if isinstance(b, Gap) or k in hit]     # a jump no point was near: silent
-    if used.sum() < 3:
+    out = (_rows(part, cut, robot, label, used, u_of[used], p[used], r, frame, smoothed(trace, smooth_hz, blind))
+           if used.sum() >= 3 else None)
+    lines = left_out_lines(left_out)
+    if out is None:
         raise DataError(f"{part.source}: only {int(used.sum())} point(s) lie where the tool passed once"
-                        + "".join(f"; {n}" for n in left_out_lines(left_out)))
-    notes = [b.text(trace.source) for b in blind] + left_out_lines(left_out)
-    if best_fit:
-        notes.append("--best-fit placed the part by its own points: a constant offset of the contour (the mean "
-                     "deflection in the plane, a rigid shift of every point) is hidden in the placement and "
-                     "neither shown nor learned")
-    out = _rows(part, cut, robot, label, used, u_of[used], p[used], r, frame, notes,
-                smoothed(trace, smooth_hz, blind))
-    out.left_out, out.gaps = left_out, blind
+                        + "".join(f"; {n}" for n in lines))
+    out.left_out, out.gaps, out.notes = left_out, blind, [b.text(trace.source) for b in blind] + lines
     return out
 
 
@@ -221,38 +228,34 @@ def _why(blind: Gap | Jump) -> str:
     return IN_GAP if isinstance(blind, Gap) else JUMP
 
 
-def _match(part: PartMeasurement, cut: TracedCut, p2: np.ndarray, r: float, near_mm: float,
+def _match(part: PartMeasurement, cut: TracedCut, passing: Passing, r: float, near_mm: float,
            blind: list[Gap | Jump], why_far=None) -> tuple[np.ndarray, np.ndarray, dict[int, str | int]]:
-    """Each point's fractional trace row where the path of ``cut`` passes abeam of it (in-plane ``p2``): which
-    points are used, their rows, and why each other one is left out (a reason, or the index of the ``blind`` span
-    it lies beside). A point far off the path where the trace is blind is left out for that; far off elsewhere,
-    it is refused by line."""
-    tree = cut.tree
-    near, j = tree.query(p2)
-    at = {row: k for k, b in enumerate(blind) for row in range(b.row - getattr(b, "still", 0), b.row + 2)}
-    beside_gap = np.isin(cut.rows[j], list(at))
+    """Which points of ``part`` are used, at the fractional trace rows where the path of ``cut`` passes abeam of
+    them (``passing``), and why each other one is left out (a reason, or the index of the ``blind`` span it lies
+    beside). A point far off the path where the trace is blind is left out for that; far off elsewhere, it is
+    refused by line; a point another pass came within PASS_MARGIN_MM as close to is left out (passed twice)."""
+    near, row = passing.near, passing.row
+    at = {n: k for k, b in enumerate(blind) for n in range(b.row - getattr(b, "still", 0), b.row + 2)}
+    beside_gap = np.isin(row, list(at))
     far = np.abs(near - r) > near_mm / 1000.0
     if (far & ~beside_gap).mean() > 0.5:            # the causes, each with its evidence (`suspects.explain`)
         raise DataError(why_far(near) if why_far is not None else
                         f"{part.source}: the trace {cut.trace.source} never passes the measured contour")
-    problems, used, u_of, left = Problems(), np.zeros(len(p2), dtype=bool), np.full(len(p2), np.nan), {}
-    for k in range(len(p2)):
+    problems, left = Problems(), {}
+    for k in range(len(near)):
         if far[k] and beside_gap[k]:
-            left[k] = at[int(cut.rows[j[k]])]
+            left[k] = at[int(row[k])]
         elif far[k]:
             problems.add(f"{part.where(k)}: the point lies {1000 * (near[k] - r):+.2f} mm off where the tool passed "
                          f"(tolerance {near_mm:g} mm): it is not on the machined contour")
-        else:
-            cand = np.array(tree.query_ball_point(p2[k], near[k] + PASS_MARGIN_MM / 1000.0), dtype=int)
-            if _passes(np.sort(cand)) > 1:
-                left[k] = TWICE
-            else:
-                u_of[k], used[k] = cut.abeam(p2[k], cand), True
+        elif passing.passes[k] > 1:
+            left[k] = TWICE
     if problems:
-        why = f". {why_far(near, some=True)}" if why_far is not None and problems.count >= max(3, 0.1 * len(p2)) else ""
+        why = f". {why_far(near, some=True)}" if why_far is not None and problems.count >= max(3, 0.1 * len(near)) else ""
         raise DataError(f"{part.source}: {problems.count} point(s) are not on the contour the trace cut; "
                         f"nothing was used{why}", problems)
-    return used, u_of, left
+    used = ~far & (passing.passes == 1)
+    return used, np.where(used, passing.u, np.nan), left
 
 
 def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap | Jump] | None = None) -> np.ndarray:
@@ -271,7 +274,7 @@ def smoothed(trace: Trace, cutoff_hz: float, gaps: list[Gap | Jump] | None = Non
     return w
 
 
-def _rows(part, cut: TracedCut, robot, label, used, u, p, r, frame, notes, wrench) -> PartRows:
+def _rows(part, cut: TracedCut, robot, label, used, u, p, r, frame, wrench) -> PartRows:
     """The used points at their fractional trace rows ``u``: normals, deviations, and the trace between."""
     trace, a = cut.trace, cut.a
     k0 = np.clip(np.floor(u).astype(int), 0, len(trace) - 2)
@@ -289,14 +292,7 @@ def _rows(part, cut: TracedCut, robot, label, used, u, p, r, frame, notes, wrenc
     shift = np.einsum("na,na->n", n, c - c_nom) * 1000.0
     e = (dist - r) * 1000.0
     return PartRows(part, trace, label, used, u, at(trace.time_s[:, None])[:, 0], p, c, n,
-                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, cut.tool,
-                    notes)
-
-
-def _passes(positions: np.ndarray) -> int:
-    """How many separate passes of the tool the (sorted) positions among the moving samples hold: the tool
-    left the neighbourhood between two that are not consecutive (a stalled host leaves no such gap)."""
-    return 1 + int(np.sum(np.diff(positions) > 1)) if len(positions) else 0
+                    np.broadcast_to(a, c.shape).copy(), e, e + shift, q, at(wrench), shift, frame, wrench, cut.tool)
 
 
 def _best_fit(part: PartMeasurement, cut: TracedCut, r: float, iterations: int = 30) -> np.ndarray:
