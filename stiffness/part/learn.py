@@ -12,6 +12,10 @@ not physical is refused, as the service refuses it.
 
 A part without a datum (``--best-fit``) adds its placement to the fit, a shift in its plane that absorbs any
 constant shift of its contour, and with it what the model would have said of one.
+
+Where the parts leave more than the model's noise explains (`sanity`), they are learned once more with one
+distance along every normal a part (`RadiusOffset`): a radius that is off puts every point that far off along
+its normal, which the compliances absorb only in part, and only the offset gives back (`Offsets`).
 """
 
 from __future__ import annotations
@@ -33,12 +37,13 @@ from ..units import M_TO_MM
 from .contour import plane_basis
 from .left_out import GROSS, LeftOut, fit_account, left_out_lines, rms_kept_and_all
 from .rows import PartRows
-from .sanity import problems
+from .sanity import problems, residual_exceeds
 from .timing import when_made
 
 DETERMINED = 1.0        # a combination is the parts' when their information exceeds the prior's by this factor
 SHOWN = 6               # combinations listed
 PLACEMENT_M = 0.001     # the best fit placed a part; learning refines its shift within this (1 sigma)
+OFFSET_M = 0.005        # a radius off by up to a few mm: the offset's weak prior (1 sigma)
 
 
 class Placement(Effect):
@@ -80,6 +85,45 @@ class Placement(Effect):
             B[rows, 2 * i, 0, :3] = e1
             B[rows, 2 * i + 1, 0, :3] = e2
         return B
+
+
+class RadiusOffset(Effect):
+    """One distance along every normal a part, as a radius off by that much puts each point (a stylus radius too
+    large, or a tool radius too small, by d moves every point d toward the wall): a parameter a part, its basis
+    the normal of each of its points (``normals``, base axes, one a dataset row). Not a physical effect and not
+    in the library: `learn` adds it to learn the parts once more when they leave more than the noise."""
+
+    name = "radius_offset"
+    per_joint = False
+    joints = ()
+
+    def __init__(self, parts: list[PartRows], normals: np.ndarray):
+        self.labels = [p.label for p in parts]
+        self.normals = normals
+        params = [Param(f"{_key(lab)}_offset_mm", "mm", 1e-4, M_TO_MM) for lab in self.labels]
+        super().__init__(params, np.zeros(len(params)), None)
+        self.loose = np.full(len(params), OFFSET_M)
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> RadiusOffset:
+        raise ConfigError(f"{where}: radius_offset is not a model effect (it exists only while learning from parts)")
+
+    def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        B = self.zeros(ctx, len(self.labels))
+        for i, lab in enumerate(self.labels):
+            rows = ctx.config == ctx.config_labels.index(lab)
+            B[rows, i, 0, :3] = self.normals[rows]
+        return B
+
+
+@dataclass
+class Offsets:
+    """The parts learned once more with a `RadiusOffset`: each part's offset along its normals and its standard
+    error (mm, by label), and the RMS the parts then leave over the points kept (mm)."""
+
+    offset_mm: dict[str, float]
+    std_mm: dict[str, float]
+    after_mm: float
 
 
 def _key(label: str) -> str:
@@ -126,6 +170,8 @@ class Learned:
                                               # after: fit.residual[:, 0]; the text's RMS and the report's plot
                                               # both read these two
     best_fit: bool = False                    # the parts were placed by a best fit, not by their frames
+    offsets: Offsets | None = None            # learned again with one offset a part, where the parts left more
+                                              # than the noise (`sanity`)
 
     @property
     def points_kept(self) -> int:
@@ -173,12 +219,7 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
         raise StiffnessError(f"two parts share the label {labels}: each part needs its own")
     parts = [when_made(p, model) for p in parts]
     data = _concat([p.dataset(model.robot, model.input_map()) for p in parts])
-    work, fit_prior = model, prior
-    if best_fit:
-        placement = Placement(parts)
-        work = StiffnessModel(model.robot, model.effects + [placement], model.name, model.description,
-                              model.robot_ref, model.noise, model.source, model.payload)
-        fit_prior = prior.with_more(work.param_labels()[len(model.theta):], placement.loose)
+    work, fit_prior = _with_nuisance(model, prior, [Placement(parts)] if best_fit else [])
     ctx = work.context(data)
     pred_before = work.predict(ctx)
     say(f"fitting {len(model.theta)} parameters to {int(data.measured.sum())} points with the prior")
@@ -201,8 +242,33 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
                   before_all_mm=before_all, after_all_mm=after_all, data=data,
                   missed_before=data.deflection[:, 0] - pred_before[:, 0],
                   left_out=left_out, best_fit=best_fit)
+    if residual_exceeds(out, model):
+        say("learning again with one offset along the normals a part")
+        out.offsets = _offsets(model, parts, data, prior, best_fit)
     out.problems = problems(out, model, data)
     return out
+
+
+def _with_nuisance(model: StiffnessModel, prior: Prior, extra: list[Effect]) -> tuple[StiffnessModel, Prior]:
+    """``model`` with the nuisance effects ``extra`` (`Placement`, `RadiusOffset`) and ``prior`` with their weak
+    priors."""
+    if not extra:
+        return model, prior
+    work = StiffnessModel(model.robot, model.effects + extra, model.name, model.description, model.robot_ref,
+                          model.noise, model.source, model.payload)
+    return work, prior.with_more(work.param_labels()[len(model.theta):], np.concatenate([e.loose for e in extra]))
+
+
+def _offsets(model: StiffnessModel, parts: list[PartRows], data: Dataset, prior: Prior, best_fit: bool) -> Offsets:
+    """The parts learned once more with one `RadiusOffset` a part (and their placements with --best-fit)."""
+    offset = RadiusOffset(parts, data.axes[:, 0])
+    work, fit_prior = _with_nuisance(model, prior, ([Placement(parts)] if best_fit else []) + [offset])
+    result = fit(work, work.context(data), prior=fit_prior, nonnegative=True)
+    k = len(offset.labels)
+    value, std = result.model.theta[-k:], np.sqrt(np.diag(result.covariance))[-k:]
+    _, after, _ = fit_account(parts, data, result)
+    return Offsets({lab: M_TO_MM * float(v) for lab, v in zip(offset.labels, value)},
+                   {lab: M_TO_MM * float(v) for lab, v in zip(offset.labels, std)}, after)
 
 
 def _concat(sets: list[Dataset]) -> Dataset:

@@ -88,24 +88,39 @@ def _keys(learned) -> tuple[str, str, bool]:
     return radius, frame, all(p.part.probed for p in learned.parts)
 
 
+def residual_exceeds(learned, start) -> bool:
+    """Whether the parts leave more after learning than the model's stated noise explains (`_residual`)."""
+    rms, limit, _ = _residual_and_limit(learned, start)
+    return rms > limit
+
+
+def _residual_and_limit(learned, start) -> tuple[float, float, int]:
+    """The parts' RMS after learning over the fit's inliers, the most the stated noise explains at P_FAR, and
+    the points (mm, mm, n); (0, inf, n) where the points do not outnumber the combinations determined."""
+    fit = learned.fit
+    r = fit.residual[fit.inlier & np.isfinite(fit.residual[:, 0]), 0]
+    n, k = len(r), len(learned.determined)
+    if n <= k:
+        return 0.0, float("inf"), n
+    limit = float(start.noise["position_mm"]) * float(np.sqrt(chi2.isf(P_FAR, n - k) / (n - k)))
+    return float(np.sqrt(np.mean(r ** 2))), limit, n
+
+
 def _residual(learned, start, data) -> tuple[str, str] | None:
     """The parts' residual after learning against the stated noise (the module's docstring), with the radius or
     the shift of the points that explains it when one does (kind PLACEMENT; RESIDUAL when none does)."""
-    fit = learned.fit
-    rows = fit.inlier & np.isfinite(fit.residual[:, 0])
-    r = fit.residual[rows, 0]
-    n, k = len(r), len(learned.determined)
-    sigma = float(start.noise["position_mm"])
-    if n <= k:
-        return None
-    limit = sigma * float(np.sqrt(chi2.isf(P_FAR, n - k) / (n - k)))
-    rms = float(np.sqrt(np.mean(r ** 2)))
+    rms, limit, n = _residual_and_limit(learned, start)
     if rms <= limit:
         return None
+    fit = learned.fit
+    rows = fit.inlier & np.isfinite(fit.residual[:, 0])
     radius, frame, probed = _keys(learned)
-    hint = _placement_hint(learned, data, rows, r)
+    sigma = float(start.noise["position_mm"])
+    hint = (_placement_hint(learned, data, rows, fit.residual[rows, 0])
+            or _offset_hint(learned, rms, limit, n, sigma))
     head = (f"the parts leave RMS {rms:.4f} mm after learning, where the model's stated noise (noise.position_mm "
-            f"{sigma:g} mm) explains at most {limit:.4f} mm over {n} points: the parts do not fit this model. ")
+            f"{sigma:g} mm) explains at most {limit:.4f} mm over {n} points: the parts "
+            "do not fit this model. ")
     if hint:
         return PLACEMENT, head + hint
     placed = "" if probed or learned.best_fit else f"a part not where its {frame} says (or place it by --best-fit), "
@@ -152,6 +167,26 @@ def _placement_hint(learned, data, rows: np.ndarray, r: np.ndarray) -> str:
             f"{100 * both:.0f} % of what is left ({'; '.join(shifts)}: correct part_frame's xyz_mm by minus that), "
             f"or place it by --best-fit; else a wrong {radius}, a trace that is not the part's, or an effect the "
             "model lacks")
+
+
+def _offset_hint(learned, rms: float, limit: float, n: int, sigma: float) -> str:
+    """'Likely a wrong radius ...' when the parts learned once more with one distance along every normal a part
+    (`learn.Offsets`) leave at most ``limit`` (what the noise ``sigma`` explains) where they left ``rms`` over
+    ``n`` points, and the distances' share of that is far: the drop in chi-square, n (rms^2 - after^2) / sigma^2,
+    beyond its tail at P_FAR for one distance a part (a likelihood ratio; a distance's own standard error
+    counts what the compliances could also have absorbed, so it says less); '' otherwise."""
+    got = learned.offsets
+    if got is None or got.after_mm > limit:
+        return ""
+    if n * (rms ** 2 - got.after_mm ** 2) / sigma ** 2 <= chi2.isf(P_FAR, len(got.offset_mm)):
+        return ""
+    by_label = {p.label: p.part for p in learned.parts}
+    radius, frame, _ = _keys(learned)
+    return (f"Likely a wrong {radius}: learned once more with one distance along every normal a part, the parts "
+            f"leave RMS {got.after_mm:.4f} mm, within what the noise explains ("
+            + "; ".join(_radius_fix(by_label[lab], lab, v) for lab, v in got.offset_mm.items())
+            + "; the compliances share such a distance, so its size is uncertain); else a wrong "
+            f"{frame}, or an effect the model lacks")
 
 
 def _radius_fix(part, label: str, c: float) -> str:

@@ -13,8 +13,13 @@ import re
 import numpy as np
 import pytest
 
-from stiffness.model.prior import covariance_entry
+from stiffness.data.part_points import read_part
+from stiffness.data.trace_file import read_trace
+from stiffness.model.prior import Prior, covariance_entry
 from stiffness.model.stiffness_model import StiffnessModel
+from stiffness.part.learn import learn
+from stiffness.part.rows import read_against
+from stiffness.part.sanity import residual_exceeds
 from testlib.common import ROOT
 from testlib.part import synthetic_cut
 from tools.cli import main
@@ -37,6 +42,7 @@ def cut(tmp_path_factory):
     x = float(re.search(r"xyz_mm: \[([^,]+),", text).group(1))
     (w / "frame_off.csv").write_text(text.replace(f"xyz_mm: [{x:.4f},", f"xyz_mm: [{x + SHIFT_MM:.4f},"))
     (w / "radius5.csv").write_text(text.replace("# tool_radius_mm: 4\n", "# tool_radius_mm: 5\n"))
+    (w / "radius3.7.csv").write_text(text.replace("# tool_radius_mm: 4\n", "# tool_radius_mm: 3.7\n"))
     assert (w / "frame_off.csv").read_text() != text and (w / "radius5.csv").read_text() != text
     known = truth.copy()               # a prior far tighter than any part: 0.01 % of each value
     known.covariance = covariance_entry(known, np.diag((1e-4 * known.theta) ** 2), "a campaign of a million rows")
@@ -121,3 +127,22 @@ def test_an_input_with_a_negative_compliance_is_named_and_the_data_not_blamed(cu
     warning = next(x for x in o.splitlines() if "joint_spring@joint2.x_m_per_N" in x and x.startswith("warning:"))
     assert "the starting model already held them below zero" in warning
     assert "the data push them below zero" not in warning
+
+
+def test_a_radius_the_compliances_half_absorb_is_given_back_by_one_distance_along_the_normals(cut):
+    """A tool radius of 3.7 mm for the 4 mm cutter puts every point 0.3 mm beyond the wall: learning takes most of
+    it into the compliances and leaves a little more than the noise explains (0.041 mm against 0.038). Learned
+    once more with one distance along every normal (`learn.Offsets`), the part fits within the noise and the
+    distance has the radius's sign; the sound part is not learned again."""
+    w, c, _ = cut
+    start = StiffnessModel.from_yaml(w / "start.yaml")
+    prior = Prior.catalogue(start, 0.5)
+
+    def learned(part):
+        return learn(start, [read_against(read_part(part), read_trace(c.trace), start.robot)], prior)
+
+    sound, off = learned(c.part), learned(w / "radius3.7.csv")
+    assert not residual_exceeds(sound, start) and sound.offsets is None
+    assert residual_exceeds(off, start) and off.offsets is not None
+    assert off.offsets.after_mm < 0.1 * off.after_mm and off.offsets.offset_mm["part"] > 0.0, off.offsets
+    assert off.problems and "tool_radius_mm" in off.problems[0]
