@@ -115,33 +115,39 @@ class VirtualAccelerometer:
         """The box's process data as MAIN reads them at the PLC's cycle at ``t`` (s); ``q_held_deg``: the joints
         the PLC commanded, which the drives reach by the next cycle, moving there in a straight line (their fine
         interpolation: a servo does not jump a setpoint's step)."""
-        F = self.robot.frames(np.radians(np.asarray(q_held_deg, dtype=float))[None, :])
-        F_ref = self.robot.frames(np.radians(np.asarray(self.q_ref(t), dtype=float))[None, :])
-        offset = F[0, 7, :3, 3] - F_ref[0, 7, :3, 3]             # the correction's (and the servo's) TCP offset
+        q = np.radians(np.array([np.asarray(q_held_deg, dtype=float), np.asarray(self.q_ref(t), dtype=float)]))
+        F = self.robot.frames(q)
+        offset = F[0, 7, :3, 3] - F[1, 7, :3, 3]                 # the correction's (and the servo's) TCP offset
         if self.c is None:
             self.c, self.held, self.target, self.t_held = [offset, offset], offset, offset, t
             self.k = max(0, int(np.ceil((t - self.t0) / self.dt - 1e-9)))
         span = max(t - self.t_held, 1e-9)
-        while self.t0 + self.k * self.dt < t - 1e-9 and self.k < len(self.acc_ref):
-            w = min(1.0, (self.t0 + self.k * self.dt - self.t_held) / span)
-            self._step(self.held + w * (self.target - self.held))
+        steps = []
+        while self.t0 + (self.k + len(steps)) * self.dt < t - 1e-9 and self.k + len(steps) < len(self.acc_ref):
+            w = min(1.0, (self.t0 + (self.k + len(steps)) * self.dt - self.t_held) / span)
+            steps.append(self.held + w * (self.target - self.held))
+        if steps:
+            self._steps(np.array(steps))
         self.held, self.target, self.t_held = self.target, offset, t
-        self.R = self.robot.sensor_pose(F)[0, :3, :3] @ self.R_mount
+        self.R = self.robot.sensor_pose(F[:1])[0, :3, :3] @ self.R_mount
         return {"nAccX": self.counts[0], "nAccY": self.counts[1], "nAccZ": self.counts[2], "bAccToggle": self.toggle,
                 "bAccStateX": False, "bAccStateY": False, "bAccStateZ": False}
 
-    def _step(self, c: np.ndarray) -> None:
-        """One grid step with the servos at TCP offset ``c``; the box takes a value every ``every`` steps."""
-        a = (c - 2.0 * self.c[1] + self.c[0]) / (self.dt * self.dt)
-        self.c = [self.c[1], c]
-        y, self.zc = signal.sosfilt(self.sos, a[None, :], axis=0, zi=self.zc)
-        if self.k % self.every == 0:
-            a_lp = self.acc_ref[self.k] + y[0]
-            self.true.append((self.t0 + self.k * self.dt, a_lp))
-            f = self.R.T @ (a_lp - self.g) + self.bias + self.rng.normal(0.0, self.noise, 3)
-            self.counts = [int(np.clip(np.rint(x / (1e-3 * G0)), -32768, 32767)) for x in f]
-            self.toggle = not self.toggle
-        self.k += 1
+    def _steps(self, c: np.ndarray) -> None:
+        """Grid steps with the servos at TCP offsets ``c`` (n, 3), low-passed as one block (the filter's state
+        carried: the same as step by step); the box takes a value every ``every`` steps."""
+        path = np.vstack([self.c[0], self.c[1], c])
+        a = (path[2:] - 2.0 * path[1:-1] + path[:-2]) / (self.dt * self.dt)
+        self.c = [path[-2], path[-1]]
+        y, self.zc = signal.sosfilt(self.sos, a, axis=0, zi=self.zc)
+        for i in range(len(c)):
+            if self.k % self.every == 0:
+                a_lp = self.acc_ref[self.k] + y[i]
+                self.true.append((self.t0 + self.k * self.dt, a_lp))
+                f = self.R.T @ (a_lp - self.g) + self.bias + self.rng.normal(0.0, self.noise, 3)
+                self.counts = [int(np.clip(np.rint(x / (1e-3 * G0)), -32768, 32767)) for x in f]
+                self.toggle = not self.toggle
+            self.k += 1
 
 
 def reference_motion(scenario, truth, world) -> tuple[np.ndarray, np.ndarray]:
