@@ -38,7 +38,7 @@ def test_a_point_on_the_wall_is_placed_at_the_fractional_row_abeam_of_it(k, s, o
     x = STEP_M * (k + s)
     p = np.array([[x, side * (R_M + off_mm / 1000.0), 0.0], [x, side * (R_M + 9e-3), 0.0]])
     got = cut.passing(cut.in_plane(p), R_M, 3e-3)
-    assert got.passes[0] == 1 and abs(got.u[0] - (k + s)) < 1e-9 and got.blind[0] == -1
+    assert got.passes[0] == 1 and abs(got.u[0] - (k + s)) * STEP_M < 1e-9 and got.blind[0] == -1     # 1 nm
     assert got.passes[1] == 0 and np.isnan(got.u[1]) and got.blind[1] == -1
     assert got.row[0] in (k, k + 1) and abs(got.near[0] - np.hypot(x - STEP_M * got.row[0], p[0, 1])) < 1e-12
 
