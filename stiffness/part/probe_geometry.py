@@ -74,6 +74,7 @@ def readings(probe: ProbeLog, misread: list[Misreading], robot: Robot, cut: Trac
 
 
 def _reading(probe: ProbeLog, robot: Robot, cut: TracedCut, near_mm: float | None) -> Reading:
+    """One log read against ``cut`` (`Reading`'s fields); ``near_mm`` None: without where the path passes."""
     touches = touches_in_base(probe, robot)
     centres, points = cut.in_plane(touches.centres), cut.in_plane(touches.points)
     dist, n = cut.across(centres)                                # across the path, toward the stylus centre
