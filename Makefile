@@ -17,21 +17,22 @@ $(STAMP): pyproject.toml
 
 # BLAS one thread per process: the suite runs fits beside services on two cores, where OpenBLAS's threads
 # only contend (the CPU-bound tests ran 4.8 x faster so, one loaded run each); subprocesses inherit it.
-# tests/ on two pytest workers (pytest-xdist), each taking whole files so a file's fixtures are built once;
-# then hil_tests/ in one process: the HIL's virtual robot follows the wall clock, and its real-time passes beside
-# another worker failed under load (docs/contributing.md). WORKERS=0 runs tests/ in one process too.
+# The tests on two pytest workers (pytest-xdist), each taking whole files so a file's fixtures are built once;
+# then, in one process, the HIL's (its virtual robot follows the wall clock, and its real-time passes beside
+# another worker failed under load) and those marked serial (docs/contributing.md). Both halves run; either
+# failing fails. WORKERS=0 runs the first half in one process too.
 WORKERS ?= 2
 PYTEST  := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(PY) -m pytest -q
 test: $(STAMP) node-deps mbpoll
 	$(VENV)/bin/lint-imports
-	$(PYTEST) -n $(WORKERS) --dist loadfile tests; unit=$$?; $(PYTEST) hil_tests; hil=$$?; \
-	[ $$unit -eq 0 ] && [ $$hil -eq 0 ]
+	$(PYTEST) -n $(WORKERS) --dist loadfile -m "not (hil or serial)"; first=$$?; \
+	$(PYTEST) -m "hil or serial"; second=$$?; [ $$first -eq 0 ] && [ $$second -eq 0 ]
 
 # The quick lane for everyday work: every package's unit tests, without the tests that run the service or
 # the HIL in real time, compile cycles or run whole discovery loops (pytest markers, docs/contributing.md)
 test-fast: $(STAMP)
 	$(VENV)/bin/lint-imports
-	$(PYTEST) -n $(WORKERS) --dist loadfile -m "not (realtime or hil or container or slow)"
+	$(PYTEST) -m "not (realtime or hil or container or slow)"
 
 # ads-client (Node.js) for tests/plc_link/test_ads_node.py, from the committed lock file, into a
 # folder git ignores. Without npm nothing is installed and that test is skipped (one line in pytest's summary).

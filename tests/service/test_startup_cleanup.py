@@ -21,7 +21,8 @@ def shm_segments() -> set[str]:
     return set(os.listdir("/dev/shm")) if os.path.isdir("/dev/shm") else set()
 
 
-pytestmark = pytest.mark.skipif(not os.path.isdir("/dev/shm"), reason="needs POSIX shared memory in /dev/shm")
+pytestmark = [pytest.mark.skipif(not os.path.isdir("/dev/shm"), reason="needs POSIX shared memory in /dev/shm"),
+              pytest.mark.serial]       # /dev/shm is the host's: another worker's segments come and go in it
 
 
 def test_a_source_that_fails_to_open_frees_the_shared_image(tmp_path):
