@@ -46,12 +46,35 @@ PLACEMENT_M = 0.001     # the best fit placed a part; learning refines its shift
 OFFSET_M = 0.005        # a radius off by up to a few mm: the offset's weak prior (1 sigma)
 
 
-class Placement(Effect):
+class PartNuisance(Effect):
+    """What learning from parts fits beside the model and removes again, a set of parameters for each part
+    (``labels``) within a weak prior (``loose``, SI): not a physical effect, not in the library, refused in a
+    model file."""
+
+    per_joint = False
+    joints = ()
+
+    def __init__(self, parts: list[PartRows], params: list[Param], loose_m: float):
+        self.labels = [p.label for p in parts]
+        super().__init__(params, np.zeros(len(params)), None)
+        self.loose = np.full(len(params), loose_m)
+
+    @classmethod
+    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> PartNuisance:
+        raise ConfigError(f"{where}: {cls.name} is not a model effect (it exists only while learning from parts)")
+
+    @staticmethod
+    def rows(ctx: Context, label: str) -> np.ndarray:
+        """The readings of the part ``label``."""
+        return ctx.config == ctx.config_labels.index(label)
+
+
+class Placement(PartNuisance):
     """The placement of each part without a datum, as far as learning refines it: a shift in the plane across
     the tool axis (two numbers a part), applied to everything at the base site. The best fit
     (`rows.read_against`) turned and shifted the part already; along a circle's normal a turn about any
-    point is a shift and nothing else, so refining it too would only trade the two. Not a physical effect and
-    not in the library: `learn` adds it for a ``--best-fit`` part and removes it again.
+    point is a shift and nothing else, so refining it too would only trade the two. `learn` adds it for a
+    ``--best-fit`` part.
 
     Parameters
     ----------
@@ -59,59 +82,43 @@ class Placement(Effect):
     """
 
     name = "placement"
-    per_joint = False
-    joints = ()
 
     def __init__(self, parts: list[PartRows]):
-        self.labels = [p.label for p in parts]
         self.frames = []
         for p in parts:
             a = p.axis.mean(axis=0)
             self.frames.append(plane_basis(a / np.linalg.norm(a)))
         params = []
-        for lab in self.labels:
-            params += [Param(f"{_key(lab)}_u_mm", "mm", 1e-4, M_TO_MM), Param(f"{_key(lab)}_v_mm", "mm", 1e-4, M_TO_MM)]
-        super().__init__(params, np.zeros(len(params)), None)
-        self.loose = np.full(len(params), PLACEMENT_M)        # its weak prior, SI
-
-    @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> Placement:
-        raise ConfigError(f"{where}: placement is not a model effect (it exists only while learning from parts)")
+        for p in parts:
+            params += [Param(f"{_key(p.label)}_u_mm", "mm", 1e-4, M_TO_MM),
+                       Param(f"{_key(p.label)}_v_mm", "mm", 1e-4, M_TO_MM)]
+        super().__init__(parts, params, PLACEMENT_M)
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         B = self.zeros(ctx, 2 * len(self.labels))
         for i, (lab, (e1, e2)) in enumerate(zip(self.labels, self.frames)):
-            rows = ctx.config == ctx.config_labels.index(lab)
+            rows = self.rows(ctx, lab)
             B[rows, 2 * i, 0, :3] = e1
             B[rows, 2 * i + 1, 0, :3] = e2
         return B
 
 
-class RadiusOffset(Effect):
+class RadiusOffset(PartNuisance):
     """One distance along every normal a part, as a radius off by that much puts each point (a stylus radius too
     large, or a tool radius too small, by d moves every point d toward the wall): a parameter a part, its basis
-    the normal of each of its points (``normals``, base axes, one a dataset row). Not a physical effect and not
-    in the library: `learn` adds it to learn the parts once more when they leave more than the noise."""
+    the normal of each of its points (``normals``, base axes, one a dataset row). `learn` adds it to learn the
+    parts once more when they leave more than the noise."""
 
     name = "radius_offset"
-    per_joint = False
-    joints = ()
 
     def __init__(self, parts: list[PartRows], normals: np.ndarray):
-        self.labels = [p.label for p in parts]
         self.normals = normals
-        params = [Param(f"{_key(lab)}_offset_mm", "mm", 1e-4, M_TO_MM) for lab in self.labels]
-        super().__init__(params, np.zeros(len(params)), None)
-        self.loose = np.full(len(params), OFFSET_M)
-
-    @classmethod
-    def from_config(cls, section: dict[str, Any], robot: Any, where: str) -> RadiusOffset:
-        raise ConfigError(f"{where}: radius_offset is not a model effect (it exists only while learning from parts)")
+        super().__init__(parts, [Param(f"{_key(p.label)}_offset_mm", "mm", 1e-4, M_TO_MM) for p in parts], OFFSET_M)
 
     def basis(self, ctx: Context, W: np.ndarray, theta: np.ndarray) -> np.ndarray:
         B = self.zeros(ctx, len(self.labels))
         for i, lab in enumerate(self.labels):
-            rows = ctx.config == ctx.config_labels.index(lab)
+            rows = self.rows(ctx, lab)
             B[rows, i, 0, :3] = self.normals[rows]
         return B
 
@@ -249,7 +256,7 @@ def learn(model: StiffnessModel, parts: list[PartRows], prior: Prior, best_fit: 
     return out
 
 
-def _with_nuisance(model: StiffnessModel, prior: Prior, extra: list[Effect]) -> tuple[StiffnessModel, Prior]:
+def _with_nuisance(model: StiffnessModel, prior: Prior, extra: list[PartNuisance]) -> tuple[StiffnessModel, Prior]:
     """``model`` with the nuisance effects ``extra`` (`Placement`, `RadiusOffset`) and ``prior`` with their weak
     priors."""
     if not extra:

@@ -76,16 +76,16 @@ def readings(probe: ProbeLog, misread: list[Misreading], robot: Robot, cut: Trac
 def _reading(probe: ProbeLog, robot: Robot, cut: TracedCut, near_mm: float | None) -> Reading:
     """One log read against ``cut`` (`Reading`'s fields); ``near_mm`` None: without where the path passes."""
     touches = touches_in_base(probe, robot)
+    r = probe.tool_radius_mm / 1000.0
     centres, points = cut.in_plane(touches.centres), cut.in_plane(touches.points)
     dist, n = cut.across(centres)                                # across the path, toward the stylus centre
     dist_p, n_p = cut.across(points)
     _, sample = cut.tree.query(centres)
-    passing = None if near_mm is None else cut.passing(points, probe.tool_radius_mm / 1000.0, near_mm / 1000.0)
+    passing = None if near_mm is None else cut.passing(points, r, near_mm / 1000.0)
     near_path = dist < CENTRE_ON_PATH_MM / 1000.0                # a stylus about the cutter's size: its centre
     n[near_path] = n_p[near_path]                                # tells no side
     toward = np.einsum("nk,nk->n", n, cut.in_plane(probe.approach))
     side = 1.0 if np.median(toward) >= 0 else -1.0                # the wall beyond the centre (r_s < r) or not
-    r = probe.tool_radius_mm / 1000.0
     rs = probe.stylus_radius_mm / 1000.0 - probe.overtravel_mm / 1000.0
     e_mm = (np.where(near_path, dist_p - r, side * dist - (r - rs))) * 1000.0
     return Reading(touches, e_mm, toward, side, (touches.points @ cut.a - cut.height) * 1000.0, sample, passing)
