@@ -26,11 +26,15 @@ Each mode k (frequency f_k, damping zeta_k, direction phi_k) carries e's share e
 instant the correction reaches the joints, h later, as its own free oscillation, and undoes the band-pass's
 gain and phase at f_k (|F|, arg F of the discrete filters):
 
-    o_k = exp(-zeta_k w_k h) / |F(w_k)| (e_k cos th_k + (de_k / w_k) sin th_k),   th_k = w_k h - arg F(w_k)
+    o_k = c_k e_k + s_k (e_k - e_k,last) / dt,   c_k + s_k D(w_k) = exp((i - zeta_k) w_k h) / F(w_k)
     dX <- dX + g sum_k phi_k o_k
 
-so what decides the result is the acceleration measured, not f_k: a frequency 20 % off moves th_k by 0.2 w_k h
-and F's phase by its slope over the band, small where h and the band's phase are. The gain g ramps between 0 and
+with D(w) = (1 - exp(-i w dt)) / dt the difference's own response (it lags half a cycle: taken for the
+derivative, it left the ringing 4 % off at 16 Hz). A ringing at f_k thus leaves the observer as it will be h
+later, exactly; at another frequency it does not: the band's phase changes across the band, so a frequency
+20 % off leaves 22-29 % of a 10 Hz ringing and 28-46 % of a 16 Hz one (`benchmarks/bench_observer_band.py`,
+which shows that no fixed filter of e does much better without multiplying what e carries below 2 Hz, the
+static model's error and the box's bias, docs/accelerometer.md). The gain g ramps between 0 and
 1 over ``ramp_ms``: up when the accelerometer's samples arrive (its states started afresh: the positions' at
 their steady state, the acceleration's at rest), down while they do not, holding the last o (the force-only path then; no jump either way).
 
@@ -63,12 +67,12 @@ RING, BIQ = 19, 19 + 3 * H_MAX
 JOINTS = BIQ + 3 * 2 * N_BIQUADS        # the nominal TCP's delay line
 STATE_SIZE = JOINTS + 3 * H_MAX
 MAX_LEAD_MS = 20.0      # the most joints_lead_ms takes
-PER_MODE = 5            # phi (3), the cosine's and the sine's factor
+PER_MODE = 5            # phi (3), c_k, s_k (module docstring)
 
 
 def observer_law(s, p, dX, dt):
     """dX (6,) += g sum_k phi_k o_k in place (module docstring). p = [K, h (cycles), ramp step, the joints' lead
-    (cycles), 7 x (b0, b1, b2, a1, a2), K x (phi (3), c_k, s_k / w_k)]; s = [a (3), FK(q) (3), ok, started, g,
+    (cycles), 7 x (b0, b1, b2, a1, a2), K x (phi (3), c_k, s_k)]; s = [a (3), FK(q) (3), ok, started, g,
     ring position, o (3), e last (3), de (3), dX's ring (3 H_MAX), 3 x 7 x (z0, z1), FK(q)'s ring (3 H_MAX)]."""
     n = int(p[0])
     h = int(p[1])
@@ -200,10 +204,12 @@ class Observer(Stage):
         for m in self.cfg.modes:
             w = 2.0 * math.pi * m.hz
             _, resp = signal.sosfreqz(sos, worN=[m.hz], fs=1.0 / period_s)
-            gain, lag = abs(resp[0]), -float(np.angle(resp[0]))
-            th = w * h * period_s + lag
-            a = math.exp(-m.damping * w * h * period_s) / gain
-            rows.append([*m.direction, a * math.cos(th), a * math.sin(th) / w])
+            # o = c e + s (e - e_last) / dt must carry e_k at f_k as the mode does h later, undoing L B:
+            # c + s D = exp((i - zeta) w h) / F(w), D the backward difference's response at w (it lags half a cycle)
+            g = np.exp((1j - m.damping) * w * h * period_s) / resp[0]
+            d = (1.0 - np.exp(-1j * w * period_s)) / period_s
+            s = g.imag / d.imag
+            rows.append([*m.direction, g.real - s * d.real, s])
         step = period_s / (self.cfg.ramp_ms / 1000.0)
         lead = round(self.cfg.joints_lead_ms / 1000.0 / period_s)
         for key, cycles in (("horizon_ms", h), ("joints_lead_ms", lead)):
