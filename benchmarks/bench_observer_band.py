@@ -1,7 +1,7 @@
 """What any fixed observer can do when a mode's frequency is off (issue 52): the observer's transfer from the arm's
-deflection error z to its correction, T(f) = G(f) L B(f), against the ideal e^((i - zeta) 2 pi f h) (the error h
-later, ringing on),
-at the true frequency when the model's is 20 % high (f_model / 1.2) or 20 % low (f_model / 0.8).
+deflection error z to its correction, T(f) = G(f) L B(f), against the ideal e^((i - zeta) 2 pi f h) (the error
+h later, ringing on), at the true frequency when the model's is 20 % high (f_model / 1.2) or 20 % low
+(f_model / 0.8).
 
 e = L B z is what the observer sees (docs/accelerometer.md, "The observer"); G is what it does with it. Designs:
 
@@ -35,7 +35,7 @@ from scipy import linalg, signal
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from stiffness.dynamics.observer import Observer, band_sos
+from stiffness.dynamics.observer import N_BIQUADS, Observer, band_sos
 
 PERIOD_S = 1e-3
 LOW = np.array([0.3, 0.5, 1.0, 1.5, 2.0])
@@ -50,8 +50,7 @@ def band(obs: Observer, f):
 def shipped(obs: Observer):
     """G(f) of the service's observer, from its own parameters."""
     p = obs.params(PERIOD_S)
-    row = p[4 + 5 * 7: 4 + 5 * 7 + 5]
-    c, s = row[3], row[4]
+    c, s = p[4 + 5 * N_BIQUADS + 3], p[4 + 5 * N_BIQUADS + 4]       # the mode's row: phi (3), c, s
     return lambda f: c + s * (1.0 - np.exp(-2j * np.pi * np.asarray(f) * PERIOD_S)) / PERIOD_S
 
 

@@ -9,7 +9,10 @@ along x, carrying a static deflection that enters and leaves a cut (ramps of 50 
   ramp's step times its share per cycle, and ends on the force-only path;
 * the correction's own motion (the nominal TCP the PLC reports, reached by the drives a cycle later) cancels
   when ``joints_lead_ms`` is the lead of the reported joints over the acceleration's instant, not without it;
-* 60 s of the box's noise (1 mg RMS a value) at rest: no growth, and a few micrometres at most.
+* 60 s of the box's noise (1 mg RMS a value) at rest: no growth, and a few micrometres at most;
+* a ringing at the mode's own frequency leaves it as it will be the horizon later: its coefficients exactly, for
+  any frequency, damping, horizon and period (the difference's half-cycle lag undone), and the law on a steady
+  16 Hz ringing seen through the box within 2 % of the amplitude.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from scipy import signal
 
 from hil.structure import oscillate
 from stiffness.dynamics.base import DynamicsContext
-from stiffness.dynamics.observer import Observer, band_sos
+from stiffness.dynamics.observer import N_BIQUADS, Observer, band_sos
 
 DT = 0.001
 OUTPUT_S, AGE_S = 0.0015, 0.0035
@@ -144,7 +147,7 @@ def test_a_ringing_at_the_modes_frequency_is_carried_the_horizon_ahead_exactly(h
     part = Observer(Observer.Config(modes=[{"hz": hz, "damping": damping, "direction": [1, 0, 0]}],
                                     horizon_ms=horizon))
     p = part.params(dt)
-    c, s = p[4 + 5 * 7 + 3], p[4 + 5 * 7 + 4]
+    c, s = p[4 + 5 * N_BIQUADS + 3], p[4 + 5 * N_BIQUADS + 4]        # the mode's row: phi (3), c, s
     w = 2 * np.pi * hz
     h = round(horizon / period_ms) * dt
     response = signal.sosfreqz(band_sos(part.cfg.band_hz, part.cfg.box_lowpass_hz, dt)[1], worN=[hz], fs=1 / dt)[1][0]
