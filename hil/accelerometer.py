@@ -122,10 +122,11 @@ class VirtualAccelerometer:
             self.c, self.held, self.target, self.t_held = [offset, offset], offset, offset, t
             self.k = max(0, int(np.ceil((t - self.t0) / self.dt - 1e-9)))
         span = max(t - self.t_held, 1e-9)
-        steps = []
-        while self.t0 + (self.k + len(steps)) * self.dt < t - 1e-9 and self.k + len(steps) < len(self.acc_ref):
-            w = min(1.0, (self.t0 + (self.k + len(steps)) * self.dt - self.t_held) / span)
+        steps, k = [], self.k
+        while self.t0 + k * self.dt < t - 1e-9 and k < len(self.acc_ref):
+            w = min(1.0, (self.t0 + k * self.dt - self.t_held) / span)
             steps.append(self.held + w * (self.target - self.held))
+            k += 1
         if steps:
             self._steps(np.array(steps))
         self.held, self.target, self.t_held = self.target, offset, t
