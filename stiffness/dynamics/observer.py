@@ -36,7 +36,15 @@ later, exactly; at another frequency it does not: the band's phase changes acros
 which shows that no fixed filter of e does much better without multiplying what e carries below 2 Hz, the
 static model's error and the box's bias, docs/accelerometer.md). The gain g ramps between 0 and
 1 over ``ramp_ms``: up when the accelerometer's samples arrive (its states started afresh: the positions' at
-their steady state, the acceleration's at rest), down while they do not, holding the last o (the force-only path then; no jump either way).
+their steady state, the acceleration's at rest), down while they do not, holding the last o (the force-only path
+then; no jump either way). After each start it first waits ``settle_ms``: the band's start is no motion of the
+arm (a bias the tare has not yet taken, a move under way ring through the high-pass; in the HIL they put 0.13 mm
+into the correction before the cut, docs/accelerometer.md, "The band's start").
+
+With ``follow`` the modes' frequencies are followed in the cut (`stiffness.dynamics.follower`, built by
+`follower`): the law keeps m = (B / s^2) a - L B FK(q), the arm's deflection in the band, apart for it (L B of
+the model's dX runs on its own filters), and the follower hands the structure and this observer the arm's
+frequencies (`with_frequencies`).
 
 Real-time term: a `TwistTerm` whose law is `observer_law` (seven biquads an axis, the delay line, the modes),
 on the Python and the compiled path; `feed_motion` writes the acceleration, the nominal TCP and whether the
@@ -65,7 +73,10 @@ N_BIQUADS = 7           # the acceleration's path: B / s^2 as [1 / (s^2 + ...), 
                         # nominal TCP's and the model's: L, high-pass 2, high-pass 1, low-pass 2
 RING, BIQ = 19, 19 + 3 * H_MAX
 JOINTS = BIQ + 3 * 2 * N_BIQUADS        # the nominal TCP's delay line
-STATE_SIZE = JOINTS + 3 * H_MAX
+MODEL = JOINTS + 3 * H_MAX              # L B of the model's dX(t - h) apart from the nominal TCP's: 3 x 4 x (z0, z1)
+MEASURED = MODEL + 3 * 2 * 4            # m = (B / s^2) a - L B FK(q), the band's deflection of the arm (3)
+SETTLED = MEASURED + 3                  # cycles since the (re)start: the gain rises after ``settle_ms``
+STATE_SIZE = SETTLED + 1
 MAX_LEAD_MS = 20.0      # the most joints_lead_ms takes
 PER_MODE = 5            # phi (3), c_k, s_k (module docstring)
 
@@ -73,7 +84,8 @@ PER_MODE = 5            # phi (3), c_k, s_k (module docstring)
 def observer_law(s, p, dX, dt):
     """dX (6,) += g sum_k phi_k o_k in place (module docstring). p = [K, h (cycles), ramp step, the joints' lead
     (cycles), 7 x (b0, b1, b2, a1, a2), K x (phi (3), c_k, s_k)]; s = [a (3), FK(q) (3), ok, started, g,
-    ring position, o (3), e last (3), de (3), dX's ring (3 H_MAX), 3 x 7 x (z0, z1), FK(q)'s ring (3 H_MAX)]."""
+    ring position, o (3), e last (3), de (3), dX's ring (3 H_MAX), 3 x 7 x (z0, z1), FK(q)'s ring (3 H_MAX),
+    3 x 4 x (z0, z1) (L B of dX's, apart), m (3), cycles since the start]; p ends with the settling's cycles."""
     n = int(p[0])
     h = int(p[1])
     lead = int(p[3])
@@ -87,17 +99,21 @@ def observer_law(s, p, dX, dt):
                 for j in range(3):               # this value); the positions' at their steady state
                     s[BIQ + 14 * i + 2 * j] = 0.0
                     s[BIQ + 14 * i + 2 * j + 1] = 0.0
-                u = s[3 + i] + dX[i]
-                for j in range(3, N_BIQUADS):
-                    o, z = 4 + 5 * j, BIQ + 14 * i + 2 * j
-                    b0, b1, b2, a1, a2 = p[o], p[o + 1], p[o + 2], p[o + 3], p[o + 4]
-                    y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
-                    s[z + 1] = b2 * u - a2 * y
-                    s[z] = b1 * u - a1 * y + s[z + 1]
-                    u = y
+                for path in range(2):
+                    u = s[3 + i] if path == 0 else dX[i]
+                    for j in range(3, N_BIQUADS):
+                        o = 4 + 5 * j
+                        z = BIQ + 14 * i + 2 * j if path == 0 else MODEL + 8 * i + 2 * (j - 3)
+                        b0, b1, b2, a1, a2 = p[o], p[o + 1], p[o + 2], p[o + 3], p[o + 4]
+                        y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
+                        s[z + 1] = b2 * u - a2 * y
+                        s[z] = b1 * u - a1 * y + s[z + 1]
+                        u = y
                 s[13 + i] = 0.0
+                s[MEASURED + i] = 0.0
             s[7] = 1.0
             s[9] = 0.0
+            s[SETTLED] = 0.0
         pos = int(s[9])
         back = (pos - h) % H_MAX
         led = (pos - lead) % H_MAX
@@ -107,15 +123,22 @@ def observer_law(s, p, dX, dt):
             s[JOINTS + 3 * pos + i] = s[3 + i]
             nominal = s[JOINTS + 3 * led + i]
             e = 0.0
-            for path in range(2):
-                u = s[i] if path == 0 else nominal + old
-                for j in range(3 * path, 3 + 4 * path):
-                    o, z = 4 + 5 * j, BIQ + 14 * i + 2 * j
+            for path in range(3):               # B / s^2 a, L B FK(q), L B dX(t - h)
+                u = s[i] if path == 0 else (nominal if path == 1 else old)
+                first = 0 if path == 0 else 3
+                for j in range(first, first + (3 if path == 0 else 4)):
+                    o = 4 + 5 * j
+                    z = BIQ + 14 * i + 2 * j if path < 2 else MODEL + 8 * i + 2 * (j - 3)
                     y = p[o] * u + s[z]
                     s[z] = p[o + 1] * u - p[o + 3] * y + s[z + 1]
                     s[z + 1] = p[o + 2] * u - p[o + 4] * y
                     u = y
-                e = u if path == 0 else e - u
+                if path == 0:
+                    e = u
+                else:
+                    e -= u
+                if path == 1:
+                    s[MEASURED + i] = e
             s[16 + i] = (e - s[13 + i]) / dt if dt > 0.0 else 0.0
             s[13 + i] = e
         s[9] = float((pos + 1) % H_MAX)
@@ -128,7 +151,11 @@ def observer_law(s, p, dX, dt):
             out = p[o + 3] * ek + p[o + 4] * dek
             for i in range(3):
                 s[10 + i] += p[o + i] * out
-        s[8] = min(1.0, s[8] + p[2])
+        s[SETTLED] += 1.0
+        if s[SETTLED] > p[4 + 5 * N_BIQUADS + PER_MODE * n]:
+            s[8] = min(1.0, s[8] + p[2])
+        else:                                   # the band's filters settling: their start is no motion of the arm
+            s[8] = max(0.0, s[8] - p[2])
     else:
         s[7] = 0.0
         s[8] = max(0.0, s[8] - p[2])
@@ -175,6 +202,10 @@ class Observer(Stage):
         band_hz: list[float] = Field(default_factory=lambda: [2.5, 40.0], min_length=2, max_length=2)
         box_lowpass_hz: float = Field(62.5, ge=0.0, le=5000.0)
         ramp_ms: float = Field(100.0, gt=0.0, le=10_000.0)
+        settle_ms: float = Field(150.0, ge=0.0, le=10_000.0)   # after a (re)start, the gain rises after this
+        follow: bool = False                # the modes' frequencies followed in the cut (`stiffness.dynamics.follower`)
+        follow_range: float = Field(0.4, gt=0.0, le=0.6)            # the candidates: f (1 +- range)
+        follow_window_ms: float = Field(400.0, ge=50.0, le=5000.0)  # the misfit's forgetting
 
         _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))
 
@@ -183,6 +214,10 @@ class Observer(Stage):
             lo, hi = self.band_hz
             if not (0.0 < lo < min(m.hz for m in self.modes) and max(m.hz for m in self.modes) < hi):
                 raise ValueError(f"band_hz [{lo:g}, {hi:g}] must hold every mode's frequency, above 0")
+            r = self.follow_range if self.follow else 0.0
+            if not (lo < (1.0 - r) * min(m.hz for m in self.modes) and (1.0 + r) * max(m.hz for m in self.modes) < hi):
+                raise ValueError(f"band_hz [{lo:g}, {hi:g}] must hold every frequency follow_range {r:g} lets a "
+                                 "mode take")
             return self
 
     reads_motion = True
@@ -216,11 +251,33 @@ class Observer(Stage):
             if cycles >= H_MAX:
                 raise ValueError(f"dynamics.observer.{key} is {cycles} cycles of {1000 * period_s:g} ms; the delay "
                                  f"lines hold {H_MAX - 1}")
-        return np.array([len(rows), h, step, lead, *np.ravel(f), *np.ravel(rows)])
+        settle = round(self.cfg.settle_ms / 1000.0 / period_s)
+        return np.array([len(rows), h, step, lead, *np.ravel(f), *np.ravel(rows), settle])
 
     def terms(self, ctx: DynamicsContext) -> list[TwistTerm]:
         self.fed.append(TwistTerm(observer_law, self.params(ctx.period_s), [0.0] * STATE_SIZE))
         return [self.fed[-1]]
+
+    @staticmethod
+    def settled(term: TwistTerm) -> bool:
+        """The observer's term runs and its band has settled since its start (``settle_ms``)."""
+        return term.state[7] != 0.0 and term.state[SETTLED] > term.params[-1]
+
+    def with_frequencies(self, hz) -> Observer:
+        """This observer with the modes at ``hz`` (one each; the follower's, `stiffness.dynamics.follower`)."""
+        modes = [m.model_copy(update={"hz": float(f)}) for m, f in zip(self.cfg.modes, hz)]
+        return Observer(self.cfg.model_copy(update={"modes": modes}))
+
+    def follower(self, period_s: float, apply):
+        """The follower of these modes (None unless ``follow``): a `stiffness.dynamics.follower.Follower`
+        whose ``apply(hz)`` rewrites the running terms."""
+        if not self.cfg.follow:
+            return None
+        from .follower import Follower
+
+        h = round(self.cfg.horizon_ms / 1000.0 / period_s)
+        return Follower(self.cfg.modes, self.filters(period_s)[3:], h, period_s, self.cfg.follow_range,
+                        self.cfg.follow_window_ms / 1000.0, apply)
 
     def feed_motion(self, acceleration, ok: bool, p_tcp, sample_period_s: float = 0.0) -> None:
         """This cycle's acceleration (base, m/s^2), whether the accelerometer's samples arrive, and the nominal

@@ -52,10 +52,12 @@ def arm(f_model: float, seconds: float = 2.0):
     return t, ahead, target, acc
 
 
-def observe(f_model: float, acc: np.ndarray, dX_model: np.ndarray, ok=None, nominal=None, lead_ms=3.0) -> np.ndarray:
-    """The observer's output; ``nominal`` (N,): the nominal TCP's x as the PLC reports it (default still)."""
+def observe(f_model: float, acc: np.ndarray, dX_model: np.ndarray, ok=None, nominal=None, lead_ms=3.0,
+            **config) -> np.ndarray:
+    """The observer's output; ``nominal`` (N,): the nominal TCP's x as the PLC reports it (default still);
+    ``config``: more of its section."""
     part = Observer(Observer.Config(modes=[{"hz": f_model, "damping": 0.03, "direction": [1, 0, 0]}],
-                                    horizon_ms=1000 * (AGE_S + OUTPUT_S), joints_lead_ms=lead_ms))
+                                    horizon_ms=1000 * (AGE_S + OUTPUT_S), joints_lead_ms=lead_ms, **config))
     term = part.terms(DynamicsContext(DT))[0]
     out = np.zeros(len(acc))
     for k in range(len(acc)):
@@ -125,6 +127,24 @@ def test_samples_that_stop_mid_cut_ramp_it_to_the_force_only_path_without_a_jump
     jumps = np.abs(np.diff(share[lost:lost + 120]))
     assert jumps.max() <= step * np.abs(share[lost - 1]) * 1.0001
     assert np.all(share[lost + 100:np.nonzero(~ok)[0][-1]] == 0.0)     # the force-only path, once ramped down
+
+
+def test_the_bands_start_stays_out_of_the_correction_until_it_settled():
+    """The box untared for its first 100 ms (20 mg off, as the HIL's box read before the PLC's tare), then the
+    tare, which restarts the observer (a cycle without samples here), the arm at rest all along. The band's
+    high-pass answers the bias with a slow swing: with no settling the correction carried it (0.24 mm
+    measured); with ``settle_ms`` (150 by default) the gain stays at zero that long after each (re)start, and
+    the correction holds nothing beyond what the box's noise gives it later."""
+    n = 1500
+    acc = np.random.default_rng(5).normal(0.0, 9.80665e-3, n)
+    acc[:100] += 0.2
+    ok = np.ones(n, dtype=bool)
+    ok[100] = False
+    at_once = np.abs(observe(TRUE_HZ, acc, np.zeros(n), ok, settle_ms=0.0))
+    settled = np.abs(observe(TRUE_HZ, acc, np.zeros(n), ok))
+    noise = settled[600:].max()
+    assert np.all(settled[:150] == 0.0)
+    assert settled.max() <= 1.2 * noise and at_once.max() > 20 * noise, (settled.max(), at_once.max(), noise)
 
 
 def test_a_minute_of_the_boxs_noise_at_rest_stays_bounded():
