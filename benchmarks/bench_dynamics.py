@@ -98,6 +98,8 @@ def main(argv: list[str] | None = None) -> dict:
                     help="dynamics.observer.horizon_ms (default: 5 PLC cycles plus the extra delay, at most 7)")
     ap.add_argument("--observer-band-hz", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                     help="dynamics.observer.band_hz (default: the observer's own)")
+    ap.add_argument("--follow", action="store_true",
+                    help="the observer follows the modes' frequencies in the cut (dynamics.observer.follow)")
     ap.add_argument("--commissioning", choices=("tap", "cut"), default="tap")
     ap.add_argument("--predictor-hz", type=float, default=None, help="dynamics.predictor.bandwidth_hz")
     ap.add_argument("--realtime", action="store_true", help="the passes in real time, not in lock step")
@@ -116,7 +118,7 @@ def main(argv: list[str] | None = None) -> dict:
         model_path = learned_from_a_part(sc, Path(args.truth), model_path, Path(keep.name))
     variants = [DynamicOptions(err, zeta, ff, commissioning=args.commissioning, predictor_hz=args.predictor_hz,
                                observer=obs, observer_horizon_ms=args.observer_horizon_ms,
-                               observer_band_hz=args.observer_band_hz)
+                               observer_band_hz=args.observer_band_hz, follow=args.follow)
                 for obs in ([False, True] if args.observer else [False])
                 for ff in ([False, True] if args.feedforward else [False])
                 for zeta in args.added_damping for err in args.mode_error]

@@ -6,7 +6,8 @@ milling load, a new sample and new joints every cycle), on config/models/kr125_6
 the feedforward from a plan file, the PLC's program time fed every cycle), all three, and the structure's
 modes with the accelerometer's observer (a new value every cycle; against "structure", the force-only
 dynamic path it corrects), and the same with the box's values replayed from a file (`accelerometer.replay`, a
-new sample every cycle; against "observer", the PLC's values). Each runs on the
+new sample every cycle; against "observer", the PLC's values), and the observer with its follower
+(``follow``: its bank of candidates each cycle, in Python after the cycle). Each runs on the
 Python path and on the compiled one, in alternating blocks of cycles in one process (the machine's drift
 falls on all alike); the figure is the ratio of the medians of the per-block mean cycle times to the static
 path's on the same path.
@@ -45,10 +46,11 @@ REPLAYED = "observer, replay"      # the observer's row with the box's values fr
 def sections(plan: Path) -> dict[str, dict | None]:
     ff = {"source": "file", "file": str(plan)}
     observer = {"structure": {"modes": MODES, "lag_ms": 8.0}, "observer": {"modes": MODES, "horizon_ms": 4.0}}
+    follower = {"structure": observer["structure"], "observer": {**observer["observer"], "follow": True}}
     return {"static": None, "predictor": {"predictor": {}}, "structure": {"structure": {"modes": MODES, "lag_ms": 8.0}},
             "feedforward": {"feedforward": ff},
             "all three": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 8.0}, "feedforward": ff},
-            "observer": observer, REPLAYED: observer}
+            "observer": observer, REPLAYED: observer, "observer, follow": follower}
 
 
 def config(section: dict | None, box: Path | None = None) -> ServiceConfig:

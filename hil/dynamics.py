@@ -61,6 +61,7 @@ class DynamicOptions:
     observer: bool = False               # the accelerometer at the tool and dynamics.observer with the modes
     observer_horizon_ms: float | None = None     # dynamics.observer.horizon_ms (None: `observer_horizon_ms`)
     observer_band_hz: tuple[float, float] | None = None     # dynamics.observer.band_hz (None: its default)
+    follow: bool = False                 # dynamics.observer.follow: the modes followed in the cut
     modes_file: Path | None = None       # the modes (and lag) of this file's dynamics.structure, not the tap test's
 
     def measured_by(self, scenario: Scenario) -> Scenario:
@@ -163,6 +164,8 @@ def service_dynamics(found: Identified | GivenModes, delay_ms: float, opts: Dyna
         section["observer"] = {"modes": section["structure"]["modes"], "horizon_ms": round(h, 2)}
         if opts.observer_band_hz is not None:
             section["observer"]["band_hz"] = list(opts.observer_band_hz)
+        if opts.follow:
+            section["observer"]["follow"] = True
     if opts.feedforward:
         folder.mkdir(parents=True, exist_ok=True)
         write_plan(world, folder / "plan.csv")

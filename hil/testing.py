@@ -176,3 +176,14 @@ def scaled_model_file(source: Path, factor: float, dest: Path, extra: list | Non
     data["effects"] += extra or []
     Path(dest).write_text(dump_yaml(data, sort_keys=False))
     return Path(dest)
+
+
+def box_scenario():
+    """The default HIL scenario with the PLC's task at 1 ms and the virtual accelerometer on (what the
+    accelerometer's HIL tests cut with: the EP3751 at 1000 Hz for a 1 ms task, docs/accelerometer.md)."""
+    from .scenario import load_scenario
+
+    sc = load_scenario()
+    sc.plc.period_ms = 1.0
+    sc.accelerometer.enabled = True
+    return sc

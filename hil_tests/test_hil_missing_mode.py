@@ -13,8 +13,8 @@ from pathlib import Path
 
 from hil.circle import run_circle
 from hil.dynamics import DynamicOptions
-from hil.scenario import load_scenario
 from hil.structure import ModeConfig
+from hil.testing import box_scenario
 from stiffness.files.yaml_schema import dump_yaml
 from tools.cli import main
 
@@ -22,9 +22,7 @@ MISSING_HZ = 23.0
 
 
 def test_a_mode_missing_from_the_model_is_named_and_added_the_peaks_fall(tmp_path: Path, capsys):
-    sc = load_scenario()
-    sc.plc.period_ms = 1.0
-    sc.accelerometer.enabled = True
+    sc = box_scenario()
     sc.robot.modes = [ModeConfig(hz=MISSING_HZ, damping=0.03, direction=[1, 0, 0]),
                       ModeConfig(hz=10.0, damping=0.03, direction=[0, 1, 0]),
                       ModeConfig(hz=16.0, damping=0.03, direction=[0, 0, 1])]

@@ -15,7 +15,7 @@ import pytest
 
 from hil.circle import run_circle
 from hil.dynamics import DynamicOptions
-from hil.scenario import load_scenario
+from hil.testing import box_scenario
 from tools.cli import main
 
 TRUE_HZ = (10.0, 16.0)
@@ -24,9 +24,7 @@ TRUE_HZ = (10.0, 16.0)
 @pytest.mark.parametrize("error", [0.2, -0.2])
 def test_the_modes_learned_from_one_cut_bring_the_next_cuts_peaks_to_40_percent_of_static(tmp_path: Path, error,
                                                                                          capsys):
-    sc = load_scenario()
-    sc.plc.period_ms = 1.0
-    sc.accelerometer.enabled = True
+    sc = box_scenario()
     trace = tmp_path / "cut.csv"
     first = run_circle(sc, lockstep=True, dynamic=DynamicOptions(mode_error=error), trace=trace,
                        workdir=tmp_path / "first").summary

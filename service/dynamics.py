@@ -20,7 +20,7 @@ import logging
 from pydantic import Field, create_model
 
 from stiffness.dynamics import STAGES, DynamicsContext, Stage
-from stiffness.dynamics.observer import MAX_SAMPLE_MS
+from stiffness.dynamics.observer import MAX_SAMPLE_MS, MEASURED, Observer
 from stiffness.effects.terms import Term
 from stiffness.errors import StiffnessError
 from stiffness.files.yaml_schema import Strict
@@ -53,9 +53,23 @@ class Dynamics:
         self.period_s = float(period_s)
         self.stages: list[Stage] = []
         self._resolve = resolve
+        self.follower = None            # `stiffness.dynamics.follower`, with ``dynamics.observer.follow``
+        self._live: dict[str, Term] = {}    # the terms the cycle runs now, by part
         if section.enabled:
             self.stages = [self._stage(name, cls, getattr(section, name)) for name, cls in STAGES.items()
                           if getattr(section, name) is not None]
+        obs, st = self.part("observer"), self.part("structure")
+        if obs is not None and obs.cfg.follow and (
+                st is None or len(st.cfg.modes) != len(obs.cfg.modes)
+                or any(abs(sum(a * b for a, b in zip(m.direction, n.direction))) < 0.99
+                       for m, n in zip(st.cfg.modes, obs.cfg.modes))):
+            raise ServiceConfigError("dynamics.observer.follow: the follower hands the modes' frequencies to "
+                                     "dynamics.structure, which must hold the observer's modes (as many, in the "
+                                     "same order and directions)")
+
+    def part(self, name: str) -> Stage | None:
+        """The part ``name`` (`stiffness.dynamics.STAGES`), or None when the section has none."""
+        return next((p for p in self.stages if p.name == name), None)
 
     def _stage(self, name: str, cls: type[Stage], cfg) -> Stage:
         try:
@@ -74,11 +88,26 @@ class Dynamics:
         out: list[Term] = []
         for part in self.stages:
             try:
-                out += part.terms(ctx)
+                terms = part.terms(ctx)
             except ValueError as e:
                 raise ServiceConfigError(f"dynamics.{part.name}: {e}") from e
+            self._live[part.name] = terms[0] if terms else None
+            out += terms
             ctx = part.context(ctx)
+        obs = self.part("observer")
+        self.follower = None if obs is None else obs.follower(self.period_s, self.retune)
         return out
+
+    def retune(self, hz) -> None:
+        """The structure's and the observer's modes at ``hz`` (the follower's), in the terms the cycle runs:
+        their parameters rewritten in place (the compiled cycle reads the same memory)."""
+        for name in ("structure", "observer"):
+            part, term = self.part(name), self._live.get(name)
+            p = part.with_frequencies(hz).params(self.period_s)
+            term.params[:len(p)] = p
+        configured = ", ".join(f"{m.hz:g}" for m in self.part("observer").cfg.modes)
+        log.info("dynamics: the modes follow the arm's ringing: %s Hz (configured %s Hz)",
+                 ", ".join(f"{f:.2f}" for f in hz), configured)
 
     def plc_values(self) -> list[str]:
         """The contract values the parts read from the PLC every cycle (`feed`)."""
@@ -108,6 +137,18 @@ class Dynamics:
                                 "%.1f ms at most (the box at 1000 Hz or more, the PLC's task at 1 ms): off, the "
                                 "correction goes on from the force alone (docs/accelerometer.md)", p.name,
                                 1000.0 * sample_period_s, MAX_SAMPLE_MS)
+        if self.follower is not None:
+            self._follow()
+
+    def _follow(self) -> None:
+        """The follower's cycle, on the states the cycle just left: the structure's inputs and the observer's
+        band deflection; it starts afresh while the observer is not running or its band is settling."""
+        st, obs = self._live["structure"].state, self._live["observer"].state
+        if not Observer.settled(self._live["observer"]):
+            self.follower.restart()
+            return
+        n = len(self.follower.modes)
+        self.follower.step(st[2 * n + 1:3 * n + 1], obs[MEASURED:MEASURED + 3])
 
     def describe(self) -> str:
         if not self.stages:

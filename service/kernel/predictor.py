@@ -96,6 +96,7 @@ class CompiledPredictor:
         self.rR[0] = np.eye(3)
         self.statics(fp.statics)
         self._stateful = [(fp.history, "hs"), (fp.wrench_terms, "wst"), (fp.twist_terms, "tst")]
+        self._parametered = [(fp.wrench_terms, "wp"), (fp.twist_terms, "tp")]
         self._carve()
         self.mod = module_for(laws)
         self._kin = self.mod.kinematics
@@ -137,6 +138,10 @@ class CompiledPredictor:
             S = getattr(self, name)
             for n, term in enumerate(terms):
                 term.state = S[n, :len(term.state)]
+        for terms, name in self._parametered:
+            P = getattr(self, name)             # a term's parameters too: written in place, the cycle reads
+            for n, term in enumerate(terms):    # them (`stiffness.dynamics.follower` retunes the modes)
+                term.params = P[n, :len(term.params)]
 
     def statics(self, statics) -> None:
         """Take `Statics` (or None: tau_s = 0) into the arrays, in place."""

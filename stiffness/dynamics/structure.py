@@ -76,12 +76,14 @@ def orthogonal(modes: list[ModeConfig]) -> list[ModeConfig]:
 
 def structure_law(s, p, dX, dt):
     """dX (6,) <- the modes' response, in place; p = [K, K x (phi (3), b0, b1, b2, a1, a2)];
-    s = [K x (z0, z1), started]."""
+    s = [K x (z0, z1), started, K x u] (u: this cycle's phi_k . x_s, what the follower compares the arm with,
+    `stiffness.dynamics.follower`)."""
     n = int(p[0])
     first = s[2 * n] == 0.0
     for k in range(n):
         o = 1 + 8 * k
         u = p[o] * dX[0] + p[o + 1] * dX[1] + p[o + 2] * dX[2]
+        s[2 * n + 1 + k] = u
         b0, b1, b2, a1, a2 = p[o + 3], p[o + 4], p[o + 5], p[o + 6], p[o + 7]
         if first:                          # the steady state of the first deflection: H(0) = 1
             s[2 * k + 1] = (b2 - a2) * u
@@ -119,10 +121,15 @@ class Structure(Stage):
         return np.array([len(rows), *np.ravel(rows)])
 
     def terms(self, ctx: DynamicsContext) -> list[TwistTerm]:
-        return [TwistTerm(structure_law, self.params(ctx.period_s), [0.0] * (2 * len(self.cfg.modes) + 1))]
+        return [TwistTerm(structure_law, self.params(ctx.period_s), [0.0] * (3 * len(self.cfg.modes) + 1))]
 
     def lag_s(self) -> float:
         return self.cfg.lag_ms / 1000.0
+
+    def with_frequencies(self, hz) -> Structure:
+        """This structure with the modes at ``hz`` (one each; the follower's, `stiffness.dynamics.follower`)."""
+        modes = [m.model_copy(update={"hz": float(f)}) for m, f in zip(self.cfg.modes, hz)]
+        return Structure(self.cfg.model_copy(update={"modes": modes}))
 
     def respond(self, x_static: np.ndarray, period_s: float) -> np.ndarray:
         """The modes' response (N, 3) to a static deflection (N, 3) sampled every ``period_s`` (s), from its

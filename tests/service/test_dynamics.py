@@ -7,7 +7,10 @@
   as it runs), each part with its parameters 20 % off (the modes' frequencies, the horizon, the plan's force):
   no fault, and the correction does not grow (the last 20 s's RMS within 1.3 x the first 20 s's, no second's
   above 2 x), its RMS within 1.5 x what its own filters' gain allows over the static path's (`noise_gain`);
-  the accelerometer's observer, with the box's noise too, within 1.5 x the same modes' RMS without it;
+  the accelerometer's observer, with the box's noise too, within 1.5 x the same modes' RMS without it, and
+  with its follower, which changes no frequency;
+* the follower's frequencies (`Dynamics.retune`) reach the compiled cycle as the Python one; a follower whose
+  structure lacks the observer's modes refuses to start;
 * the ramps and the faults: with the enable bit off the correction ramps to zero as the static one does; a
   correction that is not finite trips value_invalid and ramps; a fault reset restarts every state;
 * the config: a feedforward whose value the register map lacks refuses to start, naming both; a reload
@@ -42,8 +45,10 @@ PARTS = {
     "all": {"predictor": {}, "structure": {"modes": MODES, "lag_ms": 4.0},
             "feedforward": {"source": "file", "file": "PLAN"}},
     "observer": {"structure": {"modes": MODES, "lag_ms": 4.0}, "observer": {"modes": MODES, "horizon_ms": 5.0}},
+    "follower": {"structure": {"modes": MODES, "lag_ms": 4.0},
+                 "observer": {"modes": MODES, "horizon_ms": 5.0, "follow": True}},
 }
-BOUNDED_BY_THE_FORCE = sorted(set(PARTS) - {"observer"})     # the observer is driven by the acceleration too
+BOUNDED_BY_THE_FORCE = sorted(set(PARTS) - {"observer", "follower"})     # driven by the acceleration too
 
 
 def plan_file(folder, scale: float = 1.0):
@@ -110,6 +115,33 @@ def test_every_part_runs_alike_on_the_compiled_and_the_python_path(tmp_path, mod
     assert differs                      # the part does change the deflection
 
 
+def test_the_followers_frequencies_reach_the_compiled_cycle_as_the_python_one(tmp_path, model):
+    """`Dynamics.retune` (what the follower calls) mid-drive on both paths: they stay alike, and unlike a
+    cycle that kept the configured modes."""
+    cfg = config_with(tmp_path, "follower")
+    py, cc, kept = (Cycle.from_config(cfg, model) for _ in range(3))
+    cc.compensator.compile()
+    differs = False
+    for k, _ in enumerate(zip(drive(py, 1500, plan=inputs), drive(cc, 1500, plan=inputs),
+                              drive(kept, 1500, plan=inputs))):
+        if k == 700:
+            for c in (py, cc):
+                c.compensator.dynamics.retune([12.0, 19.0])
+        assert close(cc.deflection, py.deflection), (k, cc.deflection, py.deflection)
+        differs |= k > 700 and not close(py.deflection, kept.deflection, 1e-6)
+    assert differs
+
+
+def test_a_follower_without_the_structures_modes_refuses_to_start(tmp_path, model):
+    cfg = config_with(tmp_path, "follower")
+    data = cfg.model_dump()
+    data["dynamics"]["structure"]["modes"] = MODES[:1]
+    bad = ServiceConfig.model_validate(data)
+    bad.path = cfg.path
+    with pytest.raises(ServiceConfigError, match="dynamics.observer.follow"):
+        Cycle.from_config(bad, model)
+
+
 def white_noise_run(cycle: Cycle, seconds: float = 60.0, seed: int = 4) -> np.ndarray:
     """dq (deg, before limits) of every cycle under white-noise force (300 N, 30 Nm, 1 sigma) at fixed joints."""
     rng = np.random.default_rng(seed)
@@ -145,17 +177,21 @@ def test_a_part_with_its_parameters_20_percent_off_stays_bounded_under_60_s_of_w
 
 def test_the_observer_with_its_modes_20_percent_off_stays_bounded_under_60_s_of_noise(tmp_path, model):
     """White-noise force and the box's noise (1 mg) together: no growth, and within 1.5 x the RMS of the same
-    modes without the observer (the force-only path it corrects)."""
-    runs = {}
-    for part in ("observer", "structure"):
+    modes without the observer (the force-only path it corrects); with the follower too, which the noise gives
+    nothing to follow (no frequency changed)."""
+    runs, followers = {}, {}
+    for part in ("observer", "follower", "structure"):
         cycle = Cycle.from_config(config_with(tmp_path, part, scale=1.2), model)
         cycle.compensator.compile()
         runs[part] = white_noise_run(cycle)
+        followers[part] = cycle.compensator.dynamics.follower
         assert cycle.faults.word == 0 and np.isfinite(runs[part]).all()
     blocks = {p: np.sqrt((dq[1000:].reshape(59, 1000, 6) ** 2).mean(axis=(1, 2))) for p, dq in runs.items()}
-    b = blocks["observer"]
-    assert b[-20:].mean() <= 1.3 * b[:20].mean() and b.max() <= 2.0 * b[:20].mean(), b
-    assert np.sqrt((b ** 2).mean()) <= 1.5 * np.sqrt((blocks["structure"] ** 2).mean()), blocks
+    for part in ("observer", "follower"):
+        b = blocks[part]
+        assert b[-20:].mean() <= 1.3 * b[:20].mean() and b.max() <= 2.0 * b[:20].mean(), (part, b)
+        assert np.sqrt((b ** 2).mean()) <= 1.5 * np.sqrt((blocks["structure"] ** 2).mean()), (part, blocks)
+    assert all(m.changes == 0 for m in followers["follower"].modes)
 
 
 def noise_gain(cycle: Cycle) -> float:
