@@ -83,7 +83,8 @@ class ModeBank:
         self.smm, self.smy[:], self.syy[:] = 0.0, 0.0, 0.0
 
     def push(self, u: float, m: float) -> None:
-        """This cycle's static deflection along the mode (u, m, the structure's input) and the arm's in the band."""
+        """This cycle's static deflection along the mode (``u``, the structure's input) and the arm's deflection
+        along it in the band (``m``)."""
         if not self.started:                 # the band's filters steady on this u, the bank at rest
             for (b0, b1, b2, a1, a2), z in zip(self.band, self.zb):
                 y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
