@@ -26,7 +26,7 @@ their sections with the new frequency (their own `params`, written in place into
 the compiled cycle's memory). A quasi-static load leaves every candidate alike (each has unit static gain):
 no reading, nothing changes.
 
-The follower runs in the cycle's process after the cycle, in Python (about 30 us a cycle for two modes,
+The follower runs in the cycle's process after the cycle, in Python (about 16 us a cycle for two modes,
 `benchmarks/bench_dynamics_cost.py`); it reads nothing until the observer's band has settled after a start.
 """
 
