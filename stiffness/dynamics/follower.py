@@ -10,7 +10,8 @@ frequency f_k, damping zeta_k as configured):
                                          through B / s^2 less L B of the nominal TCP; no correction in it)
     v_k = L B (phi_k . x_s)(t - h)       the model's static deflection through the same band, as the observer
                                          takes the model's (x_s the structure's input, `structure_law`'s u)
-    y_j = H(f_j, zeta_k) v_k             a bank of candidates f_j = f_k (1 + r), r in [-range, range]
+    y_j = H(f_j, zeta_k) v_k             a bank of candidates f_j = f_k (1 + STEP)^j, from f_k / (1 + range)
+                                         to f_k (1 + range) (``follow_range``)
 
 and, forgetting with the time constant ``follow_window_ms``, each candidate's least-squares misfit with its
 own gain (the static model's scale is not the question here):

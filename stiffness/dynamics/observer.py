@@ -204,7 +204,7 @@ class Observer(Stage):
         ramp_ms: float = Field(100.0, gt=0.0, le=10_000.0)
         settle_ms: float = Field(150.0, ge=0.0, le=10_000.0)   # after a (re)start, the gain rises after this
         follow: bool = False                # the modes' frequencies followed in the cut (`stiffness.dynamics.follower`)
-        follow_range: float = Field(0.4, gt=0.0, le=0.6)            # the candidates: f (1 +- range)
+        follow_range: float = Field(0.4, gt=0.0, le=0.6)            # the candidates: f / (1 + range) to f (1 + range)
         follow_window_ms: float = Field(400.0, ge=50.0, le=5000.0)  # the misfit's forgetting
 
         _orthogonal = field_validator("modes")(classmethod(lambda cls, v: orthogonal(v)))
@@ -215,7 +215,7 @@ class Observer(Stage):
             if not (0.0 < lo < min(m.hz for m in self.modes) and max(m.hz for m in self.modes) < hi):
                 raise ValueError(f"band_hz [{lo:g}, {hi:g}] must hold every mode's frequency, above 0")
             r = self.follow_range if self.follow else 0.0
-            if not (lo < (1.0 - r) * min(m.hz for m in self.modes) and (1.0 + r) * max(m.hz for m in self.modes) < hi):
+            if not (lo < min(m.hz for m in self.modes) / (1.0 + r) and (1.0 + r) * max(m.hz for m in self.modes) < hi):
                 raise ValueError(f"band_hz [{lo:g}, {hi:g}] must hold every frequency follow_range {r:g} lets a "
                                  "mode take")
             return self

@@ -7,7 +7,8 @@ low-pass, 3 ms of age), the structure and the observer running their laws as the
   before it (hypothesis);
 * with the frequency right, it changes nothing;
 * 10 s of the box's noise at rest, no cut: nothing changes;
-* the frequency it hands over is what the running terms then hold: their parameters are the parts' own at it.
+* the frequency it hands over is what the running terms then hold: their parameters are the parts' own at it;
+* a `follow_range` whose candidates the band cannot hold is refused, naming both.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pydantic import ValidationError
 from scipy import signal
 
 from hil.structure import oscillate
@@ -92,3 +94,12 @@ def test_the_running_terms_hold_the_parts_own_parameters_at_the_followed_frequen
     assert np.array_equal(ts.params, structure.with_frequencies(hz).params(DT))
     assert np.array_equal(to.params, observer.with_frequencies(hz).params(DT))
     assert not np.array_equal(ts.params, structure.params(DT))
+
+
+def test_a_range_the_band_cannot_hold_is_refused_naming_both():
+    """The candidates run from f / (1 + range) to f (1 + range): 3.4 Hz / 1.4 lies below the band's 2.5 Hz."""
+    mode = {"hz": 3.4, "damping": 0.03, "direction": [1, 0, 0]}
+    Observer.Config(modes=[mode])                                   # without follow the band holds the mode
+    Observer.Config(modes=[{**mode, "hz": 3.6}], follow=True)      # 3.6 / 1.4 = 2.57 Hz
+    with pytest.raises(ValidationError, match="band_hz .* follow_range 0.4"):
+        Observer.Config(modes=[mode], follow=True)
