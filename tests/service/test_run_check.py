@@ -36,6 +36,7 @@ def test_a_host_that_is_not_this_machines_is_refused(tmp_path, capsys):
     refused(capsys, check(cfg), str(cfg), "plc.port", "192.0.2.1 is not an address of this machine")
 
 
+@pytest.mark.serial           # the shipped config's ports (ADS 48898 and the others) are the whole host's
 def test_the_shipped_kuka_config_is_refused_as_run_refuses_it(capsys):
     """The issue's case: robot.host 192.168.1.10 (ADAPT in the file) is no address of this machine."""
     cfg = SHIPPED / "robot_kuka_rsi.yaml"
