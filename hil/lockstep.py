@@ -27,7 +27,7 @@ import numpy as np
 
 from service.app import Service
 from service.config import load_config
-from service.run_stats import followed_modes
+from service.run_stats import dynamics_stats
 from service.sources.base import FtSource
 from service.trace import TraceOptions
 from stiffness.data.trace_file import TraceFile
@@ -103,9 +103,7 @@ def run_lockstep(scenario: Scenario, truth: StiffnessModel, model_path: Path, co
             out_file.close()
     stats = service.info.stats()
     stats["status"] = "stopped"
-    followed = followed_modes(service)
-    if followed is not None:                # as `stiffcomp run --stats-json` writes it
-        stats["dynamics"] = {"followed": followed}
+    stats.update(dynamics_stats(service))   # as `stiffcomp run --stats-json` writes it
     extra = {"unmapped_nonzero": [], "lockstep": True, "plc_program": program.summary(log.dialled)}
     if box is not None:                 # what the box measured, low-passed, in base axes: the truth of its values
         extra["accelerometer"] = {"t": np.array([s[0] for s in box.true]), "a": np.array([s[1] for s in box.true]),

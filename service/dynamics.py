@@ -20,7 +20,8 @@ import logging
 from pydantic import Field, create_model
 
 from stiffness.dynamics import STAGES, DynamicsContext, Stage
-from stiffness.dynamics.observer import MAX_SAMPLE_MS, MEASURED, Observer
+from stiffness.dynamics.observer import MAX_SAMPLE_MS, Observer
+from stiffness.dynamics.structure import Structure
 from stiffness.effects.terms import Term
 from stiffness.errors import StiffnessError
 from stiffness.files.yaml_schema import Strict
@@ -143,12 +144,11 @@ class Dynamics:
     def _follow(self) -> None:
         """The follower's cycle, on the states the cycle just left: the structure's inputs and the observer's
         band deflection; it starts afresh while the observer is not running or its band is settling."""
-        st, obs = self._live["structure"].state, self._live["observer"].state
-        if not Observer.settled(self._live["observer"]):
+        obs = self._live["observer"]
+        if not Observer.settled(obs):
             self.follower.restart()
             return
-        n = len(self.follower.modes)
-        self.follower.step(st[2 * n + 1:3 * n + 1], obs[MEASURED:MEASURED + 3])
+        self.follower.step(Structure.inputs(self._live["structure"]), Observer.measured(obs))
 
     def describe(self) -> str:
         if not self.stages:

@@ -26,7 +26,7 @@ def log_stats(service) -> None:
 
 def write_stats(service, path: str | Path) -> dict:
     """The task's statistics, the status, why the service failed, the I/O process's deaths and restarts, the
-    robot road's and the trace's counts, the modes the follower took (`followed_modes`), as JSON to ``path``;
+    robot road's and the trace's counts, the modes the follower took (`dynamics_stats`), as JSON to ``path``;
     returned."""
     stats = service.info.stats()
     stats["status"] = "stopped" if service.task_state == TaskState.STOP else "running"
@@ -37,18 +37,17 @@ def write_stats(service, path: str | Path) -> dict:
         stats["robot"] = io.road_stats
     if service.trace_counts is not None:
         stats["trace"] = {"file": str(service.trace_options.path), **service.trace_counts}
-    followed = followed_modes(service)
-    if followed is not None:
-        stats["dynamics"] = {"followed": followed}
+    stats.update(dynamics_stats(service))
     Path(path).write_text(json.dumps(stats, indent=2) + "\n")
     return stats
 
 
-def followed_modes(service) -> list[dict] | None:
-    """With ``dynamics.observer.follow``, each mode's configured frequency, the one in use and how often the
-    follower changed it (`stiffness.dynamics.follower`); None without a follower."""
+def dynamics_stats(service) -> dict:
+    """With ``dynamics.observer.follow``, {"dynamics": {"followed": [...]}}: each mode's configured frequency,
+    the one in use and how often the follower changed it (`stiffness.dynamics.follower`); else {}."""
     dynamics = service.cycle.compensator.dynamics
     follower = None if dynamics is None else dynamics.follower
     if follower is None:
-        return None
-    return [{"configured_hz": m.configured_hz, "hz": m.hz, "changes": m.changes} for m in follower.modes]
+        return {}
+    return {"dynamics": {"followed": [{"configured_hz": m.configured_hz, "hz": m.hz, "changes": m.changes}
+                                      for m in follower.modes]}}

@@ -38,8 +38,9 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import signal
 
-from .base import biquad
+from .structure import mode_biquad
 
 DECIDE_MS = 20.0
 MIN_CONTRAST = 0.25     # (J_worst - J_best) / S_mm: the frequency matters to what the arm did
@@ -52,7 +53,6 @@ STEP = 0.02             # the candidates' spacing, relative
 class Followed:
     """One mode's frequency as the follower reads it."""
 
-    index: int
     configured_hz: float
     hz: float                               # in use
     readings: deque = field(default_factory=lambda: deque(maxlen=AGREE))
@@ -63,15 +63,15 @@ class ModeBank:
     """One mode's bank of candidates (module docstring): ``push`` each cycle, ``reading`` the frequency the
     arm's ringing shows, or None."""
 
-    def __init__(self, hz: float, damping: float, band: np.ndarray, horizon: int, period_s: float,
+    def __init__(self, hz: float, damping: float, band_sos: np.ndarray, horizon: int, period_s: float,
                  span: float, window_s: float):
         n = round(math.log1p(span) / math.log1p(STEP))
         self.hz = hz * (1.0 + STEP) ** np.arange(-n, n + 1)
-        c = np.array([biquad([w * w], [1.0, 2.0 * damping * w, w * w], period_s, f)
-                      for f, w in zip(self.hz, 2.0 * math.pi * self.hz)])
+        c = np.array([mode_biquad(f, damping, period_s) for f in self.hz])
         self.b0, self.b1, self.b2, self.a1, self.a2 = c.T.copy()
         self.z0, self.z1 = np.zeros(len(self.hz)), np.zeros(len(self.hz))
-        self.band = [tuple(float(x) for x in row) for row in band]     # L B: 4 x (b0, b1, b2, a1, a2)
+        self.sos = np.asarray(band_sos, dtype=float)                    # L B, scipy's sections
+        self.band = [(b0, b1, b2, a1, a2) for b0, b1, b2, _, a1, a2 in self.sos.tolist()]
         self.zb = [[0.0, 0.0] for _ in self.band]
         self.line: deque[float] = deque(maxlen=horizon + 1)
         self.lam = math.exp(-period_s / window_s)
@@ -87,11 +87,7 @@ class ModeBank:
         """This cycle's static deflection along the mode (``u``, the structure's input) and the arm's deflection
         along it in the band (``m``)."""
         if not self.started:                 # the band's filters steady on this u, the bank at rest
-            for (b0, b1, b2, a1, a2), z in zip(self.band, self.zb):
-                y = (b0 + b1 + b2) / (1.0 + a1 + a2) * u
-                z[1] = b2 * u - a2 * y
-                z[0] = b1 * u - a1 * y + z[1]
-                u = y
+            self.zb = (signal.sosfilt_zi(self.sos) * u).tolist()
             self.z0[:], self.z1[:] = 0.0, 0.0
             self.started = True
             return
@@ -132,24 +128,30 @@ class Follower:
     ``apply(hz)`` is given the frequencies in use (one per mode) when they change: it rewrites the parameters
     of the terms the cycle runs."""
 
-    def __init__(self, modes, band: np.ndarray, horizon: int, period_s: float, span: float, window_s: float,
+    def __init__(self, modes, band_sos: np.ndarray, horizon: int, period_s: float, span: float, window_s: float,
                  apply):
-        self.modes = [Followed(k, m.hz, m.hz) for k, m in enumerate(modes)]
+        self.modes = [Followed(m.hz, m.hz) for m in modes]
         self.directions = np.array([m.direction for m in modes])
-        self.banks = [ModeBank(m.hz, m.damping, band, horizon, period_s, span, window_s) for m in modes]
+        self.banks = [ModeBank(m.hz, m.damping, band_sos, horizon, period_s, span, window_s) for m in modes]
         self.every = max(1, round(DECIDE_MS / 1000.0 / period_s))
         self.n = 0
         self.apply = apply
+        self.fresh = True
 
     def restart(self) -> None:
-        """The accelerometer's samples stopped or the states restarted: what the banks held says nothing now."""
+        """The accelerometer's samples stopped or the states restarted: what the banks held says nothing now
+        (once: it is called every cycle the observer is off)."""
+        if self.fresh:
+            return
         for b, f in zip(self.banks, self.modes):
             b.restart()
             f.readings.clear()
+        self.fresh = True
 
     def step(self, u, m) -> list[Followed]:
         """This cycle's static deflection along each mode (``u``, the structure's inputs) and the arm's band
         deflection ``m`` (3,); returns the modes whose frequency changed (after `apply`)."""
+        self.fresh = False
         mk = self.directions @ np.asarray(m, dtype=float)
         for bank, uk, mkk in zip(self.banks, u, mk):
             bank.push(float(uk), float(mkk))

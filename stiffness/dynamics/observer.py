@@ -62,6 +62,7 @@ from scipy import signal
 from ..effects.terms import TwistTerm
 from ..files.yaml_schema import Strict
 from .base import DynamicsContext, Stage, biquad
+from .follower import Follower
 from .structure import ModeConfig, orthogonal
 
 H_MAX = 100             # the delay line's length, cycles
@@ -259,6 +260,11 @@ class Observer(Stage):
         return [self.fed[-1]]
 
     @staticmethod
+    def measured(term: TwistTerm) -> np.ndarray:
+        """The last cycle's m = (B / s^2) a - L B FK(q) (3,), the arm's deflection in the band, from the term's state."""
+        return term.state[MEASURED:MEASURED + 3]
+
+    @staticmethod
     def settled(term: TwistTerm) -> bool:
         """The observer's term runs and its band has settled since its start (``settle_ms``)."""
         return term.state[7] != 0.0 and term.state[SETTLED] > term.params[-1]
@@ -273,11 +279,10 @@ class Observer(Stage):
         whose ``apply(hz)`` rewrites the running terms."""
         if not self.cfg.follow:
             return None
-        from .follower import Follower
-
         h = round(self.cfg.horizon_ms / 1000.0 / period_s)
-        return Follower(self.cfg.modes, self.filters(period_s)[3:], h, period_s, self.cfg.follow_range,
-                        self.cfg.follow_window_ms / 1000.0, apply)
+        lb = band_sos(self.cfg.band_hz, self.cfg.box_lowpass_hz, period_s)[1]
+        return Follower(self.cfg.modes, lb, h, period_s, self.cfg.follow_range, self.cfg.follow_window_ms / 1000.0,
+                        apply)
 
     def feed_motion(self, acceleration, ok: bool, p_tcp, sample_period_s: float = 0.0) -> None:
         """This cycle's acceleration (base, m/s^2), whether the accelerometer's samples arrive, and the nominal

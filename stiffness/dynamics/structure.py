@@ -74,6 +74,12 @@ def orthogonal(modes: list[ModeConfig]) -> list[ModeConfig]:
     return modes
 
 
+def mode_biquad(hz: float, damping: float, period_s: float, added_damping: float = 0.0) -> np.ndarray:
+    """[b0, b1, b2, a1, a2] of one mode's H (module docstring) at ``period_s``, prewarped at ``hz``."""
+    w, zf = 2.0 * np.pi * hz, damping + added_damping
+    return biquad([0.0, 2.0 * added_damping * w, w * w], [1.0, 2.0 * zf * w, w * w], period_s, hz)
+
+
 def structure_law(s, p, dX, dt):
     """dX (6,) <- the modes' response, in place; p = [K, K x (phi (3), b0, b1, b2, a1, a2)];
     s = [K x (z0, z1), started, K x u] (u: this cycle's phi_k . x_s, what the follower compares the arm with,
@@ -110,11 +116,7 @@ class Structure(Stage):
 
     def coefficients(self, period_s: float) -> np.ndarray:
         """(K, 5) each mode's biquad [b0, b1, b2, a1, a2] at ``period_s``."""
-        out = []
-        for m in self.cfg.modes:
-            w, zf = 2.0 * np.pi * m.hz, m.damping + self.cfg.added_damping
-            out.append(biquad([0.0, 2.0 * (zf - m.damping) * w, w * w], [1.0, 2.0 * zf * w, w * w], period_s, m.hz))
-        return np.array(out)
+        return np.array([mode_biquad(m.hz, m.damping, period_s, self.cfg.added_damping) for m in self.cfg.modes])
 
     def params(self, period_s: float) -> np.ndarray:
         rows = [[*m.direction, *c] for m, c in zip(self.cfg.modes, self.coefficients(period_s))]
@@ -125,6 +127,12 @@ class Structure(Stage):
 
     def lag_s(self) -> float:
         return self.cfg.lag_ms / 1000.0
+
+    @staticmethod
+    def inputs(term: TwistTerm) -> np.ndarray:
+        """The last cycle's u = phi_k . x_s of each mode, from the term's state (`structure_law`)."""
+        n = int(term.params[0])
+        return term.state[2 * n + 1:3 * n + 1]
 
     def with_frequencies(self, hz) -> Structure:
         """This structure with the modes at ``hz`` (one each; the follower's, `stiffness.dynamics.follower`)."""

@@ -22,7 +22,7 @@ from scipy import signal
 
 from hil.structure import oscillate
 from stiffness.dynamics.base import DynamicsContext
-from stiffness.dynamics.observer import MEASURED, Observer
+from stiffness.dynamics.observer import Observer
 from stiffness.dynamics.structure import Structure
 
 pytestmark = pytest.mark.slow
@@ -61,7 +61,7 @@ def follow(f_true: float, f_model: float, seconds: float = 2.0, cut: bool = True
         ts.law(ts.state, ts.params, dX, DT)
         to.law(to.state, to.params, dX, DT)
         if Observer.settled(to):
-            follower.step(ts.state[3:4], to.state[MEASURED:MEASURED + 3])
+            follower.step(Structure.inputs(ts), Observer.measured(to))
         else:
             follower.restart()
     return changes, (ts, to), (structure, observer)
