@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 
-from pydantic import Field, create_model
+from pydantic import Field, create_model, model_validator
 
 from stiffness.dynamics import STAGES, DynamicsContext, Stage
 from stiffness.dynamics.observer import MAX_SAMPLE_MS, Observer
@@ -30,8 +30,20 @@ from .errors import ServiceConfigError
 
 log = logging.getLogger("stiffcomp.service")
 
+def _follower_has_its_structure(section):
+    """``observer.follow`` hands the modes' frequencies to ``structure``: it must hold the observer's modes."""
+    obs, st = section.observer, section.structure
+    if obs is not None and obs.follow and (
+            st is None or len(st.modes) != len(obs.modes)
+            or any(abs(sum(a * b for a, b in zip(m.direction, n.direction))) < 0.99 for m, n in zip(st.modes, obs.modes))):
+        raise ValueError("observer.follow: the follower hands the modes' frequencies to dynamics.structure, which "
+                         "must hold the observer's modes (as many, in the same order and directions)")
+    return section
+
+
 DynamicsConfig = create_model(
     "DynamicsConfig", __base__=Strict, __doc__="``dynamics``: the dynamic compensation (module docstring).",
+    __validators__={"_follower": model_validator(mode="after")(_follower_has_its_structure)},
     enabled=(bool, False),
     delay_ms=(float, Field(8.0, ge=0.0, le=200.0)),
     **{name: (cls.Config | None, None) for name, cls in STAGES.items()})
@@ -59,14 +71,6 @@ class Dynamics:
         if section.enabled:
             self.stages = [self._stage(name, cls, getattr(section, name)) for name, cls in STAGES.items()
                           if getattr(section, name) is not None]
-        obs, st = self.part("observer"), self.part("structure")
-        if obs is not None and obs.cfg.follow and (
-                st is None or len(st.cfg.modes) != len(obs.cfg.modes)
-                or any(abs(sum(a * b for a, b in zip(m.direction, n.direction))) < 0.99
-                       for m, n in zip(st.cfg.modes, obs.cfg.modes))):
-            raise ServiceConfigError("dynamics.observer.follow: the follower hands the modes' frequencies to "
-                                     "dynamics.structure, which must hold the observer's modes (as many, in the "
-                                     "same order and directions)")
 
     def part(self, name: str) -> Stage | None:
         """The part ``name`` (`stiffness.dynamics.STAGES`), or None when the section has none."""

@@ -10,7 +10,7 @@
   the accelerometer's observer, with the box's noise too, within 1.5 x the same modes' RMS without it, and
   with its follower, which changes no frequency;
 * the follower's frequencies (`Dynamics.retune`) reach the compiled cycle as the Python one; a follower whose
-  structure lacks the observer's modes refuses to start;
+  structure lacks the observer's modes is refused with the config, naming the file and the key;
 * the ramps and the faults: with the enable bit off the correction ramps to zero as the static one does; a
   correction that is not finite trips value_invalid and ramps; a fault reset restarts every state;
 * the config: a feedforward whose value the register map lacks refuses to start, naming both; a reload
@@ -32,6 +32,7 @@ from service.ati import Reading
 from service.config import ServiceConfig, load_config
 from service.errors import ServiceConfigError
 from service.pipeline import Cycle
+from stiffness.files.yaml_schema import dump_yaml, read_yaml
 from stiffness.model.stiffness_model import StiffnessModel
 
 pytestmark = pytest.mark.slow
@@ -132,14 +133,16 @@ def test_the_followers_frequencies_reach_the_compiled_cycle_as_the_python_one(tm
     assert differs
 
 
-def test_a_follower_without_the_structures_modes_refuses_to_start(tmp_path, model):
-    cfg = config_with(tmp_path, "follower")
-    data = cfg.model_dump()
-    data["dynamics"]["structure"]["modes"] = MODES[:1]
-    bad = ServiceConfig.model_validate(data)
-    bad.path = cfg.path
-    with pytest.raises(ServiceConfigError, match="dynamics.observer.follow"):
-        Cycle.from_config(bad, model)
+@pytest.mark.parametrize("structure", [MODES[:1], None], ids=["one mode of two", "none"])
+def test_a_follower_without_the_structures_modes_is_refused_naming_the_file_and_the_key(tmp_path, structure):
+    data = read_yaml(CONFIG / "default.yaml")
+    data["dynamics"] = {"enabled": True, "observer": {"modes": MODES, "follow": True}}
+    if structure is not None:
+        data["dynamics"]["structure"] = {"modes": structure}
+    path = tmp_path / "service.yaml"
+    path.write_text(dump_yaml(data, sort_keys=False))
+    with pytest.raises(ServiceConfigError, match=rf"{path}: dynamics .*observer\.follow: .*dynamics\.structure"):
+        load_config(path)
 
 
 def white_noise_run(cycle: Cycle, seconds: float = 60.0, seed: int = 4) -> np.ndarray:
